@@ -1,0 +1,93 @@
+"""The ``coursekit`` command: start the course, run demos, build and grade exercises, benchmark."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _cmd_lab(args: argparse.Namespace) -> int:
+    """Open JupyterLab on the lessons folder."""
+    lessons = Path(args.dir).resolve()
+    if not lessons.is_dir():
+        print(f"coursekit lab: no lessons folder at {lessons}", file=sys.stderr)
+        return 2
+    cmd = [sys.executable, "-m", "jupyterlab", f"--ServerApp.root_dir={lessons.parent}", str(lessons.relative_to(lessons.parent))]
+    if args.no_browser:
+        cmd.append("--no-browser")
+    cmd += args.extra
+    print("coursekit: starting JupyterLab on", lessons)
+    return subprocess.call(cmd)
+
+
+def _cmd_grade(args: argparse.Namespace) -> int:
+    from coursekit.grading.grader import main as grade_main
+
+    return grade_main(args)
+
+
+def _cmd_exercises(args: argparse.Namespace) -> int:
+    from coursekit.grading.authoring import main as authoring_main
+
+    return authoring_main(args)
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    bench_dir = ROOT / "benchmarks"
+    names = args.names or sorted(p.stem for p in bench_dir.glob("*.py") if not p.stem.startswith("_"))
+    rc = 0
+    for name in names:
+        script = bench_dir / f"{name}.py"
+        if not script.is_file():
+            print(f"coursekit bench: no benchmark named {name!r}; have {sorted(p.stem for p in bench_dir.glob('*.py'))}", file=sys.stderr)
+            return 2
+        print(f"== benchmarks/{name}.py")
+        rc |= subprocess.call([sys.executable, str(script), *args.extra], env={**os.environ, "PYTHONPATH": str(ROOT)})
+    return rc
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="coursekit", description="Genetic algorithms for computer graphics: swimmers and genetic pictures.")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    s = sub.add_parser("lab", help="open JupyterLab on the lessons")
+    s.add_argument("--dir", default=str(ROOT / "lessons"), help="lessons folder (default: the repository's lessons/)")
+    s.add_argument("--no-browser", action="store_true", help="do not open a browser window")
+    s.add_argument("extra", nargs=argparse.REMAINDER, help="further JupyterLab options")
+    s.set_defaults(func=_cmd_lab)
+
+    s = sub.add_parser("grade", help="grade exercise notebooks in isolated kernels (Gradescope JSON)")
+    s.add_argument("notebooks", nargs="+", help="notebooks to grade")
+    s.add_argument("--json", dest="json_out", help="write Gradescope-format results here")
+    s.add_argument("--timeout", type=float, default=60.0, help="seconds allowed per student call (default 60)")
+    s.set_defaults(func=_cmd_grade)
+
+    s = sub.add_parser("exercises", help="build exercises/ from solutions/, or check they are in sync")
+    s.add_argument("action", choices=["build", "check"])
+    s.add_argument("--solutions", default=str(ROOT / "solutions"))
+    s.add_argument("--exercises", default=str(ROOT / "exercises"))
+    s.set_defaults(func=_cmd_exercises)
+
+    s = sub.add_parser("bench", help="run the benchmarks (tables against a reference, same run)")
+    s.add_argument("names", nargs="*", help="benchmark names (default: all)")
+    s.add_argument("--", dest="extra", nargs=argparse.REMAINDER, default=[])
+    s.set_defaults(func=_cmd_bench, extra=[])
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 0
+    return int(args.func(args) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

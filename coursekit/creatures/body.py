@@ -1,0 +1,182 @@
+"""The body tree: the physical phenotype of one creature (paper section 2.3).
+
+This is the contract between phenotype expansion (:mod:`coursekit.creatures.phenotype`, which
+produces it), the simulator (:mod:`coursekit.creatures.physics`, which packs many of them into a
+batch), the MuJoCo export (:mod:`coursekit.creatures.mjcf`) and rendering.
+
+Conventions
+-----------
+A creature is a tree of ``B`` rigid boxes stored in pre-order: body 0 is the root and
+``parent[i] < i`` for every other body. Every body frame sits at the box's centre of mass with its
+axes along the box edges; ``half_extents[i]`` are the half side lengths along those axes.
+Boxes have uniform density ``density`` (1.0 = neutrally buoyant in water of density 1), so
+``mass = 8 * prod(half_extents) * density``.
+
+The root is joined to the world by a free joint (6 DOF). Every other body ``i`` is joined to
+``parent[i]`` by one 1-DOF joint of type ``joint_type[i]`` (:data:`REVOLUTE` or
+:data:`PRISMATIC`) with coordinate ``q``:
+
+- ``joint_pos_parent[i]``: the joint anchor in the parent's body frame;
+- ``joint_pos_child[i]``: the same anchor in the child's body frame (the paper's "joint position
+  relative to the node's centre of mass");
+- ``joint_rot[i]``: proper rotation (det +1) taking child-frame vectors to the parent frame at
+  ``q = 0``;
+- ``joint_axis[i]``: unit joint axis in the child's body frame.
+
+The child's pose in the parent frame as a function of ``q`` is, with ``Rot(a, q)`` the rotation
+by angle ``q`` about unit axis ``a``::
+
+    revolute:  R(q) = joint_rot @ Rot(joint_axis, q)
+               t(q) = joint_pos_parent - R(q) @ joint_pos_child
+    prismatic: R(q) = joint_rot
+               t(q) = joint_pos_parent + joint_rot @ (q * joint_axis - joint_pos_child)
+
+so that a point ``x`` in child coordinates is at ``R(q) @ x + t(q)`` in parent coordinates. In
+MuJoCo MJCF terms the child ``<body>`` has ``pos = joint_pos_parent - joint_rot @
+joint_pos_child`` and ``quat = joint_rot``, and its ``<joint>`` has ``pos = joint_pos_child`` and
+``axis = joint_axis``.
+
+``limits[i] = (lo, hi)`` bound ``q`` (radians or metres); ``lo < 0 < hi``. ``gain[i]`` is the
+signed force coefficient applied to the effector's output (its sign makes a symmetric copy move
+the same way or opposite), and ``strength[i] > 0`` is the largest joint force or torque the
+effector can apply (proportional to the cross-sectional area of the parts it joins, Sims 1994).
+Row 0 of every per-joint array belongs to the root's free joint and is ignored (zeros; identity
+for ``joint_rot``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+FREE = 0
+REVOLUTE = 1
+PRISMATIC = 2
+JOINT_TYPES = {FREE: "free", REVOLUTE: "revolute", PRISMATIC: "prismatic"}
+
+#: The thinnest a part may be (half extent, metres): paper-thin flippers are stiff for any
+#: explicit integrator and an exploit in the literature (see reference/creatures.md).
+MIN_HALF_EXTENT = 0.025
+
+
+@dataclass
+class BodyTree:
+    """A tree of rigid boxes joined by 1-DOF joints; see the module docstring for conventions."""
+
+    parent: np.ndarray  # (B,) int, -1 for the root
+    half_extents: np.ndarray  # (B, 3)
+    joint_type: np.ndarray  # (B,) int
+    joint_axis: np.ndarray  # (B, 3)
+    joint_pos_parent: np.ndarray  # (B, 3)
+    joint_pos_child: np.ndarray  # (B, 3)
+    joint_rot: np.ndarray  # (B, 3, 3)
+    limits: np.ndarray  # (B, 2)
+    gain: np.ndarray  # (B,)
+    strength: np.ndarray  # (B,)
+    density: float = 1.0
+    node_id: np.ndarray | None = None  # (B,) genotype node each body was instantiated from
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        B = len(self.parent)
+        as_f = lambda a, shape: np.ascontiguousarray(np.asarray(a, dtype=np.float64).reshape(shape))  # noqa: E731
+        self.parent = np.asarray(self.parent, dtype=np.int64).reshape(B)
+        self.joint_type = np.asarray(self.joint_type, dtype=np.int64).reshape(B)
+        self.half_extents = as_f(self.half_extents, (B, 3))
+        self.joint_axis = as_f(self.joint_axis, (B, 3))
+        self.joint_pos_parent = as_f(self.joint_pos_parent, (B, 3))
+        self.joint_pos_child = as_f(self.joint_pos_child, (B, 3))
+        self.joint_rot = as_f(self.joint_rot, (B, 3, 3))
+        self.limits = as_f(self.limits, (B, 2))
+        self.gain = as_f(self.gain, (B,))
+        self.strength = as_f(self.strength, (B,))
+        if self.node_id is not None:
+            self.node_id = np.asarray(self.node_id, dtype=np.int64).reshape(B)
+        self.validate()
+
+    @property
+    def n_bodies(self) -> int:
+        return len(self.parent)
+
+    @property
+    def n_joints(self) -> int:
+        """Number of 1-DOF joints (every body but the root)."""
+        return len(self.parent) - 1
+
+    @property
+    def mass(self) -> np.ndarray:
+        """(B,) mass of every box."""
+        return 8.0 * np.prod(self.half_extents, axis=1) * self.density
+
+    @property
+    def inertia(self) -> np.ndarray:
+        """(B, 3) principal moments of inertia of every box about its centre of mass."""
+        s = (2.0 * self.half_extents) ** 2
+        m = self.mass[:, None]
+        return m / 12.0 * np.stack([s[:, 1] + s[:, 2], s[:, 0] + s[:, 2], s[:, 0] + s[:, 1]], axis=1)
+
+    @property
+    def depth(self) -> np.ndarray:
+        """(B,) depth of every body in the tree (root 0)."""
+        d = np.zeros(self.n_bodies, dtype=np.int64)
+        for i in range(1, self.n_bodies):
+            d[i] = d[self.parent[i]] + 1
+        return d
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` naming the field when the tree breaks the conventions."""
+        B = self.n_bodies
+        if B < 1:
+            raise ValueError("BodyTree.parent: a creature needs at least one body, got 0")
+        if self.parent[0] != -1:
+            raise ValueError(f"BodyTree.parent[0]: the root's parent must be -1, got {self.parent[0]}")
+        idx = np.arange(B)
+        bad = np.nonzero((self.parent[1:] < 0) | (self.parent[1:] >= idx[1:]))[0]
+        if bad.size:
+            i = int(bad[0]) + 1
+            raise ValueError(f"BodyTree.parent[{i}]: must be in [0, {i}) (pre-order), got {self.parent[i]}")
+        if self.joint_type[0] != FREE or np.any((self.joint_type[1:] != REVOLUTE) & (self.joint_type[1:] != PRISMATIC)):
+            raise ValueError(
+                f"BodyTree.joint_type: root must be FREE (0) and others REVOLUTE (1) or PRISMATIC (2), got {self.joint_type.tolist()}"
+            )
+        if np.any(self.half_extents < MIN_HALF_EXTENT - 1e-12) or not np.all(np.isfinite(self.half_extents)):
+            i = int(np.argmin(self.half_extents.min(axis=1)))
+            raise ValueError(f"BodyTree.half_extents[{i}]: every half extent must be >= {MIN_HALF_EXTENT}, got {self.half_extents[i].tolist()}")
+        if B > 1:
+            n = np.linalg.norm(self.joint_axis[1:], axis=1)
+            if np.any(np.abs(n - 1.0) > 1e-9):
+                i = int(np.argmax(np.abs(n - 1.0))) + 1
+                raise ValueError(f"BodyTree.joint_axis[{i}]: must be a unit vector, got {self.joint_axis[i].tolist()}")
+            R = self.joint_rot[1:]
+            err = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max(axis=(1, 2))
+            det = np.linalg.det(R)
+            if np.any(err > 1e-9) or np.any(det < 0):
+                i = int(np.argmax(err + (det < 0))) + 1
+                raise ValueError(f"BodyTree.joint_rot[{i}]: must be a proper rotation matrix")
+            lo, hi = self.limits[1:, 0], self.limits[1:, 1]
+            if np.any(~(lo < 0)) or np.any(~(hi > 0)):
+                i = int(np.argmax(~(lo < 0) | ~(hi > 0))) + 1
+                raise ValueError(f"BodyTree.limits[{i}]: need lo < 0 < hi, got {self.limits[i].tolist()}")
+            if np.any(~(self.strength[1:] > 0)):
+                i = int(np.argmax(~(self.strength[1:] > 0))) + 1
+                raise ValueError(f"BodyTree.strength[{i}]: must be > 0, got {self.strength[i]}")
+        if not (self.density > 0):
+            raise ValueError(f"BodyTree.density: must be > 0, got {self.density}")
+
+
+def rotation_about(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rodrigues' rotation: matrices ``(..., 3, 3)`` rotating by ``angle`` about unit ``axis``."""
+    axis = np.asarray(axis, dtype=np.float64)
+    angle = np.asarray(angle, dtype=np.float64)
+    x, y, z = np.moveaxis(axis, -1, 0)
+    c, s = np.cos(angle), np.sin(angle)
+    C = 1.0 - c
+    return np.stack(
+        [
+            np.stack([c + x * x * C, x * y * C - z * s, x * z * C + y * s], axis=-1),
+            np.stack([y * x * C + z * s, c + y * y * C, y * z * C - x * s], axis=-1),
+            np.stack([z * x * C - y * s, z * y * C + x * s, c + z * z * C], axis=-1),
+        ],
+        axis=-2,
+    )
