@@ -1,0 +1,80 @@
+"""Array backends for the simulator: one code path for numpy and torch (paper section 2.4).
+
+The simulator is written against the array API (through :mod:`array_api_compat`). This module
+adds the little the standard lacks -- moving index arrays to a backend and the segment sum that
+accumulates children's articulated inertias into their parents -- and nothing else.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import array_api_compat
+
+BACKENDS = ("numpy", "torch")
+
+
+def namespace(backend: str):
+    """Array namespace for ``backend`` ("numpy" or "torch")."""
+    if backend == "numpy":
+        import array_api_compat.numpy as xp
+
+        return xp
+    if backend == "torch":
+        import array_api_compat.torch as xp
+
+        return xp
+    raise ValueError(f"backend: unknown backend {backend!r}; allowed: {', '.join(BACKENDS)}")
+
+
+def is_torch(xp) -> bool:
+    return array_api_compat.is_torch_namespace(xp)
+
+
+def asarray(xp, a, *, dtype=None, device=None):
+    """Convert ``a`` (numpy or backend array) to a float64 (or ``dtype``) array of ``xp``."""
+    if dtype is None:
+        dtype = xp.float64
+    if is_torch(xp):
+        import torch
+
+        if isinstance(a, torch.Tensor):
+            return a.to(dtype=dtype, device=device if device is not None else a.device)
+        return torch.as_tensor(np.asarray(a), dtype=dtype, device=device)
+    return np.ascontiguousarray(np.asarray(a), dtype=dtype)
+
+
+def index(xp, a, *, device=None):
+    """An int64 index array of ``xp``."""
+    return asarray(xp, np.asarray(a, dtype=np.int64), dtype=xp.int64, device=device)
+
+
+def to_numpy(a) -> np.ndarray:
+    """Any backend array as a numpy array (copied from the device when needed)."""
+    if hasattr(a, "detach"):
+        return a.detach().cpu().numpy()
+    return np.asarray(a)
+
+
+class Segments:
+    """Children of one tree level, sorted by parent, to be summed into their parents.
+
+    Args:
+        parent: (n,) parent index (into the full body array) of each child, non-decreasing.
+    """
+
+    def __init__(self, xp, parent: np.ndarray, device=None):
+        parent = np.asarray(parent, dtype=np.int64)
+        if parent.size and np.any(np.diff(parent) < 0):
+            raise ValueError("Segments.parent: children must be sorted by parent")
+        starts = np.flatnonzero(np.r_[True, parent[1:] != parent[:-1]]) if parent.size else np.zeros(0, np.int64)
+        self.torch = is_torch(xp)
+        self.parent = index(xp, parent, device=device)
+        self.starts = starts  # numpy: offsets for reduceat
+        self.unique = index(xp, parent[starts], device=device)
+
+    def add_into(self, target, values) -> None:
+        """``target[parent[k]] += values[k]`` for every child ``k`` (in place)."""
+        if self.torch:
+            target.index_add_(0, self.parent, values)
+        else:
+            target[self.unique] += np.add.reduceat(values, self.starts, axis=0)
