@@ -1,13 +1,12 @@
 """Joint mobility limits as stiff spring-dampers (paper section 2.3: "restoring spring forces").
 
 Beyond a limit the joint feels ``tau = -k (q - limit) - b q'``; inside, nothing. The stiffness is
-set per joint from a natural frequency ``w`` and the child part's own inertia about the joint
-(``m_eff = S' I_child S``, a lower bound of the joint's articulated inertia):
-``k = m_eff w^2``, ``b = 2 zeta m_eff w``. Because ``m_eff`` is a lower bound, the real limit
-modes are no faster than ``w``; choosing ``dt * w`` below the RK4 stability bound (about 2.8 on
-both axes) keeps the limits stable at the chosen step. The bound is not rigorous -- a light part
-between two heavy ones has faster modes -- so the simulator defaults to ``dt * w = 0.5``; the
-divergence guard catches what is left.
+set per joint from a natural frequency ``w`` and the smaller of the child's and the parent's own
+inertia about the joint (``m_eff = min(S' I_child S, S' I_parent S)``; taking the smaller one
+keeps a light part between two heavy ones from getting stiff springs on both sides):
+``k = m_eff w^2``, ``b = 2 zeta m_eff w``. The limit modes are then roughly no faster than ``w``
+(not rigorously: several springs can act on one light part), so the simulator keeps ``dt * w =
+0.5``, well below the RK4 stability bound (about 2.8); the divergence guard catches what is left.
 """
 
 from __future__ import annotations
@@ -23,11 +22,23 @@ def limit_gains(model, frequency: float, damping_ratio: float = 1.0):
         raise ValueError(f"limit_frequency: must be a positive number (rad/s), got {frequency}")
     if not (np.isfinite(damping_ratio) and damping_ratio >= 0):
         raise ValueError(f"limit_damping_ratio: must be >= 0, got {damping_ratio}")
-    S = model.S_np
-    m_eff = np.sum(S * S * model.inertia_diag_np[model.n_creatures :], axis=1)
+    m_eff = effective_inertia(model)
     k = m_eff * frequency**2
     b = 2.0 * damping_ratio * m_eff * frequency
     return bk.asarray(model.xp, k, device=model.device), bk.asarray(model.xp, b, device=model.device)
+
+
+def effective_inertia(model) -> np.ndarray:
+    """(M,) the smaller of the child's and the parent's own inertia about each joint (numpy)."""
+    C = model.n_creatures
+    S = model.S_np
+    child = np.sum(S * S * model.inertia_diag_np[C:], axis=1)
+    # the same joint motion expressed in the parent's frame at q = 0
+    R = model.joint_rot_np
+    a = np.einsum("mij,mj->mi", R, model.axis_np)
+    Sp = np.where(model.joint_type_np[:, None] == 1, np.concatenate([a, np.cross(model.jpp_np, a)], axis=1), np.concatenate([np.zeros_like(a), a], axis=1))
+    parent = np.sum(Sp * Sp * model.inertia_diag_np[model.parent[C:]], axis=1)
+    return np.minimum(child, parent)
 
 
 def limit_forces(xp, q, qd, lo, hi, k, b):

@@ -108,15 +108,18 @@ class Model:
         self.gain_np = cat("gain")[C:]
         self.strength_np = cat("strength")[C:]
         self.S_np = S
+        self.axis_np = axis
+        self.jpp_np = cat("joint_pos_parent")[C:]
+        self.joint_rot_np = cat("joint_rot")[C:]
 
         f = lambda a: bk.asarray(xp, a, device=device)  # noqa: E731
         self.inertia_diag = f(self.inertia_diag_np)
         self.S = f(S)
         self.revolute = bk.asarray(xp, rev, dtype=xp.bool, device=device)
         self.axis = f(axis)
-        self.jpp = f(cat("joint_pos_parent")[C:])
+        self.jpp = f(self.jpp_np)
         self.jpc = f(jpc)
-        self.joint_rot = f(cat("joint_rot")[C:])
+        self.joint_rot = f(self.joint_rot_np)
         self.half_extents = f(self.half_extents_np)
         self.mass = f(mass)
         self.body_creature = bk.index(xp, self.creature, device=device)

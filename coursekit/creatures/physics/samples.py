@@ -96,7 +96,7 @@ def random_body_tree(
             limits[i] = [-rng.uniform(0.4, 1.5), rng.uniform(0.4, 1.5)]
         gain[i] = rng.choice([-1.0, 1.0]) * rng.uniform(0.5, 1.5)
         area = max(np.prod(np.delete(half[i], j)) for j in range(3)) * 4
-        strength[i] = 20.0 * area
+        strength[i] = 0.2 * area
     return BodyTree(parent, half, jtype, axis, jpp, jpc, rot, limits, gain, strength)
 
 

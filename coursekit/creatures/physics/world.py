@@ -29,8 +29,8 @@ from .water import DRAG_COEFFICIENT, STABLE_DRAG_STEP, drag_matrix, max_drag_rat
 
 #: Default guard caps: root speed (m/s), root spin (rad/s), joint rate (rad/s or m/s).
 MAX_SPEED = 20.0
-MAX_ANGULAR_SPEED = 60.0
-MAX_JOINT_SPEED = 60.0
+MAX_ANGULAR_SPEED = 100.0
+MAX_JOINT_SPEED = 100.0
 
 
 class World:
