@@ -8,10 +8,12 @@ weights; ours are:
 ``fitness = DISTANCE_WEIGHT * max_t |c(t) - c(0)| / T  +  LATE_SPEED_WEIGHT * sum_k w_k s_k``
 
 where the evaluation time ``T`` (after the settle phase) is cut into :data:`WINDOWS` equal
-windows, ``s_k`` is the straight-line speed of the centre of mass over window ``k`` and the
-window weights grow linearly, ``w_k = k / sum(1..K)``, so the last window counts ``K`` times as
+windows, ``s_k`` is the rate at which the distance from the initial centre of mass grows over window ``k``
+(``(|c(t_k+1) - c(0)| - |c(t_k) - c(0)|) / window``; circling in place averages to about 0), and
+the window weights grow linearly, ``w_k = k / sum(1..K)``, so the last window counts ``K`` times as
 much as the first. A steady swimmer at speed ``v`` scores ``v``; a creature that coasts after one
-push scores less than a steady swimmer covering the same distance. Diverged creatures score 0.
+push scores less than a steady swimmer covering the same distance. Fitness is clipped at 0;
+diverged creatures score 0.
 """
 
 from __future__ import annotations
@@ -54,10 +56,10 @@ def swimming_fitness(com: np.ndarray, times: np.ndarray, diverged: np.ndarray | 
     max_dist = np.max(np.linalg.norm(com - start, axis=2), axis=1) / duration
     edges = np.linspace(times[0], times[-1], WINDOWS + 1)
     at = np.stack([np.stack([np.interp(edges, times, com[c, :, k]) for k in range(3)], axis=1) for c in range(com.shape[0])])
-    speeds = np.linalg.norm(np.diff(at, axis=1), axis=2) / np.diff(edges)
+    speeds = np.diff(np.linalg.norm(at - start, axis=2), axis=1) / np.diff(edges)
     late = speeds @ window_weights()
     fit = DISTANCE_WEIGHT * max_dist + LATE_SPEED_WEIGHT * late
-    fit = np.where(np.isfinite(fit), fit, 0.0)
+    fit = np.where(np.isfinite(fit), np.maximum(fit, 0.0), 0.0)
     if diverged is not None:
         fit = np.where(np.asarray(diverged, dtype=bool), 0.0, fit)
     return fit

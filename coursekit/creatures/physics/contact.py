@@ -10,7 +10,7 @@ vertex along ``-n`` (exact for vertex-face contacts; for an edge or a face, whos
 equally deep, the centre of that edge or face is used).
 
 Response is a penalty spring-damper along ``n``, ``f = max(0, k delta - c v_n)``, pushing B along
-``+n`` and A along ``-n`` at the contact point; ``k = m_red w^2`` and ``c = 2 m_red w`` (critical)
+``+n`` and A along ``-n`` at the contact point (held fixed in world axes over the step); ``k = m_red w^2`` and ``c = 2 m_red w`` (critical)
 use the pair's reduced mass and the same frequency rule as the joint limits (``w = 0.5 / dt``),
 so contacts are as stiff as the step allows. Forces are computed once per (sub)step and held
 over it. Sensors: a face is touching (+1) when it is the face of its box whose outward normal is
@@ -112,43 +112,50 @@ class Contacts:
         return sel[hit], a, b, n, depth[hit], 0.5 * (vA + vB)
 
     def forces(self, state):
-        """Penalty forces (N, 6, body coordinates) and contact sensors (N, 6) for ``state``."""
+        """Penalty wrenches and contact sensors for ``state``.
+
+        Returns:
+            ``(f_world, sensors)``: (N, 6) wrench on every body in *world* axes (moment about the
+            body's centre of mass, force) and (N, 6) face sensors in {-1, +1}. The simulator holds
+            the world wrench fixed over a step, so the forces on a colliding pair stay equal and
+            opposite and linear momentum is conserved exactly.
+        """
         from .aba import body_velocities, forward_kinematics, joint_transforms
 
         xp, m = self.xp, self.model
         N = m.n_bodies
-        f_ext = xp.zeros((N, 6), dtype=xp.float64, device=m.device)
+        f_world = xp.zeros((N, 6), dtype=xp.float64, device=m.device)
         sensors = -xp.ones((N, 6), dtype=xp.float64, device=m.device)
         if self.n_pairs == 0:
-            return f_ext, sensors
+            return f_world, sensors
         R0 = sp.quat_to_mat(xp, state.quat)
         R, p = forward_kinematics(m, R0, state.pos, state.q)
         pair_idx, a, b, n, depth, x = self.detect(R, p)
         if a.shape[0] == 0:
-            return f_ext, sensors
+            return f_world, sensors
         Rq, r = joint_transforms(m, state.q)
         v, _ = body_velocities(m, Rq.mT, r, xp.concat([state.omega, sp.mv(R0.mT, state.lin)], axis=1), state.qd)
 
         def point_velocity(i):
             rl = sp.mv(R[i].mT, x - p[i])
-            return sp.mv(R[i], v[i, 3:] + sp.cross3(xp, v[i, :3], rl)), rl
+            return sp.mv(R[i], v[i, 3:] + sp.cross3(xp, v[i, :3], rl))
 
-        va, ra = point_velocity(a)
-        vb, rb = point_velocity(b)
+        va = point_velocity(a)
+        vb = point_velocity(b)
         vn = xp.sum((vb - va) * n, axis=1)
         mag = xp.clip(self.k[pair_idx] * depth - self.c[pair_idx] * vn, 0.0, None)
         F = mag[:, None] * n
-        for body, sign, rl in ((b, 1.0, rb), (a, -1.0, ra)):
-            Fl = sign * sp.mv(R[body].mT, F)
-            w = xp.concat([sp.cross3(xp, rl, Fl), Fl], axis=1)
+        for body, sign in ((b, 1.0), (a, -1.0)):
+            Fw = sign * F
+            w = xp.concat([sp.cross3(xp, x - p[body], Fw), Fw], axis=1)
             if bk.is_torch(xp):
-                f_ext.index_add_(0, body, w)
+                f_world.index_add_(0, body, w)
             else:
-                np.add.at(f_ext, body, w)
+                np.add.at(f_world, body, w)
         for body, direction in ((b, -n), (a, n)):
             dl = sp.mv(R[body].mT, direction)  # contact direction in the box frame
             k = xp.argmax(xp.abs(dl), axis=1)
             rows = xp.arange(dl.shape[0], device=m.device) if bk.is_torch(xp) else np.arange(dl.shape[0])
             face = 2 * k + (dl[rows, k] > 0)  # faces -x,+x,-y,+y,-z,+z
             sensors[body, face] = 1.0
-        return f_ext, sensors
+        return f_world, sensors

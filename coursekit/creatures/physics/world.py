@@ -102,7 +102,7 @@ class World:
         quat[:, 0] = 1.0
         self.state = State(z(C, 3), quat, z(M), z(C, 3), z(C, 3), z(M))
         self.tau = z(M)
-        self.f_ext = None
+        self.f_world = None
         self.contact_sensors = None
         self._joint_creature = bk.index(xp, m.joint_creature, device=m.device)
 
@@ -133,7 +133,11 @@ class World:
         tau = self.tau
         if self.limits:
             tau = tau + limit_forces(xp, q, qd, self.lo, self.hi, self.limit_k, self.limit_b)
-        a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=self.f_ext, damping=self.damping)
+        f_ext = None
+        if self.f_world is not None:  # contact wrenches are held in world axes: rotate into each body
+            Rb, _ = forward_kinematics(m, R, pos, q)
+            f_ext = xp.concat([sp.mv(Rb.mT, self.f_world[:, :3]), sp.mv(Rb.mT, self.f_world[:, 3:])], axis=1)
+        a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping)
         lin_acc = sp.mv(R, a0[:, 3:] + sp.cross3(xp, omega, vb))
         return lin_acc, a0[:, :3], qdd
 
@@ -155,7 +159,8 @@ class World:
         self.tau = xp.where(jfrozen, xp.zeros_like(self.tau), self.tau)
         for _ in range(self.substeps):
             if self.contacts is not None:
-                self.f_ext, self.contact_sensors = self.contacts.forces(self.state)
+                f_world, self.contact_sensors = self.contacts.forces(self.state)
+                self.f_world = f_world if bool(xp.any(f_world != 0)) else None
             prev = self.state
             new = step(xp, prev, self.h, self._accel, self.integrator)
             self.state = self._guard(prev, new)
