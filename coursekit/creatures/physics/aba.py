@@ -16,14 +16,28 @@ from __future__ import annotations
 from . import spatial as sp
 
 
+def _rotate(xp, axis, angle, v):
+    """Rodrigues on vectors: ``Rot(axis, angle) @ v`` for (M, 3) stacks."""
+    c, s = xp.cos(angle)[:, None], xp.sin(angle)[:, None]
+    return v * c + sp.cross3(xp, axis, v) * s + axis * (xp.sum(axis * v, axis=-1, keepdims=True) * (1.0 - c))
+
+
 def joint_transforms(model, q):
-    """Rotation ``Rq`` (M, 3, 3) (child -> parent) and offset ``t`` (M, 3) of every joint at ``q``."""
+    """Joint transforms ``Xup = (E, r)`` at ``q``: ``E`` (M, 3, 3) rotates parent coordinates into
+    child coordinates, ``r`` (M, 3) is the child's origin in parent coordinates (contiguous arrays)."""
     xp = model.xp
     zero = xp.zeros_like(q)
-    Rq = model.joint_rot @ sp.rotation_about(xp, model.axis, xp.where(model.revolute, q, zero))
+    angle = xp.where(model.revolute, q, zero)
+    E = sp.rotation_about(xp, model.axis, -angle) @ model.joint_rot_T
     slide = xp.where(model.revolute, zero, q)
-    t = model.jpp - sp.mv(Rq, model.jpc) + sp.mv(model.joint_rot, slide[:, None] * model.axis)
-    return Rq, t
+    r = model.jpp + sp.mv(model.joint_rot, slide[:, None] * model.axis - _rotate(xp, model.axis, angle, model.jpc))
+    return E, r
+
+
+def joint_rotations(model, q):
+    """(M, 3, 3) child-to-parent rotations ``Rq = E.T`` at ``q`` (contiguous)."""
+    xp = model.xp
+    return model.joint_rot @ sp.rotation_about(xp, model.axis, xp.where(model.revolute, q, xp.zeros_like(q)))
 
 
 def body_velocities(model, E, r, v0, qd):
@@ -59,8 +73,7 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None):
     """
     xp = model.xp
     C, N = model.n_creatures, model.n_bodies
-    Rq, r = joint_transforms(model, q)
-    E = Rq.mT
+    E, r = joint_transforms(model, q)
     v, c = body_velocities(model, E, r, v0, qd)
 
     I = model.inertia_diag
@@ -107,7 +120,8 @@ def forward_kinematics(model, R0, p0, q):
     """World rotation (N, 3, 3) and position (N, 3) of every body."""
     xp = model.xp
     C, N = model.n_creatures, model.n_bodies
-    Rq, t = joint_transforms(model, q)
+    _, t = joint_transforms(model, q)
+    Rq = joint_rotations(model, q)
     R = xp.zeros((N, 3, 3), dtype=R0.dtype, device=model.device)
     p = xp.zeros((N, 3), dtype=R0.dtype, device=model.device)
     R[:C], p[:C] = R0, p0

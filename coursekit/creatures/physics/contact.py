@@ -133,8 +133,8 @@ class Contacts:
         pair_idx, a, b, n, depth, x = self.detect(R, p)
         if a.shape[0] == 0:
             return f_world, sensors
-        Rq, r = joint_transforms(m, state.q)
-        v, _ = body_velocities(m, Rq.mT, r, xp.concat([state.omega, sp.mv(R0.mT, state.lin)], axis=1), state.qd)
+        E, r = joint_transforms(m, state.q)
+        v, _ = body_velocities(m, E, r, xp.concat([state.omega, sp.mv(R0.mT, state.lin)], axis=1), state.qd)
 
         def point_velocity(i):
             rl = sp.mv(R[i].mT, x - p[i])
@@ -148,10 +148,7 @@ class Contacts:
         for body, sign in ((b, 1.0), (a, -1.0)):
             Fw = sign * F
             w = xp.concat([sp.cross3(xp, x - p[body], Fw), Fw], axis=1)
-            if bk.is_torch(xp):
-                f_world.index_add_(0, body, w)
-            else:
-                np.add.at(f_world, body, w)
+            bk.scatter_add(xp, f_world, body, w)
         for body, direction in ((b, -n), (a, n)):
             dl = sp.mv(R[body].mT, direction)  # contact direction in the box frame
             k = xp.argmax(xp.abs(dl), axis=1)

@@ -120,9 +120,12 @@ class Model:
         self.jpp = f(self.jpp_np)
         self.jpc = f(jpc)
         self.joint_rot = f(self.joint_rot_np)
+        self.joint_rot_T = f(np.ascontiguousarray(np.swapaxes(self.joint_rot_np, 1, 2)))
         self.half_extents = f(self.half_extents_np)
         self.mass = f(mass)
         self.body_creature = bk.index(xp, self.creature, device=device)
+        self.by_creature = np.argsort(self.creature, kind="stable")
+        self.creature_start = np.r_[0, np.cumsum(sizes)[:-1]]
         self.total_mass = np.bincount(self.creature, weights=mass, minlength=C)
 
     # ------------------------------------------------------------------ user layout helpers
@@ -139,9 +142,8 @@ class Model:
     def segment_sum(self, values):
         """Sum per-body rows (N, ...) into per-creature rows (C, ...)."""
         xp = self.xp
-        out = xp.zeros((self.n_creatures,) + tuple(values.shape[1:]), dtype=values.dtype, device=self.device) if bk.is_torch(xp) else np.zeros((self.n_creatures,) + values.shape[1:])
         if bk.is_torch(xp):
-            out.index_add_(0, self.body_creature, values)
-        else:
-            np.add.at(out, self.creature, values)
-        return out
+            out = xp.zeros((self.n_creatures,) + tuple(values.shape[1:]), dtype=values.dtype, device=self.device)
+            bk.scatter_add(xp, out, self.body_creature, values)
+            return out
+        return np.add.reduceat(values[self.by_creature], self.creature_start, axis=0)

@@ -63,7 +63,8 @@ def transform_matrix(xp, E, r):
     """The 6x6 matrix of ``X = (E, r)``."""
     z = xp.zeros_like(E)
     top = xp.concat([E, z], axis=-1)
-    bottom = xp.concat([-(E @ skew(xp, r)), E], axis=-1)
+    # rows of -E rx are r x (rows of E)
+    bottom = xp.concat([cross3(xp, r[..., None, :], E), E], axis=-1)
     return xp.concat([top, bottom], axis=-2)
 
 

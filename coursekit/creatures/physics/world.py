@@ -177,7 +177,7 @@ class World:
         if m.n_joints:
             nbad = xp.zeros((C,), dtype=xp.float64, device=m.device)
             if bk.is_torch(xp):
-                nbad.index_add_(0, self._joint_creature, jbad.to(xp.float64))
+                bk.scatter_add(xp, nbad, self._joint_creature, jbad.to(xp.float64))
             else:
                 nbad = np.bincount(m.joint_creature, weights=jbad, minlength=C)
             ok = ok & (nbad == 0)
@@ -208,8 +208,8 @@ class World:
         """Body-frame spatial velocities (N, 6) of all bodies (internal order)."""
         xp, m, s = self.xp, self.model, self.state
         R0 = sp.quat_to_mat(xp, s.quat)
-        Rq, r = joint_transforms(m, s.q)
-        v, _ = body_velocities(m, Rq.mT, r, xp.concat([s.omega, sp.mv(R0.mT, s.lin)], axis=1), s.qd)
+        E, r = joint_transforms(m, s.q)
+        v, _ = body_velocities(m, E, r, xp.concat([s.omega, sp.mv(R0.mT, s.lin)], axis=1), s.qd)
         return v
 
     def centre_of_mass(self) -> np.ndarray:
