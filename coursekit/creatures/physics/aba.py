@@ -16,32 +16,37 @@ from __future__ import annotations
 from . import spatial as sp
 
 
-def _rotate(xp, axis, angle, v):
-    """Rodrigues on vectors: ``Rot(axis, angle) @ v`` for (M, 3) stacks."""
-    c, s = xp.cos(angle)[:, None], xp.sin(angle)[:, None]
-    return v * c + sp.cross3(xp, axis, v) * s + axis * (xp.sum(axis * v, axis=-1, keepdims=True) * (1.0 - c))
-
-
 def joint_transforms(model, q):
     """Joint transforms ``Xup = (E, r)`` at ``q``: ``E`` (M, 3, 3) rotates parent coordinates into
-    child coordinates, ``r`` (M, 3) is the child's origin in parent coordinates (contiguous arrays)."""
+    child coordinates, ``r`` (M, 3) is the child's origin in parent coordinates.
+
+    Rodrigues' formula with the constant factors precomputed by the model: for revolute joints
+    ``E = J' + sin q (-K J') + (1 - cos q) K^2 J'`` (``K = [axis]x``, ``J`` = joint_rot); for
+    prismatic joints ``E = J'`` and ``r`` moves along ``J axis``.
+    """
     xp = model.xp
     zero = xp.zeros_like(q)
     angle = xp.where(model.revolute, q, zero)
-    E = sp.rotation_about(xp, model.axis, -angle) @ model.joint_rot_T
+    s, c1 = xp.sin(angle), 1.0 - xp.cos(angle)
+    E = model.E0 + s[:, None, None] * model.E1 + c1[:, None, None] * model.E2
     slide = xp.where(model.revolute, zero, q)
-    r = model.jpp + sp.mv(model.joint_rot, slide[:, None] * model.axis - _rotate(xp, model.axis, angle, model.jpc))
+    r = model.r0 + s[:, None] * model.r1 + c1[:, None] * model.r2 + slide[:, None] * model.r3
     return E, r
 
 
 def joint_rotations(model, q):
-    """(M, 3, 3) child-to-parent rotations ``Rq = E.T`` at ``q`` (contiguous)."""
+    """(M, 3, 3) child-to-parent rotations ``Rq = E.T`` at ``q``."""
     xp = model.xp
-    return model.joint_rot @ sp.rotation_about(xp, model.axis, xp.where(model.revolute, q, xp.zeros_like(q)))
+    angle = xp.where(model.revolute, q, xp.zeros_like(q))
+    s, c1 = xp.sin(angle), 1.0 - xp.cos(angle)
+    return model.joint_rot + s[:, None, None] * model.Rq1 + c1[:, None, None] * model.Rq2
 
 
-def body_velocities(model, E, r, v0, qd):
-    """Outward sweep: spatial velocities ``v`` (N, 6) and bias accelerations ``c`` (N, 6)."""
+def body_velocities(model, X, v0, qd):
+    """Outward sweep: spatial velocities ``v`` (N, 6) and bias accelerations ``c`` (N, 6).
+
+    ``X`` is the (M, 6, 6) stack of joint transforms ``Xup`` (:func:`spatial.transform_matrix`).
+    """
     xp = model.xp
     C, N = model.n_creatures, model.n_bodies
     vJ = model.S * qd[:, None]
@@ -50,7 +55,7 @@ def body_velocities(model, E, r, v0, qd):
     v[:C] = v0
     for s, e, par, _ in model.levels:
         j = slice(s - C, e - C)
-        vi = sp.transform_motion(xp, E[j], r[j], v[par]) + vJ[j]
+        vi = sp.mv(X[j], v[par]) + vJ[j]
         v[s:e] = vi
         c[s:e] = sp.cross_motion(xp, vi, vJ[j])
     return v, c
@@ -74,7 +79,8 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None):
     xp = model.xp
     C, N = model.n_creatures, model.n_bodies
     E, r = joint_transforms(model, q)
-    v, c = body_velocities(model, E, r, v0, qd)
+    Xup = sp.transform_matrix(xp, E, r)
+    v, c = body_velocities(model, Xup, v0, qd)
 
     I = model.inertia_diag
     pA = sp.cross_force(xp, v, I * v)
@@ -82,10 +88,7 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None):
         pA = pA + damping * v
     if f_ext is not None:
         pA = pA - f_ext
-    IA = xp.zeros((N, 6, 6), dtype=v.dtype, device=model.device)
-    k = xp.arange(6, device=model.device) if model.backend == "torch" else xp.arange(6)
-    IA[:, k, k] = I
-    Xup = sp.transform_matrix(xp, E, r)
+    IA = model.inertia_matrix + 0.0  # a fresh (N, 6, 6) copy of the rigid-body inertias
     S = model.S
     U = xp.zeros((N - C, 6), dtype=v.dtype, device=model.device)
     d = xp.zeros((N - C,), dtype=v.dtype, device=model.device)
@@ -100,8 +103,8 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None):
         Ia = IA[s:e] - Uj[:, :, None] * (Uj / dj[:, None])[:, None, :]
         pa = pA[s:e] + sp.mv(Ia, c[s:e]) + Uj * (uj / dj)[:, None]
         X = Xup[j]
-        seg.add_into(IA, X.mT @ Ia @ X)
-        seg.add_into(pA, sp.transform_force_back(xp, E[j], r[j], pa))
+        seg.add_into(IA, X.mT @ (Ia @ X))
+        seg.add_into(pA, sp.mv(X.mT, pa))
 
     a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
     a = xp.zeros((N, 6), dtype=v.dtype, device=model.device)
@@ -109,7 +112,7 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None):
     qdd = xp.zeros((N - C,), dtype=v.dtype, device=model.device)
     for s, e, par, _ in model.levels:
         j = slice(s - C, e - C)
-        ai = sp.transform_motion(xp, E[j], r[j], a[par]) + c[s:e]
+        ai = sp.mv(Xup[j], a[par]) + c[s:e]
         qddj = (u[j] - xp.sum(U[j] * ai, axis=-1)) / d[j]
         qdd[j] = qddj
         a[s:e] = ai + S[j] * qddj[:, None]

@@ -60,24 +60,35 @@ class Segments:
 
     Args:
         parent: (n,) parent index (into the full body array) of each child, non-decreasing.
+        parent_level: ``(start, stop)`` of the parents' level (a contiguous slice of bodies).
+
+    numpy sums with a sparse (parents x children) 0/1 matrix product -- several times faster
+    than ``np.add.reduceat`` or ``np.add.at`` on stacks of 6x6 matrices; torch uses an
+    accumulating ``index_put_``.
     """
 
-    def __init__(self, xp, parent: np.ndarray, device=None):
+    def __init__(self, xp, parent: np.ndarray, parent_level: tuple[int, int], device=None):
         parent = np.asarray(parent, dtype=np.int64)
         if parent.size and np.any(np.diff(parent) < 0):
             raise ValueError("Segments.parent: children must be sorted by parent")
-        starts = np.flatnonzero(np.r_[True, parent[1:] != parent[:-1]]) if parent.size else np.zeros(0, np.int64)
         self.torch = is_torch(xp)
         self.parent = index(xp, parent, device=device)
-        self.starts = starts  # numpy: offsets for reduceat
-        self.unique = index(xp, parent[starts], device=device)
+        self.start, self.stop = parent_level
+        if not self.torch:
+            import scipy.sparse
+
+            n = parent.size
+            self.matrix = scipy.sparse.csr_matrix(
+                (np.ones(n), (parent - self.start, np.arange(n))), shape=(self.stop - self.start, n)
+            )
 
     def add_into(self, target, values) -> None:
         """``target[parent[k]] += values[k]`` for every child ``k`` (in place)."""
         if self.torch:
             target.index_put_((self.parent,), values, accumulate=True)
         else:
-            target[self.unique] += np.add.reduceat(values, self.starts, axis=0)
+            n = values.shape[0]
+            target[self.start : self.stop] += (self.matrix @ values.reshape(n, -1)).reshape((-1,) + values.shape[1:])
 
 
 def scatter_add(xp, target, idx, values) -> None:

@@ -134,7 +134,7 @@ class Contacts:
         if a.shape[0] == 0:
             return f_world, sensors
         E, r = joint_transforms(m, state.q)
-        v, _ = body_velocities(m, E, r, xp.concat([state.omega, sp.mv(R0.mT, state.lin)], axis=1), state.qd)
+        v, _ = body_velocities(m, sp.transform_matrix(xp, E, r), xp.concat([state.omega, sp.mv(R0.mT, state.lin)], axis=1), state.qd)
 
         def point_velocity(i):
             rl = sp.mv(R[i].mT, x - p[i])

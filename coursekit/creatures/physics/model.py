@@ -81,8 +81,8 @@ class Model:
         par = np.where(parent[order] >= 0, new_pos[np.maximum(parent[order], 0)], -1)
         self.parent = par
         self.levels = []  # (start, stop, parent positions, Segments)
-        for s, e in level_bounds[1:]:
-            self.levels.append((s, e, bk.index(xp, par[s:e], device=device), bk.Segments(xp, par[s:e], device=device)))
+        for (ps, pe), (s, e) in zip(level_bounds[:-1], level_bounds[1:]):
+            self.levels.append((s, e, bk.index(xp, par[s:e], device=device), bk.Segments(xp, par[s:e], (ps, pe), device=device)))
         # joints: sorted body C + j; user layout: creature-concatenated BodyTree order (bodies 1..)
         packed_joint = np.concatenate([np.arange(f + 1, f + n) for f, n in zip(first, sizes)])
         self.joint_order = new_pos[packed_joint] - C  # user joint k -> internal joint row
@@ -115,12 +115,25 @@ class Model:
         f = lambda a: bk.asarray(xp, a, device=device)  # noqa: E731
         self.inertia_diag = f(self.inertia_diag_np)
         self.S = f(S)
+        self.inertia_matrix = f(np.einsum("ni,ij->nij", self.inertia_diag_np, np.eye(6)))
         self.revolute = bk.asarray(xp, rev, dtype=xp.bool, device=device)
         self.axis = f(axis)
         self.jpp = f(self.jpp_np)
         self.jpc = f(jpc)
         self.joint_rot = f(self.joint_rot_np)
-        self.joint_rot_T = f(np.ascontiguousarray(np.swapaxes(self.joint_rot_np, 1, 2)))
+        # Rodrigues with constant factors: Rot(a, q) = 1 + sin q K + (1 - cos q) K^2, K = [a]x, so
+        # E(q) = Rot(a, -q) J' and r(q) = jpp + J (slide a - Rot(a, q) c) are sums of constants
+        K = np.cross(axis[:, None, :], -np.eye(3)[None])  # K @ x == cross(axis, x)
+        K2 = K @ K
+        JT = np.swapaxes(self.joint_rot_np, 1, 2)
+        J = self.joint_rot_np
+        self.E0, self.E1, self.E2 = f(np.ascontiguousarray(JT)), f(-K @ JT), f(K2 @ JT)
+        self.Rq1, self.Rq2 = f(J @ K), f(J @ K2)
+        Jc = np.einsum("mij,mj->mi", J, jpc)
+        self.r0 = f(self.jpp_np - Jc)
+        self.r1 = f(-np.einsum("mij,mj->mi", J @ K, jpc))
+        self.r2 = f(-np.einsum("mij,mj->mi", J @ K2, jpc))
+        self.r3 = f(np.einsum("mij,mj->mi", J, axis))
         self.half_extents = f(self.half_extents_np)
         self.mass = f(mass)
         self.body_creature = bk.index(xp, self.creature, device=device)

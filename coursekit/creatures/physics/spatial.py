@@ -61,11 +61,11 @@ def transform_force_back(xp, E, r, f):
 
 def transform_matrix(xp, E, r):
     """The 6x6 matrix of ``X = (E, r)``."""
-    z = xp.zeros_like(E)
-    top = xp.concat([E, z], axis=-1)
-    # rows of -E rx are r x (rows of E)
-    bottom = xp.concat([cross3(xp, r[..., None, :], E), E], axis=-1)
-    return xp.concat([top, bottom], axis=-2)
+    X = xp.zeros(tuple(E.shape[:-2]) + (6, 6), dtype=E.dtype, device=getattr(E, "device", None))
+    X[..., :3, :3] = E
+    X[..., 3:, 3:] = E
+    X[..., 3:, :3] = cross3(xp, r[..., None, :], E)  # rows of -E rx are r x (rows of E)
+    return X
 
 
 def rotation_about(xp, axis, angle):

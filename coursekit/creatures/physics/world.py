@@ -209,7 +209,7 @@ class World:
         xp, m, s = self.xp, self.model, self.state
         R0 = sp.quat_to_mat(xp, s.quat)
         E, r = joint_transforms(m, s.q)
-        v, _ = body_velocities(m, E, r, xp.concat([s.omega, sp.mv(R0.mT, s.lin)], axis=1), s.qd)
+        v, _ = body_velocities(m, sp.transform_matrix(xp, E, r), xp.concat([s.omega, sp.mv(R0.mT, s.lin)], axis=1), s.qd)
         return v
 
     def centre_of_mass(self) -> np.ndarray:
