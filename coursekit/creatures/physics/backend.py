@@ -16,9 +16,7 @@ BACKENDS = ("numpy", "torch")
 def namespace(backend: str):
     """Array namespace for ``backend`` ("numpy" or "torch")."""
     if backend == "numpy":
-        import array_api_compat.numpy as xp
-
-        return xp
+        return np  # numpy >= 2 implements the array API in its main namespace (no wrapper overhead)
     if backend == "torch":
         import array_api_compat.torch as xp
 
@@ -27,7 +25,7 @@ def namespace(backend: str):
 
 
 def is_torch(xp) -> bool:
-    return array_api_compat.is_torch_namespace(xp)
+    return xp is not np and array_api_compat.is_torch_namespace(xp)
 
 
 def asarray(xp, a, *, dtype=None, device=None):
