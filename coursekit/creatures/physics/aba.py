@@ -61,7 +61,34 @@ def body_velocities(model, X, v0, qd):
     return v, c
 
 
-def aba(model, q, qd, v0, tau, f_ext=None, damping=None):
+def articulated_inertias(model, q):
+    """The velocity-independent half of the inward sweep: ``(Xup, IA, Ia, U, d)`` at ``q``.
+
+    ``IA`` (N, 6, 6) are the articulated inertias (roots' included), ``Ia`` (M, 6, 6) what each
+    joint passes to its parent (before transforming), ``U = IA S`` and ``d = S' U``. They depend
+    on the positions only, so the Nyström stages 2 and 3, which share positions, share them.
+    """
+    xp = model.xp
+    C = model.n_creatures
+    E, r = joint_transforms(model, q)
+    Xup = sp.transform_matrix(xp, E, r)
+    IA = model.inertia_matrix + 0.0  # a fresh (N, 6, 6) copy of the rigid-body inertias
+    S = model.S
+    Ia = xp.zeros_like(Xup)
+    U = xp.zeros_like(S)
+    d = xp.zeros_like(S[:, 0])
+    for s, e, _, seg in reversed(model.levels):
+        j = slice(s - C, e - C)
+        Uj = sp.mv(IA[s:e], S[j])
+        dj = xp.sum(S[j] * Uj, axis=-1)
+        Iaj = IA[s:e] - Uj[:, :, None] * (Uj / dj[:, None])[:, None, :]
+        U[j], d[j], Ia[j] = Uj, dj, Iaj
+        X = Xup[j]
+        seg.add_into(IA, X.mT @ (Iaj @ X))
+    return Xup, IA, Ia, U, d
+
+
+def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
     """Forward dynamics of the whole batch.
 
     Args:
@@ -71,6 +98,7 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None):
         tau: (M,) joint forces.
         f_ext: optional (N, 6) external spatial force on every body, body coordinates.
         damping: optional (N, 6) diagonal of a body-frame damping matrix ``D``; adds ``-D v``.
+        inertias: optional result of :func:`articulated_inertias` at this ``q`` (reused).
 
     Returns:
         ``(a0, qdd, v)``: root spatial acceleration (C, 6) in root coordinates, joint
@@ -78,8 +106,7 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None):
     """
     xp = model.xp
     C, N = model.n_creatures, model.n_bodies
-    E, r = joint_transforms(model, q)
-    Xup = sp.transform_matrix(xp, E, r)
+    Xup, IA, Ia, U, d = articulated_inertias(model, q) if inertias is None else inertias
     v, c = body_velocities(model, Xup, v0, qd)
 
     I = model.inertia_diag
@@ -88,28 +115,19 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None):
         pA = pA + damping * v
     if f_ext is not None:
         pA = pA - f_ext
-    IA = model.inertia_matrix + 0.0  # a fresh (N, 6, 6) copy of the rigid-body inertias
     S = model.S
-    U = xp.zeros((N - C, 6), dtype=v.dtype, device=model.device)
-    d = xp.zeros((N - C,), dtype=v.dtype, device=model.device)
-    u = xp.zeros((N - C,), dtype=v.dtype, device=model.device)
-
+    u = xp.zeros_like(tau)
     for s, e, _, seg in reversed(model.levels):
         j = slice(s - C, e - C)
-        Uj = sp.mv(IA[s:e], S[j])
-        dj = xp.sum(S[j] * Uj, axis=-1)
         uj = tau[j] - xp.sum(S[j] * pA[s:e], axis=-1)
-        U[j], d[j], u[j] = Uj, dj, uj
-        Ia = IA[s:e] - Uj[:, :, None] * (Uj / dj[:, None])[:, None, :]
-        pa = pA[s:e] + sp.mv(Ia, c[s:e]) + Uj * (uj / dj)[:, None]
-        X = Xup[j]
-        seg.add_into(IA, X.mT @ (Ia @ X))
-        seg.add_into(pA, sp.mv(X.mT, pa))
+        u[j] = uj
+        pa = pA[s:e] + sp.mv(Ia[j], c[s:e]) + U[j] * (uj / d[j])[:, None]
+        seg.add_into(pA, sp.mv(Xup[j].mT, pa))
 
     a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
     a = xp.zeros((N, 6), dtype=v.dtype, device=model.device)
     a[:C] = a0
-    qdd = xp.zeros((N - C,), dtype=v.dtype, device=model.device)
+    qdd = xp.zeros_like(tau)
     for s, e, par, _ in model.levels:
         j = slice(s - C, e - C)
         ai = sp.mv(Xup[j], a[par]) + c[s:e]

@@ -20,7 +20,7 @@ import numpy as np
 
 from . import backend as bk
 from . import spatial as sp
-from .aba import aba, body_velocities, forward_kinematics, joint_transforms
+from .aba import aba, articulated_inertias, body_velocities, forward_kinematics, joint_transforms
 from .dynamics import _flatten, split_layout, join_velocity_layout
 from .integrate import INTEGRATORS, State, step
 from .limits import limit_energy, limit_forces, limit_gains
@@ -103,6 +103,7 @@ class World:
         self.state = State(z(C, 3), quat, z(M), z(C, 3), z(C, 3), z(M))
         self.tau = z(M)
         self.f_world = None
+        self._inertia_q = self._inertia = None
         self.contact_sensors = None
         self._joint_creature = bk.index(xp, m.joint_creature, device=m.device)
 
@@ -137,7 +138,9 @@ class World:
         if self.f_world is not None:  # contact wrenches are held in world axes: rotate into each body
             Rb, _ = forward_kinematics(m, R, pos, q)
             f_ext = xp.concat([sp.mv(Rb.mT, self.f_world[:, :3]), sp.mv(Rb.mT, self.f_world[:, 3:])], axis=1)
-        a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping)
+        if q is not self._inertia_q:  # RKN stages 2 and 3 share positions, hence inertias
+            self._inertia_q, self._inertia = q, articulated_inertias(m, q)
+        a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping, inertias=self._inertia)
         lin_acc = sp.mv(R, a0[:, 3:] + sp.cross3(xp, omega, vb))
         return lin_acc, a0[:, :3], qdd
 
