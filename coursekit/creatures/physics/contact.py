@@ -65,6 +65,8 @@ class Contacts:
         self.k = bk.asarray(xp, m_red * w * w, device=m.device)
         self.c = bk.asarray(xp, 2.0 * m_red * w, device=m.device)
         self.radius = bk.asarray(xp, np.linalg.norm(m.half_extents_np, axis=1), device=m.device)
+        I, J = np.repeat(np.arange(3), 3), np.tile(np.arange(3), 3)
+        self._edge_index = tuple(bk.index(xp, k, device=m.device) for k in (I, J, (I + 1) % 3, (I + 2) % 3, (J + 1) % 3, (J + 2) % 3))
 
     def detect(self, R, p):
         """Colliding pairs among the candidates.
@@ -85,24 +87,37 @@ class Contacts:
         a, b, d = a[sel], b[sel], d[sel]
         hA, hB = m.half_extents[a], m.half_extents[b]
         A, B = R[a], R[b]  # columns: box axes in world
-        axes = [A[:, :, k] for k in range(3)] + [B[:, :, k] for k in range(3)]
-        axes += [sp.cross3(xp, A[:, :, i], B[:, :, j]) for i in range(3) for j in range(3)]
-        L = xp.stack(axes, axis=1)  # (P, 15, 3)
-        norm = xp.sqrt(xp.sum(L * L, axis=2))
-        valid = norm > 1e-9
-        L = L / xp.where(valid, norm, xp.ones_like(norm))[:, :, None]
-        rA = xp.sum(xp.abs(L @ A) * hA[:, None, :], axis=2)
-        rB = xp.sum(xp.abs(L @ B) * hB[:, None, :], axis=2)
-        dist = sp.mv(L, d)
-        overlap = rA + rB - xp.abs(dist)
-        big = xp.full_like(overlap, float("inf"))
-        overlap = xp.where(valid, overlap, big)
+        # the 15 axes in A's frame (Gottschalk et al. 1996): Rm[i, j] = A_i . B_j, t = d in A's frame
+        Rm = A.mT @ B
+        AbsR = xp.abs(Rm)
+        t = sp.mv(A.mT, d)
+        I, J, I1, I2, J1, J2 = self._edge_index
+        len_e = xp.sqrt(xp.clip(1.0 - Rm[:, I, J] ** 2, 0.0, None))  # |A_i x B_j|
+        valid = len_e > 1e-6  # parallel edges: the face axes already decide
+        safe = xp.where(valid, len_e, xp.ones_like(len_e))
+        over_e = (
+            hA[:, I1] * AbsR[:, I2, J] + hA[:, I2] * AbsR[:, I1, J] + hB[:, J1] * AbsR[:, I, J2] + hB[:, J2] * AbsR[:, I, J1]
+            - xp.abs(t[:, I2] * Rm[:, I1, J] - t[:, I1] * Rm[:, I2, J])
+        ) / safe
+        dist_b = sp.mv(Rm.mT, t)
+        overlap = xp.concat(
+            [
+                hA + sp.mv(AbsR, hB) - xp.abs(t),
+                sp.mv(AbsR.mT, hA) + hB - xp.abs(dist_b),
+                xp.where(valid, over_e, xp.full_like(over_e, float("inf"))),
+            ],
+            axis=1,
+        )
         depth = xp.min(overlap, axis=1)
         hit = xp.nonzero(depth > 0)[0]
         best = xp.argmin(overlap, axis=1)[hit]
         rows = xp.arange(hit.shape[0], device=m.device) if bk.is_torch(xp) else np.arange(hit.shape[0])
-        n = L[hit][rows, best]
-        s = xp.where(dist[hit][rows, best] < 0, -xp.ones_like(depth[hit]), xp.ones_like(depth[hit]))
+        Ah, Bh = A[hit], B[hit]
+        axes = [Ah[:, :, k] for k in range(3)] + [Bh[:, :, k] for k in range(3)]
+        axes += [sp.cross3(xp, Ah[:, :, i], Bh[:, :, j]) for i in range(3) for j in range(3)]
+        n = xp.stack(axes, axis=1)[rows, best]
+        n = n / xp.sqrt(xp.sum(n * n, axis=1, keepdims=True))
+        s = xp.where(xp.sum(n * d[hit], axis=1) < 0, -xp.ones_like(depth[hit]), xp.ones_like(depth[hit]))
         n = n * s[:, None]
         A, B, hA, hB = A[hit], B[hit], hA[hit], hB[hit]
         a, b = a[hit], b[hit]
