@@ -179,3 +179,16 @@ def test_contact_forces_are_internal_linear_momentum_is_conserved():
         assert not w.diverged.any()
         drift.append(np.abs(P - P0).max() / np.abs(P0).max())
     assert drift[1] < 2e-4 and drift[1] < 0.5 * drift[0], drift
+
+
+def test_genotype_creatures_swim_with_their_brains():
+    # runs once the genotype/brain work (coursekit.creatures.genotype, .brain) is merged
+    genotype = pytest.importorskip("coursekit.creatures.genotype")
+    rng = np.random.default_rng(11)
+    creatures = [genotype.Creature.random(rng) for _ in range(12)]
+    r = simulate(creatures, 1.0, settle=0.2)
+    assert r.fitness.shape == (12,) and np.all(np.isfinite(r.fitness)) and np.all(r.fitness >= 0)
+    assert r.diverged.sum() <= 2
+    assert r.fitness.max() > 0  # brains drive at least one creature away from its start
+    again = simulate(creatures, 1.0, settle=0.2)
+    np.testing.assert_array_equal(r.fitness, again.fitness)

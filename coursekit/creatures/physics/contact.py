@@ -11,7 +11,9 @@ equally deep, the centre of that edge or face is used).
 
 Response is a penalty spring-damper along ``n``, ``f = max(0, k delta - c v_n)``, pushing B along
 ``+n`` and A along ``-n`` at the contact point (held fixed in world axes over the step); ``k = m_red w^2`` and ``c = 2 m_red w`` (critical)
-use the pair's reduced mass and the same frequency rule as the joint limits (``w = 0.5 / dt``),
+use the pair's reduced mass; the spring's depth is capped at :data:`DEPTH_CAP` of the thinner
+box's smallest half extent so that deep initial overlaps are resolved with bounded force; and the same frequency rule as the joint limits
+(``w = STIFFNESS_PER_STEP / dt``),
 so contacts are as stiff as the step allows. Forces are computed once per (sub)step and held
 over it. Sensors: a face is touching (+1) when it is the face of its box whose outward normal is
 closest to the contact direction, otherwise -1 (Sims' per-face contact sensors).
@@ -23,6 +25,7 @@ import numpy as np
 
 from . import backend as bk
 from . import spatial as sp
+from .limits import STIFFNESS_PER_STEP
 
 
 def _sign(xp, x, tol=1e-9):
@@ -30,19 +33,24 @@ def _sign(xp, x, tol=1e-9):
     return xp.where(xp.abs(x) < tol, xp.zeros_like(x), xp.sign(x))
 
 
+#: The spring stretches at most this fraction of the thinner box's smallest half extent: parts
+#: that start deeply interpenetrated (overlapping siblings) are pushed apart with bounded force.
+DEPTH_CAP = 0.5
+
+
 class Contacts:
     """Self-collision detection and response for a packed model.
 
     Args:
         model: packed :class:`~coursekit.creatures.physics.model.Model`.
-        stiffness: contact frequency ``w`` (rad/s); default ``0.5 / dt``.
+        stiffness: contact frequency ``w`` (rad/s); default ``STIFFNESS_PER_STEP / dt``.
         dt: the (sub)step the forces are held over.
     """
 
     def __init__(self, model, *, stiffness: float | None = None, dt: float = 1.0 / 60.0):
         self.model = m = model
         xp = self.xp = m.xp
-        w = 0.5 / dt if stiffness is None else float(stiffness)
+        w = STIFFNESS_PER_STEP / dt if stiffness is None else float(stiffness)
         if not (np.isfinite(w) and w > 0):
             raise ValueError(f"contact_stiffness: must be a positive frequency (rad/s), got {stiffness}")
         a_list, b_list = [], []
@@ -64,6 +72,8 @@ class Contacts:
         m_red = mass[a] * mass[b] / (mass[a] + mass[b]) if len(a) else np.zeros(0)
         self.k = bk.asarray(xp, m_red * w * w, device=m.device)
         self.c = bk.asarray(xp, 2.0 * m_red * w, device=m.device)
+        h_min = m.half_extents_np.min(axis=1)
+        self.depth_cap = bk.asarray(xp, DEPTH_CAP * np.minimum(h_min[a], h_min[b]), device=m.device)
         self.radius = bk.asarray(xp, np.linalg.norm(m.half_extents_np, axis=1), device=m.device)
         I, J = np.repeat(np.arange(3), 3), np.tile(np.arange(3), 3)
         self._edge_index = tuple(bk.index(xp, k, device=m.device) for k in (I, J, (I + 1) % 3, (I + 2) % 3, (J + 1) % 3, (J + 2) % 3))
@@ -158,6 +168,7 @@ class Contacts:
         va = point_velocity(a)
         vb = point_velocity(b)
         vn = xp.sum((vb - va) * n, axis=1)
+        depth = xp.minimum(depth, self.depth_cap[pair_idx])
         mag = xp.clip(self.k[pair_idx] * depth - self.c[pair_idx] * vn, 0.0, None)
         F = mag[:, None] * n
         for body, sign in ((b, 1.0), (a, -1.0)):

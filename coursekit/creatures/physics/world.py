@@ -23,7 +23,7 @@ from . import spatial as sp
 from .aba import aba, articulated_inertias, body_velocities, forward_kinematics, joint_transforms
 from .dynamics import _flatten, split_layout, join_velocity_layout
 from .integrate import INTEGRATORS, State, step
-from .limits import limit_energy, limit_forces, limit_gains
+from .limits import STIFFNESS_PER_STEP, limit_energy, limit_forces, limit_gains
 from .model import Model
 from .water import DRAG_COEFFICIENT, STABLE_DRAG_STEP, drag_matrix, max_drag_rate
 
@@ -42,7 +42,7 @@ class World:
         backend: "numpy" or "torch"; device: torch device.
         integrator: "rkn" (default) or "rk4".
         drag: water on/off; drag_coefficient: ``k`` of :mod:`water`.
-        limits: joint-limit springs on/off; limit_frequency (rad/s, default ``0.5 / substep``)
+        limits: joint-limit springs on/off; limit_frequency (rad/s, default ``STIFFNESS_PER_STEP / substep``)
             and limit_damping_ratio of :mod:`limits`.
         contacts: self-collision penalty forces on/off (see :mod:`contact`).
         max_speed, max_angular_speed, max_joint_speed: divergence caps.
@@ -85,7 +85,7 @@ class World:
         self.limits = limits
         f = lambda a: bk.asarray(xp, a, device=m.device)  # noqa: E731
         self.lo, self.hi = f(m.limits_np[:, 0]), f(m.limits_np[:, 1])
-        self.limit_k, self.limit_b = limit_gains(m, limit_frequency if limit_frequency is not None else 0.5 / self.h, limit_damping_ratio)
+        self.limit_k, self.limit_b = limit_gains(m, limit_frequency if limit_frequency is not None else STIFFNESS_PER_STEP / self.h, limit_damping_ratio)
         self.strength = f(m.strength_np)
         self.gain = f(m.gain_np)
         self.contacts = None
