@@ -51,13 +51,11 @@ def body_velocities(model, X, v0, qd):
     C, N = model.n_creatures, model.n_bodies
     vJ = model.S * qd[:, None]
     v = xp.zeros((N, 6), dtype=v0.dtype, device=model.device)
-    c = xp.zeros((N, 6), dtype=v0.dtype, device=model.device)
     v[:C] = v0
     for s, e, par, _ in model.levels:
         j = slice(s - C, e - C)
-        vi = sp.mv(X[j], v[par]) + vJ[j]
-        v[s:e] = vi
-        c[s:e] = sp.cross_motion(xp, vi, vJ[j])
+        v[s:e] = sp.mv(X[j], v[par]) + vJ[j]
+    c = xp.concat([xp.zeros_like(v0), sp.cross_motion(xp, v[C:], vJ)], axis=0)
     return v, c
 
 
