@@ -263,35 +263,32 @@ register(Check(
 
 def _crossover_cases(rng):
     s = _seeds(rng, 600)
-    fa, fb = rng.normal(size=12), rng.normal(size=12) + 10
-    return [
-        {"id": "basic", "args": [_arr(np.arange(10), "int64"), _arr(100 + np.arange(10), "int64"), RNG],
-         "seeds": [s[0], s[0]], "check_inputs": True, "max_len": 1000},
-        {"id": "float", "args": [_arr(fa, "float64"), _arr(fb, "float64"), RNG], "seeds": s[1:4], "max_len": 1000},
-        {"id": "cuts", "args": [_arr(np.arange(5), "int64"), _arr(10 + np.arange(5), "int64"), RNG],
-         "seeds": s[4:600], "max_len": 500},
+
+    def bits(n):
+        return rng.integers(0, 2, n)
+
+    a10, a5 = bits(10), bits(5)
+    return [  # b = 1 - a differs everywhere, so the cut can be read off the children; "mixed" parents share genes
+        {"id": "basic", "args": [_arr(a10, "int8"), _arr(1 - a10, "int8"), RNG], "seeds": [s[0], s[0]],
+         "check_inputs": True, "max_len": 1000},
+        {"id": "mixed", "args": [_arr(bits(16), "int8"), _arr(bits(16), "int8"), RNG], "seeds": s[1:4], "max_len": 1000},
+        {"id": "cuts", "args": [_arr(a5, "int8"), _arr(1 - a5, "int8"), RNG], "seeds": s[4:600], "max_len": 500},
     ]
 
 
 def _cut_of(a, b, c1, c2):
-    """The cut c with c1 = a[:c]+b[c:] and c2 = b[:c]+a[c:], or an explanation why there is none."""
+    """A cut c in 1..len-1 with c1 = a[:c]+b[c:] and c2 = b[:c]+a[c:], or None and why not."""
     L = len(a)
-    if len(c1) != L or len(c2) != L:
-        return None, f"children have lengths {len(c1)} and {len(c2)}; parents have length {L}"
-    c = 0
-    while c < L and c1[c] == a[c]:
-        c += 1
-    if c1[c:] != b[c:]:
-        return None, f"child 1 {c1} is not a[:c] + b[c:] for any cut c"
-    if c2 != b[:c] + a[c:]:
-        return None, f"child 2 {c2} is not b[:c] + a[c:] for the same cut c={c} as child 1"
-    if not 1 <= c <= L - 1:
-        return None, f"the cut is at {c}, which copies a whole parent; it must lie in 1..len-1 = 1..{L - 1}"
-    return c, ""
+    for c in range(1, L):
+        if c1 == a[:c] + b[c:] and c2 == b[:c] + a[c:]:
+            return c, ""
+    if {tuple(c1), tuple(c2)} == {tuple(a), tuple(b)}:
+        return None, "the children are copies of the parents; the cut must lie in 1..len-1 so both parents contribute"
+    return None, f"children {c1} and {c2} are not a[:c] + b[c:] and b[:c] + a[c:] for any cut 1 <= c <= {L - 1}"
 
 
 def _crossover_valid(ctx):
-    for cid in ("basic", "float", "cuts"):
+    for cid in ("basic", "mixed", "cuts"):
         L = len(ctx.arg(cid, 0))
         for c1, c2 in ctx.out(cid):
             if len(c1) != L or len(c2) != L:
@@ -300,7 +297,7 @@ def _crossover_valid(ctx):
 
 
 def _crossover_one_point(ctx):
-    for cid in ("basic", "float", "cuts"):
+    for cid in ("basic", "mixed", "cuts"):
         a, b = ctx.arg(cid, 0).tolist(), ctx.arg(cid, 1).tolist()
         for (c1, c2), seed in zip(ctx.out(cid), ctx.case(cid)["seeds"]):
             c, why = _cut_of(a, b, c1, c2)
@@ -346,7 +343,7 @@ def _mutation_cases(rng):
     s = _seeds(rng, 1506)
 
     def genome(n):
-        return _arr(rng.integers(0, 2, n), "int64")
+        return _arr(rng.integers(0, 2, n), "int8")
 
     return [
         {"id": "basic", "args": [genome(30), RNG], "seeds": [s[0], s[0]], "check_inputs": True, "max_len": 1000},
