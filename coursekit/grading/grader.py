@@ -39,6 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
+import coursekit
+
 from coursekit.grading import checks as registry
 from coursekit.grading.checks import STATUSES, Judgement
 
@@ -46,7 +48,7 @@ RESULTS_FORMAT = "coursekit.grade/1"
 GRADING_SEED = 7_919
 MAX_CHANNEL_BYTES = 64 * 2**20
 MAX_REPORT_BYTES = 2**20
-_PKG_ROOT = Path(__file__).resolve().parents[2]
+_PKG_ROOT = Path(os.path.abspath(coursekit.__file__)).parent.parent  # the coursekit this grader runs (not symlink-resolved)
 
 
 @dataclass
