@@ -73,7 +73,7 @@ def encode_array(a):
 
 def _array(out, what, max_len):
     if type(out) is not np.ndarray:
-        raise BadOutput(f"{what} is a {type(out).__name__}; expected a numpy array (np.ndarray)")
+        raise BadOutput(f"{what} has type {type(out).__name__}; expected a numpy array (np.ndarray)")
     if out.ndim != 1:
         raise BadOutput(f"{what} has shape {out.shape}; expected a 1-D array")
     if out.dtype.kind not in "biuf":
@@ -112,10 +112,10 @@ def convert(kind, out, max_len):
             values = []
             for i, v in enumerate(out):
                 if type(v) is not int and type(v) not in _INT_TYPES:
-                    raise BadOutput(f"element {i} of the result is a {type(v).__name__}; indices must be integers")
+                    raise BadOutput(f"element {i} of the result has type {type(v).__name__}; indices must be plain integers")
                 values.append(int(v))
             return values
-        raise BadOutput(f"returned a {type(out).__name__}; expected a sequence of integer indices (list or numpy array)")
+        raise BadOutput(f"returned a value of type {type(out).__name__}; expected a sequence of integer indices (list or numpy array)")
     if kind == "array":
         return _array(out, "the result", max_len)
     if kind == "array_pair":
