@@ -102,9 +102,9 @@ def _plain_list(v, max_len, depth):
 
 def validate_record(rec, check, cases_by_id) -> dict | None:
     """A record from the channel as a clean dict, or None when it is malformed in any way."""
-    if type(rec) is not dict or rec.get("check") != check.name:
+    if type(rec) is not dict or rec.get("check") != check.name or type(rec.get("case")) is not str:
         return None
-    case = cases_by_id.get(rec.get("case"))
+    case = cases_by_id.get(rec["case"])
     status = rec.get("status")
     if case is None or status not in STATUSES:
         return None
