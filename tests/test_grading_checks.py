@@ -257,6 +257,20 @@ def test_timeouts_crashes_and_exits_cost_one_case_not_the_process():
     assert "MemoryError" in evaluate("ga.point_mutation", hog, memory_mb=512).verdicts[0].message
 
 
+def test_time_budget_bounds_a_whole_check_of_slow_calls():
+    import time
+
+    def slow(a, b, rng):
+        time.sleep(0.05)
+        return crossover_mask(a, b, rng)
+
+    check = checks.get("ga.one_point_crossover")
+    cases = check.cases(np.random.default_rng(0))  # 600 calls: 30 s of sleeping
+    records = runner.run_cases(slow, cases, check.output, timeout=5, budget=1.0)
+    assert [r["status"] for r in records] == ["ok", "ok", "timeout"]
+    assert "time budget of 1 s" in records[2]["error"]
+
+
 def test_check_argument_errors_are_clear():
     with pytest.raises(ValueError, match="unknown check 'ga.nope'.*ga.tournament"):
         evaluate("ga.nope", truncation_loop)

@@ -63,7 +63,7 @@ def execute(nb, spec: dict, channel: str, cwd: str, cell_timeout: float) -> dict
     source = Path(__file__).with_name("runner.py").read_text(encoding="utf-8")
     code = [i for i, c in enumerate(nb.cells) if c.cell_type == "code"]
     skip: dict[int, str] = {}
-    harvest_timeout = max(cell_timeout, 4 * spec["timeout"] + 60)
+    harvest_timeout = 4 * spec["timeout"] + 90  # the runner stops each check after 4 * timeout + 30 s
     harvested = False
     cells: dict[int, str] = {}
     for _attempt in range(MAX_RESTARTS + 1):

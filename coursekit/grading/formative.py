@@ -49,9 +49,8 @@ def format_judgement(j) -> str:
     n = sum(v.passed for v in j.verdicts)
     lines = [f"{head}: {n}/{len(j.verdicts)} properties hold" + (" -- well done!" if j.passed else "")]
     lines += [f"  {'✓' if v.passed else '✗'} {v.prop}: {v.message}" for v in j.verdicts]
-    printed = getattr(j, "printed", "")
-    if printed:
-        lines.append("  your function printed (first test input):\n    " + printed.rstrip().replace("\n", "\n    "))
+    if j.printed:
+        lines.append("  your function printed (first test input):\n    " + j.printed.rstrip().replace("\n", "\n    "))
     return "\n".join(lines)
 
 

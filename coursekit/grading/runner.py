@@ -219,10 +219,11 @@ def _died_message(status):
     return f"the process running it exited with status {os.WEXITSTATUS(status)} (os._exit?)"
 
 
-def _run_forked(fn, cases, kind, timeout, memory_mb):
+def _run_forked(fn, cases, kind, timeout, memory_mb, budget):
     records = {}
     todo = list(cases)
-    while todo:
+    end = time.monotonic() + budget
+    while todo and time.monotonic() < end:
         rfd, wfd = os.pipe()
         pid = os.fork()
         if pid == 0:  # child
@@ -234,7 +235,7 @@ def _run_forked(fn, cases, kind, timeout, memory_mb):
         timed_out = False
         with os.fdopen(rfd, "rb", buffering=0) as r:
             while True:
-                left = deadline - time.monotonic()
+                left = min(deadline, end) - time.monotonic()
                 if left <= 0:
                     timed_out = True
                     break
@@ -262,12 +263,15 @@ def _run_forked(fn, cases, kind, timeout, memory_mb):
         if remaining:
             current = remaining[0]
             if timed_out:
-                records[current["id"]] = {"case": current["id"], "status": "timeout",
-                                          "error": f"a call did not return within {timeout:g} s"}
+                why = (f"the time budget of {budget:g} s for all calls ran out" if time.monotonic() >= end
+                       else f"a call did not return within {timeout:g} s")
+                records[current["id"]] = {"case": current["id"], "status": "timeout", "error": why}
             else:
                 records[current["id"]] = {"case": current["id"], "status": "died", "error": _died_message(status)}
             remaining = remaining[1:]
         todo = remaining
+    for c in todo:
+        records[c["id"]] = {"case": c["id"], "status": "timeout", "error": f"the time budget of {budget:g} s for all calls ran out"}
     return [records[c["id"]] for c in cases]
 
 
@@ -283,7 +287,7 @@ def _run_threaded(fn, cases, kind, timeout):
     return out
 
 
-def run_cases(fn, cases, kind, *, timeout=10.0, memory_mb=2048):
+def run_cases(fn, cases, kind, *, timeout=10.0, memory_mb=2048, budget=None):
     """Run ``fn`` on every case, isolated and bounded; return one plain record per case.
 
     Args:
@@ -292,6 +296,8 @@ def run_cases(fn, cases, kind, *, timeout=10.0, memory_mb=2048):
         kind: output conversion kind (see :func:`convert`).
         timeout: seconds allowed per call.
         memory_mb: extra address space the worker may allocate.
+        budget: seconds for all cases together (default ``4 * timeout + 30``); cases not reached
+            in time are reported as timeouts.
     Returns:
         list of record dicts, in case order.
     """
@@ -300,7 +306,7 @@ def run_cases(fn, cases, kind, *, timeout=10.0, memory_mb=2048):
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)  # "multi-threaded, fork() may deadlock"
-            return _run_forked(fn, cases, kind, timeout, memory_mb)
+            return _run_forked(fn, cases, kind, timeout, memory_mb, 4 * timeout + 30 if budget is None else budget)
     return _run_threaded(fn, cases, kind, timeout)
 
 

@@ -7,7 +7,8 @@ the GA operators, then their operators drive the real systems"): every graded fu
 - produces input *cases* as plain JSON data from a seeded generator (``cases(rng)``);
 - names how the student's result is turned into plain data (``output``: a conversion kind that
   :mod:`coursekit.grading.runner` understands, with strict type checks);
-- *judges* (case list, plain records) into per-property :class:`Verdict` objects.
+- names its *properties*, each judging (cases, plain records) into a :class:`Verdict`, so that
+  :func:`judge` turns a run into per-property verdicts and points.
 
 Formative checks (:mod:`coursekit.grading.formative`) run all three in the student's kernel;
 the summative grader (:mod:`coursekit.grading.grader`) generates cases and judges in its own
@@ -74,6 +75,7 @@ class Judgement:
     attempted: bool
     verdicts: list
     score: float
+    printed: str = ""  # what the function printed (formative feedback only)
 
     @property
     def passed(self) -> bool:
