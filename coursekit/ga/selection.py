@@ -37,7 +37,7 @@ def _check_fitness(fitness) -> np.ndarray:
     bad = ~np.isfinite(f)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"fitness: value {f[i]!r} at index {i} is not finite; all fitness values must be finite")
+        raise ValueError(f"fitness: value {float(f[i])!r} at index {i} is not finite; all fitness values must be finite")
     return f
 
 
@@ -151,7 +151,7 @@ def roulette(fitness, k, rng) -> np.ndarray:
     rng = _check_rng(rng)
     if (f < 0).any():
         i = int(np.flatnonzero(f < 0)[0])
-        raise ValueError(f"fitness: roulette selection needs non-negative fitness, got {f[i]!r} at index {i}")
+        raise ValueError(f"fitness: roulette selection needs non-negative fitness, got {float(f[i])!r} at index {i}")
     total = f.sum()
     if total == 0:
         return rng.integers(0, f.size, size=k).astype(np.int64)
@@ -189,7 +189,7 @@ def sims_offspring(fitness, n_offspring, survival=0.2) -> np.ndarray:
     survivors = ranking(f)[: n_survivors(f.size, survival)]
     fs = f[survivors]
     if (fs < 0).any():
-        raise ValueError(f"fitness: offspring proportional to fitness need non-negative survivor fitness, got {fs.min()!r}")
+        raise ValueError(f"fitness: offspring proportional to fitness need non-negative survivor fitness, got {float(fs.min())!r}")
     total = fs.sum()
     shares = fs / total if total > 0 else np.full(fs.size, 1.0 / fs.size)
     quotas = n_offspring * shares
