@@ -79,6 +79,6 @@ def evaluate(fitness: Callable, genomes: Sequence, *, map: Callable | None = Non
         out[i] = float(r)
         if not math.isfinite(out[i]):
             raise ValueError(
-                f"fitness: genome #{i} got fitness {out[i]!r}; fitness must be finite (score failures as a low finite value)"
+                f"fitness: genome #{i} got fitness {float(out[i])!r}; fitness must be finite (score failures as a low finite value)"
             )
     return out
