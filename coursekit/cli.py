@@ -47,7 +47,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             print(f"coursekit bench: no benchmark named {name!r}; have {sorted(p.stem for p in bench_dir.glob('*.py'))}", file=sys.stderr)
             return 2
         print(f"== benchmarks/{name}.py")
-        rc |= subprocess.call([sys.executable, str(script), *args.extra], env={**os.environ, "PYTHONPATH": str(ROOT)})
+        rc |= subprocess.call([sys.executable, str(script)], env={**os.environ, "PYTHONPATH": str(ROOT)})
     return rc
 
 
@@ -75,8 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("bench", help="run the benchmarks (tables against a reference, same run)")
     s.add_argument("names", nargs="*", help="benchmark names (default: all)")
-    s.add_argument("--", dest="extra", nargs=argparse.REMAINDER, default=[])
-    s.set_defaults(func=_cmd_bench, extra=[])
+    s.set_defaults(func=_cmd_bench)
     return p
 
 
