@@ -284,6 +284,7 @@ def test_history_statistics_json_and_plot():
     result = ga.evolve(random_bits(rng, 12, 10), onemax, VARY, generations=3, rng=rng, progress=False,
                        diversity=ga.mean_pairwise(ga.diversity.hamming), callback=snapshots.append)
     h = result.history
+    assert [len(s.history) for s in snapshots] == [1, 2, 3, 4]  # snapshots are not changed later
     for i, snap in enumerate(snapshots):
         f = snap.fitness
         assert (h.best[i], h.mean[i], h.median[i], h.std[i]) == (f.max(), f.mean(), np.median(f), f.std())

@@ -38,7 +38,8 @@ __all__ = ["EvolutionResult", "evolve", "resume"]
 
 @dataclass
 class EvolutionResult:
-    """Outcome of a run (also what ``callback`` receives after every generation).
+    """Outcome of a run (also what ``callback`` receives after every generation, as a snapshot
+    that later generations do not change).
 
     Attributes:
         population: list of genomes of the last generation (elites first).
@@ -138,7 +139,7 @@ class _Run:
         self.save(population, fitness, history, generation, generations, rng)
         if self.callback is None:
             return False
-        return bool(self.callback(_result(population, fitness, history, generation)))
+        return bool(self.callback(_result(population, fitness, history.copy(), generation)))
 
     def parents(self, fitness, k, rng) -> np.ndarray:
         idx = self.select(fitness, k, rng)

@@ -55,6 +55,10 @@ class History:
         self.diversity.append(float(diversity))
         self.evaluations.append(int(evaluations))
 
+    def copy(self) -> "History":
+        """An independent copy (later records to either do not show in the other)."""
+        return History(**{f.name: list(getattr(self, f.name)) for f in fields(self)})
+
     def __len__(self) -> int:
         return len(self.generation)
 
