@@ -3,9 +3,11 @@ evaluation back end gives the same run, and a killed run resumed from its checkp
 exactly like the uninterrupted run."""
 
 import functools
+import hashlib
 import os
 import pickle
 import signal
+import struct
 import subprocess
 import sys
 import time
@@ -269,8 +271,6 @@ def test_corrupt_truncated_and_foreign_checkpoints_are_refused(tmp_path):
             ga.resume(bad, FITNESS, VARY, generations=3, progress=False)
     # a well-formed file whose payload is not a checkpoint state
     payload = pickle.dumps(["not", "a", "state"])
-    import hashlib
-    import struct
     bad.write_bytes(b"coursekit.ga.checkpoint/1\n" + struct.pack("<Q32s", len(payload), hashlib.sha256(payload).digest()) + payload)
     with pytest.raises(ValueError, match="no 'coursekit.ga.checkpoint/1' format field"):
         ga.load_checkpoint(bad)
