@@ -74,6 +74,27 @@ def test_sims_scheme_survivors_and_proportional_offspring():
     assert result.best_fitness > result.history.best[0] + 0.15
 
 
+def test_genomes_are_opaque_strings_work_too():
+    # Any picklable genome plugs in: here plain strings evolve towards a phrase.
+    target = "survival of the fittest"
+    letters = "abcdefghijklmnopqrstuvwxyz "
+
+    def mutate(s, rng):
+        i = int(rng.integers(len(s)))
+        return s[:i] + letters[int(rng.integers(len(letters)))] + s[i + 1:]
+
+    def cross(a, b, rng):
+        c = int(rng.integers(1, len(a)))
+        return a[:c] + b[c:], b[:c] + a[c:]
+
+    rng = np.random.default_rng(0)
+    pop = ["".join(rng.choice(list(letters), len(target))) for _ in range(60)]
+    score = lambda s: sum(x == y for x, y in zip(s, target)) / len(target)  # noqa: E731
+    result = ga.evolve(pop, score, ga.Variation([(0.7, mutate), (0.3, cross)]), generations=150, rng=rng,
+                       select=ga.truncation, elite=2, progress=False)
+    assert isinstance(result.best, str) and result.best_fitness > 0.8 > result.history.best[0]
+
+
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), elite=st.integers(1, 4), n=st.integers(4, 12),
        which=st.sampled_from(["tournament", "truncation", "roulette", "sims_select"]))
