@@ -13,6 +13,7 @@ Integrity model. This process computes and writes scores and never imports or ru
 - It is a child subreaper (Linux): processes the notebook forked, even double-forked daemons,
   become its children when their parents die, and are killed before any result is written.
   Results are written atomically after that, so nothing the notebook started can overwrite them.
+  (``COURSEKIT_GRADE_KEEP=1`` keeps the private directory, with the child's log, for debugging.)
 
 What the kernel can still do is choose the raw outputs its functions return -- exactly what a
 student's function can do anyway. Without root, the kernel runs as the grader's own user and
@@ -188,13 +189,22 @@ def read_report(path: Path) -> list:
 # -- running the child and cleaning up after it --------------------------------------------------
 
 
+_SUBREAPER = False
+
+
 def become_subreaper() -> bool:
-    """Adopt orphaned descendants (Linux ``PR_SET_CHILD_SUBREAPER``); False where unsupported."""
+    """Adopt orphaned descendants (Linux ``PR_SET_CHILD_SUBREAPER``); False where unsupported.
+
+    Only a dedicated grading process should do this: afterwards :func:`grade_notebook` kills
+    *every* child of the process once each notebook is done.
+    """
+    global _SUBREAPER
     try:
         libc = ctypes.CDLL(None, use_errno=True)
-        return libc.prctl(36, 1, 0, 0, 0) == 0
+        _SUBREAPER = libc.prctl(36, 1, 0, 0, 0) == 0
     except (OSError, AttributeError):
-        return False
+        _SUBREAPER = False
+    return _SUBREAPER
 
 
 def _own_children() -> list[int]:
@@ -318,7 +328,8 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
             except (ProcessLookupError, PermissionError):
                 pass
             child.wait()
-            sweep()
+            if _SUBREAPER:  # orphans of this notebook (kernel, daemons) are our children now: none survives
+                sweep()
         records, rejected = read_channel(channel, checks, cases)
         notes += read_report(report)
         if rejected:
@@ -404,14 +415,17 @@ def main(args) -> int:
     except ValueError as exc:
         print(f"coursekit grade: {exc}", file=sys.stderr)
         return 2
-    become_subreaper()
+    if not become_subreaper():
+        print("coursekit grade: warning: cannot adopt orphaned processes (no PR_SET_CHILD_SUBREAPER); "
+              "processes a notebook daemonises may outlive grading", file=sys.stderr)
     results = []
     for nb in args.notebooks:
         t0 = time.monotonic()
         results.append(grade_notebook(nb, timeout=args.timeout, cell_timeout=getattr(args, "cell_timeout", 300.0),
                                       memory_mb=getattr(args, "memory_mb", 4096), exercise=getattr(args, "exercise", None)))
         results[-1].notes.append(f"graded in {time.monotonic() - t0:.1f} s")
-    sweep()
+    if _SUBREAPER:
+        sweep()
     print(summary(results))
     if args.json_out:
         write_json_atomic(args.json_out, gradescope(results))
