@@ -104,3 +104,19 @@ def test_exercise_notebook_fails_only_with_not_implemented_error():
     assert errors and set(errors) == {"NotImplementedError"}
     checks = "".join(o.get("text", "") for c in nb.cells if c.source.startswith("check(") for o in c.outputs)
     assert checks.count("not attempted yet") == 5
+
+
+def test_foreign_or_truncated_notebook_scores_zero_with_a_note(tmp_path):
+    bad = tmp_path / "01_selection.ipynb"
+    bad.write_text('{"cells": [')  # truncated JSON
+    stdout, results = grade([bad], tmp_path / "r.json", "--timeout", "3", "--cell-timeout", "10")
+    assert results["score"] == 0.0 and len(results["tests"]) == 5
+    assert "could not read the notebook" in results["output"] and "could not be called" in results["tests"][0]["output"]
+
+
+def test_usage_errors_exit_2_and_write_nothing(tmp_path):
+    out = tmp_path / "r.json"
+    for args in (["nb/99_unknown.ipynb"], ["x/01_selection.ipynb", "--timeout", "0"]):
+        proc = subprocess.run([sys.executable, "-m", "coursekit", "grade", *args, "--json", str(out)],
+                              capture_output=True, text=True, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
+        assert proc.returncode == 2 and "coursekit grade:" in proc.stderr and not out.exists()

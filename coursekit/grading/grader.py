@@ -43,7 +43,7 @@ import numpy as np
 import coursekit
 
 from coursekit.grading import checks as registry
-from coursekit.grading.checks import STATUSES, Judgement
+from coursekit.grading.checks import STATUSES, Judgement, Verdict
 
 RESULTS_FORMAT = "coursekit.grade/1"
 GRADING_SEED = 7_919
@@ -334,7 +334,9 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         notes += read_report(report)
         if rejected:
             notes.append(f"{rejected} malformed result line(s) were ignored")
-        judgements = [registry.judge(c, cases[c.name], records[c.name]) for c in checks]
+        judgements = [registry.judge(c, cases[c.name], records[c.name]) if records[c.name] else
+                      _zero([c], f"no results: {c.function} could not be called (the notebook stopped before grading; see the notes)")[0]
+                      for c in checks]
         return NotebookResult(str(path), judgements, notes)
     finally:
         if not os.environ.get("COURSEKIT_GRADE_KEEP"):
@@ -342,9 +344,7 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
 
 
 def _zero(checks, why):
-    from coursekit.grading.checks import Verdict
-
-    return [Judgement(c, False, [Verdict("submitted", False, why)], 0.0) for c in checks]
+    return [Judgement(c, False, [Verdict("graded", False, why)], 0.0) for c in checks]
 
 
 # -- reporting -----------------------------------------------------------------------------------
