@@ -257,6 +257,19 @@ def test_timeouts_crashes_and_exits_cost_one_case_not_the_process():
     assert "MemoryError" in evaluate("ga.point_mutation", hog, memory_mb=512).verdicts[0].message
 
 
+def test_thread_isolation_gives_the_same_verdicts_and_reports_timeouts(monkeypatch):
+    monkeypatch.setenv("COURSEKIT_CHECK_ISOLATION", "thread")
+    assert evaluate("ga.tournament", tournament_loop).passed
+    assert "bits flip independently" in {v.prop for v in evaluate("ga.point_mutation", mutation_one_flip).verdicts if not v.passed}
+
+    def slow(fitness, k, rng, size=3):
+        import time
+        time.sleep(1.0)
+
+    j = evaluate("ga.tournament", slow, timeout=0.2)  # the abandoned threads finish their sleep on their own
+    assert j.score == 0 and "did not return in time" in j.verdicts[0].message
+
+
 def test_time_budget_bounds_a_whole_check_of_slow_calls():
     import time
 

@@ -17,7 +17,9 @@ Trade-off: a fork is a real kill (threads cannot be killed) and contains crashes
 multi-threaded process (the kernel) only keeps the calling thread, so the worker must not touch
 the kernel's I/O threads -- it writes to a private pipe and never to the kernel's stdout. Where
 ``fork`` does not exist (Windows) calls run in a daemon thread: a timeout is reported but the
-runaway thread cannot be stopped, and a crash takes the kernel with it.
+runaway thread cannot be stopped, and a crash takes the kernel with it. Setting
+``COURSEKIT_CHECK_ISOLATION=thread`` chooses threads everywhere (for platforms where forking a
+kernel is fragile, e.g. macOS with GUI frameworks loaded).
 
 Case format (plain JSON)::
 
@@ -131,13 +133,18 @@ def _describe_error(exc):
     return text if len(text) <= MAX_ERROR else text[: MAX_ERROR - 3] + "..."
 
 
-def run_case(fn, case, kind, tick=None):
-    """Call ``fn`` once per seed of ``case`` in this process and return the plain record."""
+def run_case(fn, case, kind, tick=None, capture=True):
+    """Call ``fn`` once per seed of ``case`` in this process and return the plain record.
+
+    With ``capture``, what the function prints is recorded instead of shown (only safe where
+    nothing else runs meanwhile: in a forked worker).
+    """
     record = {"case": case["id"]}
     outputs = []
     captured = io.StringIO()
     old = sys.stdout, sys.stderr
-    sys.stdout = sys.stderr = captured
+    if capture:
+        sys.stdout = sys.stderr = captured
     try:
         for i, seed in enumerate(case["seeds"]):
             args = [decode(a, seed) for a in case["args"]]
@@ -163,7 +170,8 @@ def run_case(fn, case, kind, tick=None):
         record.update(status="ok", outputs=outputs)
         return record
     finally:
-        sys.stdout, sys.stderr = old
+        if capture:
+            sys.stdout, sys.stderr = old
         printed = captured.getvalue()
         if printed:
             record["printed"] = printed[:MAX_PRINTED]
@@ -254,7 +262,7 @@ def _run_forked(fn, cases, kind, timeout, memory_mb, budget):
                             rec = json.loads(line[2:])
                         except ValueError:
                             continue
-                        if isinstance(rec, dict) and rec.get("case") in {c["id"] for c in todo}:
+                        if isinstance(rec, dict) and isinstance(rec.get("case"), str) and rec["case"] in {c["id"] for c in todo}:
                             records.setdefault(rec["case"], rec)
         if timed_out:
             os.kill(pid, signal.SIGKILL)
@@ -279,7 +287,7 @@ def _run_threaded(fn, cases, kind, timeout):
     out = []
     for case in cases:
         box = []
-        t = threading.Thread(target=lambda: box.append(run_case(fn, case, kind)), daemon=True)
+        t = threading.Thread(target=lambda: box.append(run_case(fn, case, kind, capture=False)), daemon=True)
         t.start()
         t.join(timeout * max(1, len(case["seeds"])))
         out.append(box[0] if box else {"case": case["id"], "status": "timeout",
@@ -301,7 +309,7 @@ def run_cases(fn, cases, kind, *, timeout=10.0, memory_mb=2048, budget=None):
     Returns:
         list of record dicts, in case order.
     """
-    if hasattr(os, "fork"):
+    if hasattr(os, "fork") and os.environ.get("COURSEKIT_CHECK_ISOLATION", "fork") != "thread":
         import warnings
 
         with warnings.catch_warnings():
