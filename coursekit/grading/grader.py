@@ -120,21 +120,34 @@ def validate_record(rec, check, cases_by_id) -> dict | None:
         clean["call"] = rec["call"]
     if status == "ok":
         outs = rec.get("outputs")
-        depth = 2 if check.output == "array_pair" else 1
         if type(outs) is not list or len(outs) != len(case["seeds"]):
             return None
-        if not all(_plain_list(o, case["max_len"], depth) and (depth == 1 or len(o) == 2) for o in outs):
-            return None
-        if check.output == "indices" and not all(type(x) is int for o in outs for x in o):
-            return None
+        if check.output in ("json", "json_pair"):
+            if check.output == "json":
+                texts = outs
+            elif all(type(o) is list and len(o) == 2 for o in outs):
+                texts = [t for o in outs for t in o]
+            else:
+                return None
+            if not all(type(t) is str and len(t) <= case["max_len"] for t in texts):
+                return None
+        else:
+            depth = 2 if check.output == "array_pair" else 1
+            if not all(_plain_list(o, case["max_len"], depth) and (depth == 1 or len(o) == 2) for o in outs):
+                return None
+            if check.output == "indices" and not all(type(x) is int for o in outs for x in o):
+                return None
         clean["outputs"] = outs
         if case.get("check_inputs"):
             after = rec.get("inputs_after")
             if type(after) is not list or len(after) != len(case["args"]):
                 return None
             for a, arg in zip(after, case["args"]):
-                if a is not None and not (type(a) is dict and set(a) == {"ndarray", "dtype"} and type(a["dtype"]) is str
-                                          and _plain_list(a["ndarray"], case["max_len"], 1)):
+                if a is None:
+                    continue
+                is_array = type(a) is dict and set(a) == {"ndarray", "dtype"} and type(a["dtype"]) is str and _plain_list(a["ndarray"], case["max_len"], 1)
+                is_json = type(a) is dict and set(a) == {"json"} and type(a["json"]) is str and len(a["json"]) <= case["max_len"]
+                if not (is_array or is_json):
                     return None
             clean["inputs_after"] = after
     return clean

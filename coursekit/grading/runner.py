@@ -57,13 +57,36 @@ class BadOutput(Exception):
     """The function returned something that is not the plain data the check asks for."""
 
 
+def _library_attr(path):
+    """``"coursekit.pictures.genome:Genome"`` -> that attribute; only coursekit's own modules."""
+    import importlib
+
+    module, _, attr = path.partition(":")
+    if not (module == "coursekit" or module.startswith("coursekit.")) or not attr:
+        raise ValueError(f"cases may only name coursekit attributes, got {path!r}")
+    obj = importlib.import_module(module)
+    for part in attr.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
 def decode(value, seed):
-    """Turn one encoded argument into the Python object passed to the student function."""
+    """Turn one encoded argument into the Python object passed to the student function.
+
+    Encodings: ``{"rng": true}`` (a generator seeded with ``seed``), ``{"ndarray": ..., "dtype":
+    ...}``, ``{"object": "module:Class", "json": text}`` (``Class.from_json(text)``, for genomes
+    and creatures), ``{"function": "module:name"}`` (a library function, e.g. an ODE right-hand
+    side), or a plain JSON value.
+    """
     if isinstance(value, dict):
         if value.get("rng") is True:
             return np.random.default_rng(seed)
         if "ndarray" in value:
             return np.array(value["ndarray"], dtype=np.dtype(value["dtype"]))
+        if "object" in value:
+            return _library_attr(value["object"]).from_json(value["json"])
+        if "function" in value:
+            return _library_attr(value["function"])
         raise ValueError(f"unknown encoded argument {sorted(value)}")
     return value
 
@@ -90,16 +113,37 @@ def _array(out, what, max_len):
     return values
 
 
+def _json_text(out, what, max_len):
+    """An object with ``to_json()`` (a genome, a creature) or a plain JSON value, as JSON text."""
+    if hasattr(type(out), "to_json"):
+        text = out.to_json()
+        if type(text) is not str:
+            raise BadOutput(f"{what}.to_json() returned {type(text).__name__}; expected str")
+    else:
+        try:
+            text = json.dumps(out, allow_nan=False)
+        except (TypeError, ValueError) as exc:
+            raise BadOutput(f"{what} has type {type(out).__name__}, which is not plain data ({exc})") from None
+    if len(text) > max_len:
+        raise BadOutput(f"{what} is {len(text)} characters of JSON, far more than the {max_len} allowed")
+    try:
+        json.loads(text)
+    except ValueError:
+        raise BadOutput(f"{what} did not serialise to valid JSON") from None
+    return text
+
+
 def convert(kind, out, max_len):
     """Convert one call's result to plain data with strict type checks, or raise :class:`BadOutput`.
 
     Args:
         kind: ``"indices"`` (1-D integer array or list/tuple of ints), ``"array"`` (1-D numpy
-            array of numbers) or ``"array_pair"`` (a tuple or list of two such arrays).
+            array of numbers), ``"array_pair"`` (a tuple or list of two such arrays), ``"json"``
+            (an object with ``to_json()`` or plain JSON data) or ``"json_pair"`` (two of those).
         out: the function's return value.
-        max_len: largest number of values accepted.
+        max_len: largest number of values accepted (characters of JSON text for the json kinds).
     Returns:
-        a list of ints / floats, or a list of two such lists.
+        a list of ints / floats, or a list of two such lists; JSON text, or a list of two.
     """
     if kind == "indices":
         if type(out) is np.ndarray:
@@ -125,12 +169,28 @@ def convert(kind, out, max_len):
             n = f" of length {len(out)}" if type(out) in (tuple, list) else ""
             raise BadOutput(f"returned a {type(out).__name__}{n}; expected a pair (child1, child2)")
         return [_array(out[0], "child 1", max_len), _array(out[1], "child 2", max_len)]
+    if kind == "json":
+        return _json_text(out, "the result", max_len)
+    if kind == "json_pair":
+        if type(out) not in (tuple, list) or len(out) != 2:
+            n = f" of length {len(out)}" if type(out) in (tuple, list) else ""
+            raise BadOutput(f"returned a {type(out).__name__}{n}; expected a pair (child1, child2)")
+        return [_json_text(out[0], "child 1", max_len), _json_text(out[1], "child 2", max_len)]
     raise ValueError(f"unknown output kind {kind!r}")
 
 
 def _describe_error(exc):
     text = f"{type(exc).__name__}: {exc}"
     return text if len(text) <= MAX_ERROR else text[: MAX_ERROR - 3] + "..."
+
+
+def _after(arg, encoded, max_len):
+    """An argument as it is after the call, to show whether the function modified it."""
+    if type(arg) is np.ndarray:
+        return encode_array(arg)
+    if isinstance(encoded, dict) and "object" in encoded:
+        return {"json": _json_text(arg, "the argument", max_len)}
+    return None
 
 
 def run_case(fn, case, kind, tick=None, capture=True):
@@ -163,7 +223,7 @@ def run_case(fn, case, kind, tick=None, capture=True):
                 record.update(status="error", error=_describe_error(exc))
                 return record
             if i == 0 and case.get("check_inputs"):
-                record["inputs_after"] = [encode_array(a) if type(a) is np.ndarray else None for a in args]
+                record["inputs_after"] = [_after(a, v, case["max_len"]) for a, v in zip(args, case["args"])]
             if tick is not None:
                 tick()
         record.pop("call", None)

@@ -100,7 +100,13 @@ class Context:
         """Positional argument ``i`` of case ``cid`` as a Python/numpy value (rng args give None)."""
         a = self.cases[cid]["args"][i]
         if isinstance(a, dict):
-            return np.array(a["ndarray"], dtype=np.dtype(a["dtype"])) if "ndarray" in a else None
+            if "ndarray" in a:
+                return np.array(a["ndarray"], dtype=np.dtype(a["dtype"]))
+            if "object" in a:  # the grader's own import of the library, never the student's kernel
+                from coursekit.grading.runner import _library_attr
+
+                return _library_attr(a["object"]).from_json(a["json"])
+            return None
         return a
 
     def kwarg(self, cid, name, default=None):
@@ -122,6 +128,10 @@ def describe_value(v):
     """A short description of an argument value for messages."""
     if isinstance(v, dict) and v.get("rng") is True:
         return None
+    if isinstance(v, dict) and "object" in v:
+        return f"{v['object'].rpartition(':')[2]}.from_json({v['json'][:60]!r}{'...' if len(v['json']) > 60 else ''})"
+    if isinstance(v, dict) and "function" in v:
+        return v["function"].replace(":", ".")
     if isinstance(v, dict) and "ndarray" in v:
         a = np.array(v["ndarray"], dtype=np.dtype(v["dtype"]))
         return np.array2string(a, threshold=12, edgeitems=4, precision=3, separator=", ")
