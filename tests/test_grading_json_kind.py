@@ -9,12 +9,14 @@ from coursekit.grading import checks
 from coursekit.grading.grader import validate_record
 from coursekit.grading.runner import decode, run_cases
 
+
 def make_case(**over):
     text = History().to_json()
     case = {"id": "c", "args": [{"object": "coursekit.ga.history:History", "json": text}, {"rng": True}],
             "kwargs": {}, "seeds": [1, 2], "check_inputs": True, "max_len": 100_000}
     case.update(over)
     return case
+
 
 def test_object_arguments_are_rebuilt_from_json_and_results_come_back_as_text():
     def clone(h, rng):
@@ -28,6 +30,7 @@ def test_object_arguments_are_rebuilt_from_json_and_results_come_back_as_text():
     check = checks.Check("t.clone", "clone", ("h", "rng"), 1, "clone", "json", lambda rng: [], ())
     assert validate_record({"check": "t.clone", **rec}, check, {"c": make_case()}) is not None
 
+
 def test_pairs_plain_data_and_refusals():
     pair = run_cases(lambda h, rng: ({"a": 1}, [1, 2.5]), [make_case()], "json_pair", timeout=20)[0]
     assert pair["status"] == "ok" and pair["outputs"][0] == ['{"a": 1}', "[1, 2.5]"]
@@ -39,6 +42,7 @@ def test_pairs_plain_data_and_refusals():
     # a record whose "text" is not a string, or that is too long, is refused by the grader
     assert validate_record({**rec, "outputs": [[1, "x"], ["x", "y"]]}, check, {"c": make_case()}) is None
     assert validate_record({**rec, "outputs": [["x" * 200_001, "x"], ["x", "y"]]}, check, {"c": make_case()}) is None
+
 
 def test_function_arguments_name_only_coursekit_attributes():
     assert decode({"function": "coursekit.profile:sized"}, 0).__name__ == "sized"
