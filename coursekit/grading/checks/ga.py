@@ -1,0 +1,434 @@
+"""Checks for exercise 01 (selection and variation operators of a genetic algorithm).
+
+The seed paper (section 4, and its Sims-style GA in sections 2-3) has students write the
+selection and variation operators that then drive the real evolution loop. These checks never
+compare with a reference output -- a student may draw random numbers in any order -- but test
+what the operators promise: the shape and type of the result, exact invariants (indices only
+from the survivors, children made of their parents' genes), the distribution over many seeded
+calls (chi-square / binomial tests from :mod:`coursekit.grading.stats`, each with a false-failure
+rate below 1e-8), determinism for a given seed, and that inputs are left unmodified.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+
+import numpy as np
+
+from coursekit.grading import stats
+from coursekit.grading.checks import Check, exercise, register
+
+
+def _arr(values, dtype):
+    return {"ndarray": np.asarray(values, dtype=dtype).tolist(), "dtype": dtype}
+
+
+RNG = {"rng": True}
+
+
+def _seeds(rng, n):
+    return [int(s) for s in rng.integers(0, 2**31, size=n)]
+
+
+def _pct(x):
+    return f"{100 * x:.1f}%"
+
+
+# -- shared properties -------------------------------------------------------------------------
+
+
+def _deterministic(cid):
+    def prop(ctx):
+        a, b = ctx.out(cid)[:2]
+        if a == b:
+            return True, "same seed, same result"
+        return False, "two calls with the same seed gave different results; draw every random number from the rng argument (no np.random.* or random.*)"
+
+    return prop
+
+
+def _unmodified(cids, names):
+    def prop(ctx):
+        for cid in cids:
+            after = ctx.record(cid).get("inputs_after") or []
+            for i, name in enumerate(names):
+                if i >= len(after) or after[i] != ctx.case(cid)["args"][i]:
+                    return False, f"the {name} argument was modified; work on a copy (e.g. {name}.copy())"
+        return True, "inputs left unchanged"
+
+    return prop
+
+
+def _indices_valid(case_ids):
+    def prop(ctx):
+        for cid in case_ids:
+            n = len(ctx.arg(cid, 0))
+            k = ctx.arg(cid, 1)
+            for out in ctx.out(cid):
+                if len(out) != k:
+                    return False, f"returned {len(out)} individuals, expected k={k}"
+                bad = [i for i in out if not 0 <= i < n]
+                if bad:
+                    return False, f"returned index {bad[0]}, out of range for a population of {n} (valid: 0..{n - 1})"
+        return True, "returns k valid indices"
+
+    return prop
+
+
+def _ranks(fitness):
+    """rank[i] = 0 for the worst, n-1 for the best (fitness values are distinct in our cases)."""
+    order = np.argsort(fitness, kind="stable")
+    rank = np.empty(len(fitness), dtype=int)
+    rank[order] = np.arange(len(fitness))
+    return rank
+
+
+# -- truncation --------------------------------------------------------------------------------
+
+
+def _truncation_cases(rng):
+    def fit(n):
+        return _arr(rng.permutation(n) * 1.5 - n / 2 + rng.uniform(0, 1, n), "float64")
+
+    s = _seeds(rng, 5)
+    return [
+        {"id": "basic", "args": [fit(30), 20, RNG], "seeds": [s[0], s[0]], "check_inputs": True, "max_len": 2000},
+        {"id": "survival", "args": [fit(40), 30, RNG], "kwargs": {"survival": 0.5}, "seeds": [s[1]], "max_len": 3000},
+        {"id": "ceil", "args": [fit(7), 300, RNG], "kwargs": {"survival": 0.2}, "seeds": [s[2]], "max_len": 30000},
+        {"id": "uniform", "args": [fit(20), 20000, RNG], "kwargs": {"survival": 0.25}, "seeds": [s[3]], "max_len": 2000000},
+    ]
+
+
+def _truncation_survivors(ctx):
+    for cid in ("basic", "survival", "ceil", "uniform"):
+        fitness = ctx.arg(cid, 0)
+        survival = ctx.kwarg(cid, "survival", 0.2)
+        m = math.ceil(survival * len(fitness))
+        rank = _ranks(fitness)
+        for out in ctx.out(cid):
+            worse = [i for i in out if rank[i] < len(fitness) - m]
+            if worse:
+                return False, (f"with {len(fitness)} individuals and survival={survival}, picked individual {worse[0]}, "
+                               f"which is not among the best ceil(survival*n) = {m}")
+    return True, "picks only from the best ceil(survival*n) individuals"
+
+
+def _truncation_ceil(ctx):
+    fitness = ctx.arg("ceil", 0)
+    out = ctx.out("ceil")[0]
+    m = math.ceil(0.2 * len(fitness))
+    picked = len(set(out))
+    if picked < m:
+        return False, (f"with {len(fitness)} individuals and survival=0.2, only {picked} distinct individual(s) were "
+                       f"picked in {len(out)} draws; all of the best ceil(0.2*{len(fitness)}) = {m} should be (round up, not down)")
+    return True, "keeps ceil(survival*n) survivors (rounds up)"
+
+
+def _truncation_uniform(ctx):
+    fitness = ctx.arg("uniform", 0)
+    out = ctx.out("uniform")[0]
+    m = math.ceil(0.25 * len(fitness))
+    best = np.argsort(fitness)[::-1][:m]
+    counts = Counter(out)
+    obs = [counts.get(int(i), 0) for i in best]
+    if sum(obs) != len(out):
+        return False, "not checked: picks outside the survivors"
+    ok, _, _ = stats.chi_square(obs, [1 / m] * m)
+    if ok:
+        return True, f"draws uniformly among the survivors ({len(out)} draws)"
+    shares = ", ".join(_pct(o / len(out)) for o in obs)
+    return False, (f"over {len(out)} draws the {m} survivors (best first) were picked {shares} of the time; "
+                   f"each should be picked about {_pct(1 / m)} (uniformly, with replacement)")
+
+
+register(Check(
+    name="ga.truncation", function="truncation", params=("fitness", "k", "rng"), points=2.0,
+    title="truncation selection", output="indices", cases=_truncation_cases,
+    props=(
+        ("returns k valid indices", _indices_valid(["basic", "survival", "ceil", "uniform"])),
+        ("only the best survive", _truncation_survivors),
+        ("rounds the survivor count up", _truncation_ceil),
+        ("uniform among survivors", _truncation_uniform),
+        ("deterministic for a seed", _deterministic("basic")),
+        ("inputs unchanged", _unmodified(["basic"], ["fitness"])),
+    ),
+))
+
+
+# -- tournament --------------------------------------------------------------------------------
+
+
+def _tournament_cases(rng):
+    def fit(n):
+        return _arr(rng.permutation(n) - n / 3 + rng.uniform(0, 0.5, n), "float64")
+
+    s = _seeds(rng, 3)
+    return [
+        {"id": "basic", "args": [fit(30), 20, RNG], "seeds": [s[0], s[0]], "check_inputs": True, "max_len": 2000},
+        {"id": "size3", "args": [fit(10), 20000, RNG], "seeds": [s[1]], "max_len": 2000000},
+        {"id": "size2", "args": [fit(8), 20000, RNG], "kwargs": {"size": 2}, "seeds": [s[2]], "max_len": 2000000},
+    ]
+
+
+def _tournament_rates(cid):
+    def prop(ctx):
+        fitness = ctx.arg(cid, 0)
+        size = ctx.kwarg(cid, "size", 3)
+        n = len(fitness)
+        out = ctx.out(cid)[0]
+        rank = _ranks(fitness)
+        counts = np.bincount(rank[np.asarray(out)], minlength=n)
+        j = np.arange(n)
+        probs = ((j + 1) / n) ** size - (j / n) ** size  # P(winner has rank j): best of `size` uniform draws
+        ok, _, _ = stats.chi_square(counts, probs)
+        p_best = 1 - (1 - 1 / n) ** size
+        if ok:
+            return True, f"with size={size}, the best of {n} won {_pct(counts[-1] / len(out))} of {len(out)} tournaments (expected about {_pct(p_best)})"
+        return False, (f"with size={size}, the best of {n} individuals won {_pct(counts[-1] / len(out))} of {len(out)} tournaments "
+                       f"and the worst {_pct(counts[0] / len(out))}; a tournament of {size} contestants drawn uniformly with "
+                       f"replacement is won by the best {_pct(p_best)} of the time (1-(1-1/n)^size) and by the worst {_pct(probs[0])}")
+
+    return prop
+
+
+register(Check(
+    name="ga.tournament", function="tournament", params=("fitness", "k", "rng"), points=2.0,
+    title="tournament selection", output="indices", cases=_tournament_cases,
+    props=(
+        ("returns k valid indices", _indices_valid(["basic", "size3", "size2"])),
+        ("fitter individuals win at the expected rate (size=3)", _tournament_rates("size3")),
+        ("honours the size parameter (size=2)", _tournament_rates("size2")),
+        ("deterministic for a seed", _deterministic("basic")),
+        ("inputs unchanged", _unmodified(["basic"], ["fitness"])),
+    ),
+))
+
+
+# -- roulette ----------------------------------------------------------------------------------
+
+
+def _roulette_cases(rng):
+    dist = rng.permutation([3.0, 0.0, 1.0, 6.0, 2.0, 0.0, 8.0, 4.5])
+    s = _seeds(rng, 2)
+    return [
+        {"id": "basic", "args": [_arr(rng.uniform(0.5, 5.0, 25), "float64"), 20, RNG], "seeds": [s[0], s[0]],
+         "check_inputs": True, "max_len": 2000},
+        {"id": "dist", "args": [_arr(dist, "float64"), 20000, RNG], "seeds": [s[1]], "max_len": 2000000},
+    ]
+
+
+def _roulette_zero(ctx):
+    fitness = ctx.arg("dist", 0)
+    out = ctx.out("dist")[0]
+    zero = [i for i in out if fitness[i] == 0]
+    if zero:
+        return False, f"picked individual {zero[0]}, whose fitness is 0, {len(zero)} times in {len(out)} draws; its chance should be 0"
+    return True, "never picks an individual of fitness 0"
+
+
+def _roulette_proportional(ctx):
+    fitness = ctx.arg("dist", 0)
+    out = ctx.out("dist")[0]
+    pos = np.flatnonzero(fitness > 0)
+    counts = Counter(out)
+    obs = [counts.get(int(i), 0) for i in pos]
+    probs = fitness[pos] / fitness[pos].sum()
+    if sum(obs) != len(out):
+        return False, "not checked: picks individuals of fitness 0"
+    ok, _, _ = stats.chi_square(obs, probs)
+    if ok:
+        return True, f"picks in proportion to fitness ({len(out)} draws)"
+    i = int(np.argmax(np.abs(np.asarray(obs) / len(out) - probs)))
+    return False, (f"over {len(out)} draws, individual {int(pos[i])} (fitness {fitness[pos[i]]:g} of a total {fitness.sum():g}) "
+                   f"was picked {_pct(obs[i] / len(out))} of the time; roulette selection picks it with probability "
+                   f"fitness / total fitness = {_pct(probs[i])}")
+
+
+register(Check(
+    name="ga.roulette", function="roulette", params=("fitness", "k", "rng"), points=2.0,
+    title="roulette-wheel selection", output="indices", cases=_roulette_cases,
+    props=(
+        ("returns k valid indices", _indices_valid(["basic", "dist"])),
+        ("never picks zero fitness", _roulette_zero),
+        ("proportional to fitness", _roulette_proportional),
+        ("deterministic for a seed", _deterministic("basic")),
+        ("inputs unchanged", _unmodified(["basic"], ["fitness"])),
+    ),
+))
+
+
+# -- one-point crossover -----------------------------------------------------------------------
+
+
+def _crossover_cases(rng):
+    s = _seeds(rng, 600)
+
+    def bits(n):
+        return rng.integers(0, 2, n)
+
+    a10, a5 = bits(10), bits(5)
+    return [  # b = 1 - a differs everywhere, so the cut can be read off the children; "mixed" parents share genes
+        {"id": "basic", "args": [_arr(a10, "int8"), _arr(1 - a10, "int8"), RNG], "seeds": [s[0], s[0]],
+         "check_inputs": True, "max_len": 1000},
+        {"id": "mixed", "args": [_arr(bits(16), "int8"), _arr(bits(16), "int8"), RNG], "seeds": s[1:4], "max_len": 1000},
+        {"id": "cuts", "args": [_arr(a5, "int8"), _arr(1 - a5, "int8"), RNG], "seeds": s[4:600], "max_len": 500},
+    ]
+
+
+def _cut_of(a, b, c1, c2):
+    """A cut c in 1..len-1 with c1 = a[:c]+b[c:] and c2 = b[:c]+a[c:], or None and why not."""
+    L = len(a)
+    for c in range(1, L):
+        if c1 == a[:c] + b[c:] and c2 == b[:c] + a[c:]:
+            return c, ""
+    if {tuple(c1), tuple(c2)} == {tuple(a), tuple(b)}:
+        return None, "the children are copies of the parents; the cut must lie in 1..len-1 so both parents contribute"
+    return None, f"children {c1} and {c2} are not a[:c] + b[c:] and b[:c] + a[c:] for any cut 1 <= c <= {L - 1}"
+
+
+def _crossover_valid(ctx):
+    for cid in ("basic", "mixed", "cuts"):
+        L = len(ctx.arg(cid, 0))
+        for c1, c2 in ctx.out(cid):
+            if len(c1) != L or len(c2) != L:
+                return False, f"returned children of lengths {len(c1)} and {len(c2)}; expected both of the parents' length {L}"
+    return True, "returns two arrays of the parents' length"
+
+
+def _crossover_one_point(ctx):
+    for cid in ("basic", "mixed", "cuts"):
+        a, b = ctx.arg(cid, 0).tolist(), ctx.arg(cid, 1).tolist()
+        for (c1, c2), seed in zip(ctx.out(cid), ctx.case(cid)["seeds"]):
+            c, why = _cut_of(a, b, c1, c2)
+            if c is None:
+                return False, f"for parents a={a} and b={b} (rng seed {seed}): {why}"
+    return True, "children are a[:c]+b[c:] and b[:c]+a[c:] with 1 <= c <= len-1"
+
+
+def _crossover_uniform(ctx):
+    a, b = ctx.arg("cuts", 0).tolist(), ctx.arg("cuts", 1).tolist()
+    cuts = []
+    for c1, c2 in ctx.out("cuts"):
+        c, _ = _cut_of(a, b, c1, c2)
+        if c is None:
+            return False, "not checked: not every result is a one-point crossover"
+        cuts.append(c)
+    L = len(a)
+    counts = [cuts.count(c) for c in range(1, L)]
+    ok, _, _ = stats.chi_square(counts, [1 / (L - 1)] * (L - 1))
+    shares = ", ".join(f"c={c}: {_pct(n / len(cuts))}" for c, n in zip(range(1, L), counts))
+    if ok:
+        return True, f"cut point uniform on 1..{L - 1} over {len(cuts)} calls"
+    return False, f"over {len(cuts)} crossovers of length-{L} parents the cut fell at {shares}; each of 1..{L - 1} should have about {_pct(1 / (L - 1))}"
+
+
+register(Check(
+    name="ga.one_point_crossover", function="one_point_crossover", params=("a", "b", "rng"), points=2.0,
+    title="one-point crossover", output="array_pair", cases=_crossover_cases,
+    props=(
+        ("returns two children of the right length", _crossover_valid),
+        ("children are one-point crossovers", _crossover_one_point),
+        ("cut point uniform", _crossover_uniform),
+        ("deterministic for a seed", _deterministic("basic")),
+        ("inputs unchanged", _unmodified(["basic"], ["a", "b"])),
+    ),
+))
+
+
+# -- point mutation ----------------------------------------------------------------------------
+
+
+def _mutation_cases(rng):
+    s = _seeds(rng, 1506)
+
+    def genome(n):
+        return _arr(rng.integers(0, 2, n), "int8")
+
+    return [
+        {"id": "basic", "args": [genome(30), RNG], "seeds": [s[0], s[0]], "check_inputs": True, "max_len": 1000},
+        {"id": "default", "args": [genome(40), RNG], "seeds": s[1:1001], "max_len": 1000},
+        {"id": "rate", "args": [genome(20), RNG], "kwargs": {"rate": 0.25}, "seeds": s[1001:1501], "max_len": 1000},
+        {"id": "rate0", "args": [genome(16), RNG], "kwargs": {"rate": 0.0}, "seeds": s[1501:1503], "max_len": 1000},
+        {"id": "rate1", "args": [genome(16), RNG], "kwargs": {"rate": 1.0}, "seeds": s[1503:1506], "check_inputs": True,
+         "max_len": 1000},
+    ]
+
+
+_MUTATION_CASES = ("basic", "default", "rate", "rate0", "rate1")
+
+
+def _flips(ctx, cid):
+    g = ctx.arg(cid, 0)
+    return np.array([np.asarray(out) != g for out in ctx.out(cid)])
+
+
+def _mutation_valid(ctx):
+    for cid in _MUTATION_CASES:
+        L = len(ctx.arg(cid, 0))
+        for out in ctx.out(cid):
+            if len(out) != L:
+                return False, f"returned a genome of length {len(out)} for an input of length {L}"
+            bad = [v for v in out if v not in (0, 1)]
+            if bad:
+                return False, f"returned a genome containing {bad[0]!r}; a mutated 0/1 genome holds only 0 and 1"
+    return True, "returns a 0/1 genome of the same length"
+
+
+def _mutation_default_rate(ctx):
+    f = _flips(ctx, "default")
+    calls, L = f.shape
+    ok, lo, hi = stats.binomial_ok(int(f.sum()), f.size, 1 / L)
+    if ok:
+        return True, f"flipped {int(f.sum())} of {f.size} bits with the default rate (about 1/len expected)"
+    return False, (f"with the default rate on {calls} genomes of length {L}, {int(f.sum())} of {f.size} bits were flipped "
+                   f"({_pct(f.mean())}); each bit should flip with probability 1/len = {_pct(1 / L)}")
+
+
+def _mutation_independent(ctx):
+    f = _flips(ctx, "default")
+    calls, L = f.shape
+    p = 1 / L
+    per_genome = f.sum(axis=1)
+    top = 4  # bins 0, 1, 2, 3 and ">= 4" (expected counts >= 5 for L=40, 1000 calls)
+    obs = [int(np.sum(per_genome == j)) for j in range(top)] + [int(np.sum(per_genome >= top))]
+    pk = [math.comb(L, j) * p**j * (1 - p) ** (L - j) for j in range(top)]
+    ok_hist, _, _ = stats.chi_square(obs, pk + [1 - sum(pk)])
+    ok_pos, _, _ = stats.chi_square(f.sum(axis=0), [1 / L] * L) if f.sum() else (False, 0, 0)
+    if not ok_hist:
+        hist = ", ".join(f"{j}: {_pct(o / calls)}" for j, o in enumerate(obs[:top]))
+        exp = ", ".join(f"{j}: {_pct(q)}" for j, q in enumerate(pk))
+        return False, (f"number of bits flipped per genome (of {calls} genomes of length {L}): {hist}; "
+                       f"flipping each bit independently gives about {exp}")
+    if not ok_pos:
+        return False, f"some positions of the genome are flipped much more often than others (over {calls} genomes of length {L}); every position should be equally likely"
+    return True, "each bit flips independently, at every position alike"
+
+
+def _mutation_rate(ctx):
+    f = _flips(ctx, "rate")
+    ok, _, _ = stats.binomial_ok(int(f.sum()), f.size, 0.25)
+    if not ok:
+        return False, f"with rate=0.25, {_pct(f.mean())} of {f.size} bits were flipped; expected about 25%"
+    if _flips(ctx, "rate0").any():
+        return False, "with rate=0.0 some bits were flipped; no bit should change"
+    if not _flips(ctx, "rate1").all():
+        return False, "with rate=1.0 some bits were not flipped; every bit should change"
+    return True, "honours the rate argument (0, 0.25 and 1)"
+
+
+register(Check(
+    name="ga.point_mutation", function="point_mutation", params=("genome", "rng"), points=2.0,
+    title="point mutation", output="array", cases=_mutation_cases,
+    props=(
+        ("returns a 0/1 genome of the same length", _mutation_valid),
+        ("default rate is 1/len", _mutation_default_rate),
+        ("bits flip independently", _mutation_independent),
+        ("honours rate", _mutation_rate),
+        ("deterministic for a seed", _deterministic("basic")),
+        ("input unchanged", _unmodified(["basic", "rate1"], ["genome"])),
+    ),
+))
+
+
+exercise("01_selection", ["ga.truncation", "ga.tournament", "ga.roulette", "ga.one_point_crossover", "ga.point_mutation"])

@@ -1,0 +1,65 @@
+"""Formative checks inside an exercise notebook: ``check("ga.tournament", tournament)``.
+
+Seed paper section 4: students get immediate, friendly feedback on their GA operators before the
+operators drive the real system. The check generates its cases (seeded), calls the student's
+function through :mod:`coursekit.grading.runner` (each call in a forked, memory-limited worker
+killed after ``timeout`` seconds), judges with the same :func:`coursekit.grading.checks.judge`
+the summative grader uses, and prints one line per property. Messages describe what the function
+did and what the specification asks; they never print the solution. Formative checks run in the
+student's own kernel, so they are feedback only: marks come from ``coursekit grade``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from coursekit.grading import checks, runner
+
+#: Formative and summative graders use different cases (different seeds) on purpose.
+FORMATIVE_SEED = 20260101
+
+
+def evaluate(name, function, *, timeout=10.0, seed=FORMATIVE_SEED, memory_mb=2048):
+    """Run check ``name`` on ``function`` and return the :class:`~coursekit.grading.checks.Judgement`.
+
+    Args:
+        name: registered check name, e.g. ``"ga.tournament"``.
+        function: the student's function.
+        timeout: seconds allowed per call.
+        seed: seed of the generator that makes the test inputs.
+        memory_mb: extra memory a call may allocate.
+    """
+    check = checks.get(name)
+    if not callable(function):
+        raise TypeError(f"check({name!r}, function): function must be callable, got {type(function).__name__}")
+    if not (isinstance(timeout, (int, float)) and timeout > 0):
+        raise ValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
+    cases = check.cases(np.random.default_rng(seed))
+    records = runner.run_cases(function, cases, check.output, timeout=float(timeout), memory_mb=memory_mb)
+    judgement = checks.judge(check, cases, {r["case"]: r for r in records})
+    judgement.printed = next((r["printed"] for r in records if r.get("printed")), "")
+    return judgement
+
+
+def format_judgement(j) -> str:
+    """The text a student sees for one judgement."""
+    head = f"{j.check.name} ({j.check.title})"
+    if not j.attempted:
+        return f"{head}: {j.verdicts[0].message}"
+    n = sum(v.passed for v in j.verdicts)
+    lines = [f"{head}: {n}/{len(j.verdicts)} properties hold" + (" -- well done!" if j.passed else "")]
+    lines += [f"  {'✓' if v.passed else '✗'} {v.prop}: {v.message}" for v in j.verdicts]
+    if j.printed:
+        lines.append("  your function printed (first test input):\n    " + j.printed.rstrip().replace("\n", "\n    "))
+    return "\n".join(lines)
+
+
+def check(name, function, *, timeout=10.0):
+    """Check your function against the exercise's specification and print a verdict per property.
+
+    Args:
+        name: the check's name, e.g. ``"ga.tournament"``.
+        function: your function.
+        timeout: seconds allowed per call.
+    """
+    print(format_judgement(evaluate(name, function, timeout=timeout)))

@@ -1,0 +1,445 @@
+"""Summative grading: ``coursekit grade NOTEBOOK... --json OUT`` (seed paper section 4, exercises graded).
+
+Integrity model. This process computes and writes scores and never imports or runs student code:
+
+- It makes the test cases itself (seeded), writes them into a private box directory and starts
+  :mod:`coursekit.grading.executor` as a child -- in a new session, with ``RLIMIT_AS``, and as an
+  unprivileged user (``nobody``) when running as root, as autograders such as Gradescope do. The
+  child executes the notebook in a fresh kernel and harvests *raw outputs* of the student's
+  functions into one channel file.
+- It reads only that channel (and a small execution report), refusing anything that is not a
+  regular file below a size cap, and validates every record strictly (schema, types, lengths).
+  It then judges with its own copy of the checks and cases; points come from the registry.
+- It is a child subreaper (Linux): processes the notebook forked, even double-forked daemons,
+  become its children when their parents die, and are killed before any result is written.
+  Results are written atomically after that, so nothing the notebook started can overwrite them.
+  (``COURSEKIT_GRADE_KEEP=1`` keeps the private directory, with the child's log, for debugging.)
+
+What the kernel can still do is choose the raw outputs its functions return -- exactly what a
+student's function can do anyway. Without root, the kernel runs as the grader's own user and
+could signal or overwrite the grader's files; run graders as root in a container (the
+autograder convention) for the privilege separation.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import os
+import pwd
+import resource
+import shutil
+import signal
+import stat
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import coursekit
+
+from coursekit.grading import checks as registry
+from coursekit.grading.checks import STATUSES, Judgement, Verdict
+
+RESULTS_FORMAT = "coursekit.grade/1"
+GRADING_SEED = 7_919
+MAX_CHANNEL_BYTES = 64 * 2**20
+MAX_REPORT_BYTES = 2**20
+_PKG_ROOT = Path(os.path.abspath(coursekit.__file__)).parent.parent  # the coursekit this grader runs (not symlink-resolved)
+
+
+@dataclass
+class NotebookResult:
+    """The judgements of one notebook, plus notes on how its execution went."""
+
+    path: str
+    judgements: list
+    notes: list
+
+    @property
+    def score(self) -> float:
+        return round(sum(j.score for j in self.judgements), 4)
+
+    @property
+    def max_score(self) -> float:
+        return float(sum(j.check.points for j in self.judgements))
+
+
+# -- reading what the child produced -------------------------------------------------------------
+
+
+def _read_untrusted(path: Path, limit: int) -> bytes | None:
+    """Bytes of a regular file (no symlinks, FIFOs or devices), or None; ValueError when too big."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError:
+        return None
+    with os.fdopen(fd, "rb") as f:
+        st = os.fstat(f.fileno())
+        if not stat.S_ISREG(st.st_mode):
+            return None
+        data = f.read(limit + 1)
+    if len(data) > limit:
+        raise ValueError(f"{path.name} exceeds {limit} bytes")
+    return data
+
+
+def _reject_constant(name):
+    raise ValueError(f"non-finite number {name}")
+
+
+def _plain_list(v, max_len, depth):
+    """Is v a list of ints/finite floats (depth 1) or of such lists (depth 2), within max_len?"""
+    if type(v) is not list or len(v) > max_len:
+        return False
+    if depth == 1:
+        return all(type(x) in (int, float) for x in v)
+    return all(_plain_list(x, max_len, depth - 1) for x in v)
+
+
+def validate_record(rec, check, cases_by_id) -> dict | None:
+    """A record from the channel as a clean dict, or None when it is malformed in any way."""
+    if type(rec) is not dict or rec.get("check") != check.name or type(rec.get("case")) is not str:
+        return None
+    case = cases_by_id.get(rec["case"])
+    status = rec.get("status")
+    if case is None or status not in STATUSES:
+        return None
+    clean = {"case": case["id"], "status": status}
+    if "error" in rec:
+        if type(rec["error"]) is not str:
+            return None
+        clean["error"] = rec["error"][:600]
+    if "call" in rec:
+        if type(rec["call"]) is not int or not 0 <= rec["call"] < len(case["seeds"]):
+            return None
+        clean["call"] = rec["call"]
+    if status == "ok":
+        outs = rec.get("outputs")
+        if type(outs) is not list or len(outs) != len(case["seeds"]):
+            return None
+        if check.output in ("json", "json_pair"):
+            if check.output == "json":
+                texts = outs
+            elif all(type(o) is list and len(o) == 2 for o in outs):
+                texts = [t for o in outs for t in o]
+            else:
+                return None
+            if not all(type(t) is str and len(t) <= case["max_len"] for t in texts):
+                return None
+        else:
+            depth = 2 if check.output == "array_pair" else 1
+            if not all(_plain_list(o, case["max_len"], depth) and (depth == 1 or len(o) == 2) for o in outs):
+                return None
+            if check.output == "indices" and not all(type(x) is int for o in outs for x in o):
+                return None
+        clean["outputs"] = outs
+        if case.get("check_inputs"):
+            after = rec.get("inputs_after")
+            if type(after) is not list or len(after) != len(case["args"]):
+                return None
+            for a, arg in zip(after, case["args"]):
+                if a is None:
+                    continue
+                is_array = type(a) is dict and set(a) == {"ndarray", "dtype"} and type(a["dtype"]) is str and _plain_list(a["ndarray"], case["max_len"], 1)
+                is_json = type(a) is dict and set(a) == {"json"} and type(a["json"]) is str and len(a["json"]) <= case["max_len"]
+                if not (is_array or is_json):
+                    return None
+            clean["inputs_after"] = after
+    return clean
+
+
+def read_channel(path: Path, checks: list, cases: dict) -> tuple[dict, int]:
+    """Parse the JSON-lines channel: ``({check_name: {case_id: record}}, number of rejected lines)``."""
+    by_name = {c.name: c for c in checks}
+    records: dict = {c.name: {} for c in checks}
+    try:
+        data = _read_untrusted(path, MAX_CHANNEL_BYTES)
+    except ValueError:
+        return records, 1
+    rejected = 0
+    for line in (data or b"").splitlines():
+        try:
+            rec = json.loads(line, parse_constant=_reject_constant)
+        except (ValueError, RecursionError):
+            rejected += 1
+            continue
+        check = by_name.get(rec.get("check")) if type(rec) is dict and type(rec.get("check")) is str else None
+        try:
+            clean = validate_record(rec, check, {c["id"]: c for c in cases[check.name]}) if check else None
+        except (TypeError, ValueError):
+            clean = None
+        if clean is None:
+            rejected += 1
+        else:
+            records[check.name].setdefault(clean["case"], clean)  # the first record of a case counts
+    return records, rejected
+
+
+def read_report(path: Path) -> list:
+    """Human notes from the execution report (which cells failed); [] when absent or malformed."""
+    try:
+        data = _read_untrusted(path, MAX_REPORT_BYTES)
+        rep = json.loads(data) if data else None
+    except (ValueError, RecursionError):
+        return ["the execution report was unreadable"]
+    if type(rep) is not dict or rep.get("format") != "coursekit.execution/1":
+        return ["no execution report (the notebook run was stopped)"]
+    notes = []
+    if type(rep.get("error")) is str:
+        notes.append(rep["error"][:400])
+    cells = rep.get("cells") if type(rep.get("cells")) is list else []
+    for c in cells[:200]:
+        if type(c) is dict and type(c.get("status")) is str and type(c.get("index")) is int and c["status"] != "ok":
+            notes.append(f"cell {c['index'] + 1}: {c['status'][:200]}")
+    return notes
+
+
+# -- running the child and cleaning up after it --------------------------------------------------
+
+
+_SUBREAPER = False
+
+
+def become_subreaper() -> bool:
+    """Adopt orphaned descendants (Linux ``PR_SET_CHILD_SUBREAPER``); False where unsupported.
+
+    Only a dedicated grading process should do this: afterwards :func:`grade_notebook` kills
+    *every* child of the process once each notebook is done.
+    """
+    global _SUBREAPER
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        _SUBREAPER = libc.prctl(36, 1, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        _SUBREAPER = False
+    return _SUBREAPER
+
+
+def _own_children() -> list[int]:
+    me, kids = os.getpid(), []
+    for entry in os.listdir("/proc") if os.path.isdir("/proc") else []:
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat", "rb") as f:
+                    fields = f.read().rsplit(b")", 1)[1].split()
+                if int(fields[1]) == me:
+                    kids.append(int(entry))
+            except (OSError, IndexError, ValueError):
+                pass
+    return kids
+
+
+def sweep(spare=()) -> int:
+    """SIGKILL and reap every child of this process (adopted orphans included); return how many."""
+    killed = 0
+    for _ in range(1000):
+        kids = [k for k in _own_children() if k not in spare]
+        if not kids:
+            break
+        for k in kids:
+            try:
+                os.kill(k, signal.SIGKILL)
+                killed += 1
+            except ProcessLookupError:
+                pass
+        for k in kids:
+            try:
+                os.waitpid(k, 0)
+            except ChildProcessError:
+                pass
+    return killed
+
+
+_USABLE: dict = {}
+
+
+def grading_user(user: str):
+    """(uid, gid) of ``user`` when running as root and that user can run this Python; else None."""
+    if os.geteuid() != 0 or not user:
+        return None
+    if user not in _USABLE:
+        try:
+            pw = pwd.getpwnam(user)
+            probe = subprocess.run([sys.executable, "-c", "import nbclient, numpy"], user=pw.pw_uid, group=pw.pw_gid,
+                                   extra_groups=[], env={"PYTHONPATH": str(_PKG_ROOT)}, cwd="/", capture_output=True, timeout=60)
+            _USABLE[user] = (pw.pw_uid, pw.pw_gid) if probe.returncode == 0 else None
+        except (KeyError, OSError, subprocess.SubprocessError):
+            _USABLE[user] = None
+    return _USABLE[user]
+
+
+def _limits(memory_mb):
+    def apply():
+        resource.setrlimit(resource.RLIMIT_AS, (memory_mb * 2**20, memory_mb * 2**20))
+        resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+
+    return apply
+
+
+def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, seed=GRADING_SEED,
+                   exercise=None, user="nobody") -> NotebookResult:
+    """Grade one notebook in an isolated child; see the module docstring.
+
+    Args:
+        path: the submitted notebook.
+        timeout: seconds per call of a student function.
+        cell_timeout: seconds per notebook cell.
+        memory_mb: address-space limit of the child and its kernel.
+        seed: seed of the grading cases.
+        exercise: exercise stem (default: the notebook's file stem, e.g. ``01_selection``).
+        user: account the child runs as when grading as root ("" keeps root).
+    """
+    path = Path(path)
+    checks = registry.for_notebook(exercise or path.stem)
+    rng = np.random.default_rng(seed)
+    cases = {c.name: c.cases(rng) for c in checks}
+    spec = {"timeout": float(timeout), "memory_mb": int(memory_mb),
+            "checks": [{"name": c.name, "function": c.function, "output": c.output, "cases": cases[c.name]} for c in checks]}
+    ids = grading_user(user)
+    private = Path(tempfile.mkdtemp(prefix="coursekit-grade-"))
+    try:
+        box = private / "box"
+        for d in ("", "work", "home", "runtime"):
+            (box / d).mkdir(exist_ok=True)
+            if ids:
+                os.chown(box / d, *ids)
+        if ids:
+            os.chmod(private, 0o711)
+        try:
+            nb_bytes = path.read_bytes()
+        except OSError as exc:
+            return NotebookResult(str(path), _zero(checks, f"could not read {path}: {exc.strerror}"), [])
+        (box / "submission.ipynb").write_bytes(nb_bytes)
+        (box / "spec.json").write_text(json.dumps(spec), encoding="utf-8")
+        channel, report = box / "channel.jsonl", box / "report.json"
+        env = {k: v for k, v in os.environ.items() if k in ("PATH", "LANG", "LC_ALL", "TZ", "COURSEKIT_PROFILE")}
+        env.update(PYTHONPATH=str(_PKG_ROOT), HOME=str(box / "home"), JUPYTER_RUNTIME_DIR=str(box / "runtime"),
+                   IPYTHONDIR=str(box / "home" / ".ipython"), MPLCONFIGDIR=str(box / "home" / ".mpl"),
+                   MPLBACKEND="Agg", PYTHONNOUSERSITE="1", COURSEKIT_PROFILE=env.get("COURSEKIT_PROFILE", "ci"))
+        cmd = [sys.executable, "-m", "coursekit.grading.executor", "--notebook", str(box / "submission.ipynb"),
+               "--spec", str(box / "spec.json"), "--channel", str(channel), "--report", str(report),
+               "--cwd", str(box / "work"), "--cell-timeout", str(cell_timeout)]
+        # Backstop only: the child bounds every cell and call itself.
+        wall = 2 * cell_timeout * (min(nb_bytes.count(b'"cell_type"'), 500) + 2) + (4 * timeout + 60) * len(checks)
+        notes = [] if ids or os.geteuid() != 0 else [f"ran as root: user {user!r} could not run this Python, so privileges were not dropped"]
+        with open(private / "child.log", "wb") as log:
+            child = subprocess.Popen(cmd, cwd=box / "work", env=env, stdin=subprocess.DEVNULL, stdout=log,
+                                     stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_limits(memory_mb),
+                                     user=ids[0] if ids else None, group=ids[1] if ids else None,
+                                     extra_groups=[] if ids else None)
+            try:
+                child.wait(timeout=wall)
+            except subprocess.TimeoutExpired:
+                notes.append(f"grading stopped after {wall:.0f} s")
+            try:
+                os.killpg(child.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
+            child.wait()
+            if _SUBREAPER:  # orphans of this notebook (kernel, daemons) are our children now: none survives
+                sweep()
+        records, rejected = read_channel(channel, checks, cases)
+        notes += read_report(report)
+        if rejected:
+            notes.append(f"{rejected} malformed result line(s) were ignored")
+        judgements = [registry.judge(c, cases[c.name], records[c.name]) if records[c.name] else
+                      _zero([c], f"no results: {c.function} could not be called (the notebook stopped before grading; see the notes)")[0]
+                      for c in checks]
+        return NotebookResult(str(path), judgements, notes)
+    finally:
+        if not os.environ.get("COURSEKIT_GRADE_KEEP"):
+            shutil.rmtree(private, ignore_errors=True)
+
+
+def _zero(checks, why):
+    return [Judgement(c, False, [Verdict("graded", False, why)], 0.0) for c in checks]
+
+
+# -- reporting -----------------------------------------------------------------------------------
+
+
+def _messages(j: Judgement) -> str:
+    return "\n".join(f"{'PASS' if v.passed else 'FAIL'} {v.prop}: {v.message}" for v in j.verdicts)
+
+
+def gradescope(results: list) -> dict:
+    """Results in Gradescope's results.json format (plus ``extra_data`` with our format tag)."""
+    tests = []
+    for r in results:
+        stem = Path(r.path).name
+        for j in r.judgements:
+            tests.append({"name": f"{stem}: {j.check.name} ({j.check.title})", "score": j.score,
+                          "max_score": j.check.points, "output": _messages(j)})
+    return {
+        "score": round(sum(r.score for r in results), 4),
+        "output": "\n".join(f"{Path(r.path).name}: {r.score:g} / {r.max_score:g}" + "".join(f"\n  {n}" for n in r.notes)
+                            for r in results),
+        "visibility": "visible",
+        "stdout_visibility": "hidden",
+        "tests": tests,
+        "extra_data": {"format": RESULTS_FORMAT,
+                       "notebooks": [{"path": r.path, "score": r.score, "max_score": r.max_score} for r in results]},
+    }
+
+
+def summary(results: list) -> str:
+    """The readable summary printed by ``coursekit grade``."""
+    lines = []
+    for r in results:
+        lines.append(f"{r.path}: {r.score:g} / {r.max_score:g} points")
+        for j in r.judgements:
+            first = next((v for v in j.verdicts if not v.passed), None)
+            lines.append(f"  {j.check.name:<24} {j.score:>6.2f} / {j.check.points:g}   "
+                         + ("all properties hold" if first is None else f"{first.prop}: {first.message}"))
+        lines += [f"  note: {n}" for n in r.notes]
+    return "\n".join(lines)
+
+
+def write_json_atomic(path, obj) -> None:
+    """Write JSON to ``path`` via a temporary file in the same folder and ``os.replace``."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            json.dump(obj, f, indent=1)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def main(args) -> int:
+    """``coursekit grade``: grade each notebook in isolation, print a summary, write Gradescope JSON."""
+    for name in ("timeout", "cell_timeout", "memory_mb"):
+        v = getattr(args, name, None)
+        if v is not None and not v > 0:
+            print(f"coursekit grade: --{name.replace('_', '-')} must be positive, got {v}", file=sys.stderr)
+            return 2
+    try:
+        for nb in args.notebooks:
+            registry.for_notebook(getattr(args, "exercise", None) or Path(nb).stem)
+    except ValueError as exc:
+        print(f"coursekit grade: {exc}", file=sys.stderr)
+        return 2
+    if not become_subreaper():
+        print("coursekit grade: warning: cannot adopt orphaned processes (no PR_SET_CHILD_SUBREAPER); "
+              "processes a notebook daemonises may outlive grading", file=sys.stderr)
+    results = []
+    for nb in args.notebooks:
+        t0 = time.monotonic()
+        results.append(grade_notebook(nb, timeout=args.timeout, cell_timeout=getattr(args, "cell_timeout", 300.0),
+                                      memory_mb=getattr(args, "memory_mb", 4096), exercise=getattr(args, "exercise", None)))
+        results[-1].notes.append(f"graded in {time.monotonic() - t0:.1f} s")
+    if _SUBREAPER:
+        sweep()
+    print(summary(results))
+    if args.json_out:
+        write_json_atomic(args.json_out, gradescope(results))
+    return 0

@@ -1,0 +1,192 @@
+"""Regenerate the adversarial notebooks: ``python tests/adversarial/make_notebooks.py``.
+
+Each notebook is graded as exercise ``01_selection``. Its honest functions are correct; the
+functions named in ``SABOTAGED`` (and some top-level cells) attack the grader. The grader must
+give exactly the honest part's points: 2 per honest function, 0 per sabotaged one.
+"""
+
+from pathlib import Path
+
+import nbformat
+from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
+
+HERE = Path(__file__).parent
+
+HONEST = {
+    "truncation": '''def truncation(fitness, k, rng, survival=0.2):
+    fitness = np.asarray(fitness)
+    m = math.ceil(survival * len(fitness))
+    return np.argsort(fitness)[::-1][:m][rng.integers(0, m, size=k)]''',
+    "tournament": '''def tournament(fitness, k, rng, size=3):
+    fitness = np.asarray(fitness)
+    c = rng.integers(0, len(fitness), size=(k, size))
+    return c[np.arange(k), np.argmax(fitness[c], axis=1)]''',
+    "roulette": '''def roulette(fitness, k, rng):
+    fitness = np.asarray(fitness, dtype=float)
+    return rng.choice(len(fitness), size=k, p=fitness / fitness.sum())''',
+    "one_point_crossover": '''def one_point_crossover(a, b, rng):
+    c = int(rng.integers(1, len(a)))
+    return np.concatenate([a[:c], b[c:]]), np.concatenate([b[:c], a[c:]])''',
+    "point_mutation": '''def point_mutation(genome, rng, rate=None):
+    rate = 1 / len(genome) if rate is None else rate
+    return np.where(rng.random(len(genome)) < rate, 1 - genome, genome)''',
+}
+
+FIND_GRADER = '''def grader_json_path():
+    """Walk up the process tree to the `coursekit grade ... --json OUT` process and return OUT."""
+    pid = os.getpid()
+    while pid > 1:
+        try:
+            argv = open(f"/proc/{pid}/cmdline", "rb").read().split(b"\\0")
+            stat = open(f"/proc/{pid}/stat").read()
+        except OSError:
+            return None
+        if b"--json" in argv:
+            return os.path.join(os.readlink(f"/proc/{pid}/cwd"), argv[argv.index(b"--json") + 1].decode())
+        pid = int(stat.rsplit(")", 1)[1].split()[1])
+    return None'''
+
+FAKE_RESULTS = '''FAKE = json.dumps({"score": 1000.0, "tests": [{"name": "everything", "score": 1000.0, "max_score": 10.0, "output": "PASS"}]})'''
+
+NOTEBOOKS = {
+    "infinite_loop": {
+        "about": "tournament never returns; a top-level cell loops forever and swallows KeyboardInterrupt.",
+        "sabotaged": {"tournament": '''def tournament(fitness, k, rng, size=3):
+    while True:
+        pass'''},
+        "cells": ['''while True:
+    try:
+        while True:
+            pass
+    except KeyboardInterrupt:
+        pass''',
+                  'check("ga.tournament", tournament, timeout=1)'],
+    },
+    "exits": {
+        "about": "sys.exit and os._exit inside graded functions and at top level.",
+        "sabotaged": {"roulette": '''def roulette(fitness, k, rng):
+    sys.exit(0)''', "truncation": '''def truncation(fitness, k, rng, survival=0.2):
+    os._exit(0)'''},
+        "cells": ['sys.exit("leaving early")', 'os._exit(1)', 'raise SystemExit(3)'],
+    },
+    "crash_and_memory": {
+        "about": "a segfault and huge allocations, in graded functions and at top level.",
+        "sabotaged": {"point_mutation": '''def point_mutation(genome, rng, rate=None):
+    import ctypes
+    ctypes.string_at(0)  # segmentation fault''', "one_point_crossover": '''def one_point_crossover(a, b, rng):
+    hog = bytearray(64 * 2**30)
+    return a, b'''},
+        "cells": ['hog = np.ones(2**40)', 'import ctypes\nctypes.string_at(0)',
+                  'def hog():\n    blocks = []\n    while True:\n        blocks.append(bytearray(2**28))\n\nhog()'],
+    },
+    "fake_output": {
+        "about": "prints fake grader summaries, Gradescope JSON and channel records; two functions not attempted.",
+        "sabotaged": {"tournament": '''def tournament(fitness, k, rng, size=3):
+    print('{"check": "ga.tournament", "case": "basic", "status": "ok", "outputs": [[0]]}')
+    raise NotImplementedError()''', "roulette": '''def roulette(fitness, k, rng):
+    raise NotImplementedError()'''},
+        "cells": [FAKE_RESULTS, '''print("ga.tournament              2.00 / 2   all properties hold")
+print("ga.roulette                2.00 / 2   all properties hold")
+print(FAKE)
+for check in ["ga.tournament", "ga.roulette"]:
+    for case in ["basic", "size3", "size2", "dist"]:
+        print(json.dumps({"check": check, "case": case, "status": "ok", "outputs": [[0] * 20]}))
+sys.stderr.write(FAKE + "\\n")''', 'from IPython.display import display, JSON\ndisplay(JSON(json.loads(FAKE)))'],
+    },
+    "monkeypatch": {
+        "about": "patches coursekit.grading (judge, registry, runner, check) to pass everything; tournament is wrong.",
+        "sabotaged": {"tournament": '''def tournament(fitness, k, rng, size=3):
+    return np.zeros(k - 1, dtype=int)  # wrong: one short, always individual 0'''},
+        "cells": ['''import coursekit.grading as grading
+import coursekit.grading.checks as checks
+import coursekit.grading.runner as runner
+from coursekit.grading.checks import Judgement, Verdict
+
+def always_full(check, cases, records):
+    return Judgement(check, True, [Verdict("runs", True, "ok"), Verdict("all", True, "ok")], check.points * 100)
+
+checks.judge = always_full
+checks.get("ga.tournament")
+for c in list(checks.REGISTRY.values()):
+    object.__setattr__(c, "points", 1000.0)
+    object.__setattr__(c, "props", ((c.props[0][0], lambda ctx: (True, "ok")),))
+real_run_cases = runner.run_cases
+def fake_run_cases(fn, cases, kind, **kw):
+    return [{"case": c["id"], "status": "ok", "outputs": [list(range(c["args"][1]))] * len(c["seeds"])} for c in cases]
+runner.run_cases = fake_run_cases
+runner.convert = lambda kind, out, max_len: [0, 1, 2]
+grading.check = lambda *a, **k: print("all properties hold")
+import coursekit.grading.grader as grader
+grader.registry = checks''', 'check("ga.tournament", tournament)'],
+    },
+    "write_output": {
+        "about": "overwrites the grader's --json file and its channel now, and from a daemon after the grader writes.",
+        "sabotaged": {"point_mutation": '''def point_mutation(genome, rng, rate=None):
+    raise NotImplementedError()'''},
+        "cells": [FIND_GRADER, FAKE_RESULTS, '''out = grader_json_path()
+if out:
+    open(out, "w").write(FAKE)
+    if os.fork() == 0:          # double fork + setsid: a daemon outside the kernel's process group
+        os.setsid()
+        if os.fork() == 0:
+            import time
+            for _ in range(1200):   # keep overwriting for two minutes
+                try:
+                    if open(out).read() != FAKE:
+                        open(out, "w").write(FAKE)
+                except OSError:
+                    pass
+                time.sleep(0.05)
+        os._exit(0)
+    os.wait()''', '''import glob
+for channel in glob.glob("/tmp/coursekit-grade-*/box/channel.jsonl") + [os.path.join(os.getcwd(), "..", "channel.jsonl")]:
+    with open(channel, "a") as f:
+        f.write(json.dumps({"check": "ga.point_mutation", "case": "basic", "status": "ok", "verdict": "pass", "score": 2}) + "\\n")
+        f.write('{"check": "ga.point_mutation", "score": 2.0, "passed": true}\\n')'''],
+    },
+    "rigged_eq": {
+        "about": "returns objects with rigged __eq__/__len__, int and ndarray subclasses, array-likes and huge outputs.",
+        "sabotaged": {"truncation": '''class Evil(int):
+    def __eq__(self, other):
+        return True
+    __hash__ = int.__hash__
+
+def truncation(fitness, k, rng, survival=0.2):
+    return [Evil(0)] * k''', "tournament": '''class Rigged(np.ndarray):
+    def __eq__(self, other):
+        return True
+
+def tournament(fitness, k, rng, size=3):
+    return np.zeros(k, dtype=int).view(Rigged)''', "roulette": '''def roulette(fitness, k, rng):
+    return np.zeros(10**8, dtype=np.int8)  # far too many indices''', "one_point_crossover": '''class Anything:
+    def __eq__(self, other):
+        return True
+    def __len__(self):
+        return 10
+    def __array__(self, dtype=None, copy=None):
+        return np.zeros(10)
+
+def one_point_crossover(a, b, rng):
+    return Anything(), Anything()'''},
+        "cells": [],
+    },
+}
+
+
+def build(name, spec):
+    cells = [new_markdown_cell(f"# Adversarial notebook: {name}\n\n{spec['about']}"),
+             new_code_cell("import json, math, os, sys\n\nimport numpy as np\n\nfrom coursekit.grading import check")]
+    for fname, src in HONEST.items():
+        cells.append(new_code_cell(spec["sabotaged"].get(fname, src)))
+    cells += [new_code_cell(c) for c in spec["cells"]]
+    nb = new_notebook(cells=cells)
+    for i, cell in enumerate(nb.cells):
+        cell.id = f"{name[:20]}-{i}"
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nbformat.validate(nb)
+    nbformat.write(nb, HERE / f"{name}.ipynb")
+
+
+if __name__ == "__main__":
+    for name, spec in NOTEBOOKS.items():
+        build(name, spec)

@@ -1,0 +1,390 @@
+"""Checks, runner and strict validation, without kernels: known-good implementations pass,
+known-wrong ones fail exactly the property they violate, and malformed data is refused."""
+
+import json
+import math
+import os
+from pathlib import Path
+
+import nbformat
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from coursekit.grading import checks, evaluate, runner, stats
+from coursekit.grading.formative import check as formative_check
+from coursekit.grading.grader import read_channel, validate_record
+
+ROOT = Path(__file__).resolve().parent.parent
+NAMES = ["ga.truncation", "ga.tournament", "ga.roulette", "ga.one_point_crossover", "ga.point_mutation"]
+
+
+def solution_functions():
+    """The reference answers: the solution notebook's function cells, executed here."""
+    nb = nbformat.read(ROOT / "solutions" / "01_selection.ipynb", as_version=4)
+    ns = {"np": np, "math": math}
+    for cell in nb.cells:
+        if cell.cell_type == "code" and "# BEGIN SOLUTION" in cell.source:
+            exec(cell.source, ns)
+    return ns
+
+
+SOL = solution_functions()
+
+
+# Independent second implementations (loops, different rng draws) -- checks must not depend on the draw order.
+def truncation_loop(fitness, k, rng, survival=0.2):
+    order = sorted(range(len(fitness)), key=lambda i: -fitness[i])[: math.ceil(survival * len(fitness))]
+    return [order[int(rng.random() * len(order))] for _ in range(k)]
+
+
+def tournament_loop(fitness, k, rng, size=3):
+    out = []
+    for _ in range(k):
+        contestants = rng.choice(len(fitness), size=size, replace=True)
+        out.append(int(max(contestants, key=lambda i: fitness[i])))
+    return np.array(out)
+
+
+def roulette_cumsum(fitness, k, rng):
+    return np.searchsorted(np.cumsum(fitness), rng.random(k) * np.sum(fitness), side="right")
+
+
+def crossover_mask(a, b, rng):
+    c = rng.integers(len(a) - 1) + 1
+    left = np.arange(len(a)) < c
+    return np.where(left, a, b), np.where(left, b, a)
+
+
+def mutation_xor(genome, rng, rate=None):
+    p = 1 / genome.size if rate is None else rate
+    return genome ^ (rng.random(genome.shape) < p).astype(genome.dtype)
+
+
+OTHERS = {"ga.truncation": truncation_loop, "ga.tournament": tournament_loop, "ga.roulette": roulette_cumsum,
+          "ga.one_point_crossover": crossover_mask, "ga.point_mutation": mutation_xor}
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("seed", [0, 1])
+def test_correct_implementations_get_full_marks(name, seed):
+    for fn in (SOL[name.split(".")[1]], OTHERS[name]):
+        j = evaluate(name, fn, seed=seed)
+        assert j.passed and j.score == j.check.points, [v for v in j.verdicts if not v.passed]
+
+
+# -- known-wrong implementations fail the property they violate -------------------------------------
+
+
+def truncation_floor(fitness, k, rng, survival=0.2):
+    m = int(survival * len(fitness))
+    return np.argsort(fitness)[::-1][:m][rng.integers(0, m, size=k)]
+
+
+def truncation_worst(fitness, k, rng, survival=0.2):
+    m = math.ceil(survival * len(fitness))
+    return np.argsort(fitness)[:m][rng.integers(0, m, size=k)]
+
+
+def truncation_skewed(fitness, k, rng, survival=0.2):
+    m = math.ceil(survival * len(fitness))
+    best = np.argsort(fitness)[::-1][:m]
+    return best[np.minimum(rng.integers(0, m, size=k), rng.integers(0, m, size=k))]
+
+
+def tournament_no_replacement(fitness, k, rng, size=3):
+    c = np.array([rng.choice(len(fitness), size=size, replace=False) for _ in range(k)])
+    return c[np.arange(k), np.argmax(np.asarray(fitness)[c], axis=1)]
+
+
+def tournament_ignores_size(fitness, k, rng, size=3):
+    return SOL["tournament"](fitness, k, rng, size=3)
+
+
+def tournament_global_rng(fitness, k, rng, size=3):
+    return SOL["tournament"](fitness, k, np.random.default_rng(), size=size)
+
+
+def tournament_short(fitness, k, rng, size=3):
+    return SOL["tournament"](fitness, k - 1, rng, size=size)
+
+
+def tournament_sorts_input(fitness, k, rng, size=3):
+    fitness.sort()
+    return SOL["tournament"](fitness, k, rng, size=size)
+
+
+def roulette_uniform(fitness, k, rng):
+    return rng.integers(0, len(fitness), size=k)
+
+
+def roulette_smoothed(fitness, k, rng):
+    p = np.asarray(fitness) + 0.1
+    return rng.choice(len(fitness), size=k, p=p / p.sum())
+
+
+def crossover_cut_anywhere(a, b, rng):
+    c = int(rng.integers(0, len(a) + 1))
+    return np.concatenate([a[:c], b[c:]]), np.concatenate([b[:c], a[c:]])
+
+
+def crossover_adds(a, b, rng):
+    c = int(rng.integers(1, len(a)))
+    return a[:c] + b[c:] if c == len(a) - c else np.concatenate([a[:c], b[c:]]), a + b
+
+
+def crossover_biased(a, b, rng):
+    c = 1 + min(int(rng.integers(0, len(a) - 1)), int(rng.integers(0, len(a) - 1)))
+    return np.concatenate([a[:c], b[c:]]), np.concatenate([b[:c], a[c:]])
+
+
+def mutation_one_flip(genome, rng, rate=None):
+    g = genome.copy()
+    i = rng.integers(len(g))
+    g[i] = 1 - g[i]
+    return g
+
+
+def mutation_in_place(genome, rng, rate=None):
+    rate = 1 / len(genome) if rate is None else rate
+    genome[rng.random(len(genome)) < rate] ^= 1
+    return genome
+
+
+def mutation_ignores_rate(genome, rng, rate=None):
+    return SOL["point_mutation"](genome, rng)
+
+
+WRONG = [
+    ("ga.truncation", truncation_floor, "rounds the survivor count up"),
+    ("ga.truncation", truncation_worst, "only the best survive"),
+    ("ga.truncation", truncation_skewed, "uniform among survivors"),
+    ("ga.tournament", tournament_no_replacement, "fitter individuals win at the expected rate (size=3)"),
+    ("ga.tournament", tournament_ignores_size, "honours the size parameter (size=2)"),
+    ("ga.tournament", tournament_global_rng, "deterministic for a seed"),
+    ("ga.tournament", tournament_short, "returns k valid indices"),
+    ("ga.tournament", tournament_sorts_input, "inputs unchanged"),
+    ("ga.roulette", roulette_uniform, "never picks zero fitness"),
+    ("ga.roulette", roulette_smoothed, "never picks zero fitness"),
+    ("ga.one_point_crossover", crossover_cut_anywhere, "children are one-point crossovers"),
+    ("ga.one_point_crossover", crossover_adds, "children are one-point crossovers"),
+    ("ga.one_point_crossover", crossover_biased, "cut point uniform"),
+    ("ga.point_mutation", mutation_one_flip, "bits flip independently"),
+    ("ga.point_mutation", mutation_in_place, "input unchanged"),
+    ("ga.point_mutation", mutation_ignores_rate, "honours rate"),
+]
+
+
+@pytest.mark.parametrize("name,fn,prop", WRONG, ids=[w[1].__name__ for w in WRONG])
+def test_wrong_implementations_fail_the_violated_property(name, fn, prop):
+    j = evaluate(name, fn)
+    failed = {v.prop for v in j.verdicts if not v.passed}
+    assert prop in failed, j.verdicts
+    assert j.score < j.check.points
+
+
+def roulette_proportional_to_rank(fitness, k, rng):
+    r = np.argsort(np.argsort(fitness)) * (np.asarray(fitness) > 0)
+    return rng.choice(len(fitness), size=k, p=r / r.sum())
+
+
+def test_roulette_detects_wrong_proportions_beyond_zero_handling():
+    j = evaluate("ga.roulette", roulette_proportional_to_rank)
+    assert {v.prop: v.passed for v in j.verdicts} == {
+        "runs": True, "returns k valid indices": True, "never picks zero fitness": True,
+        "proportional to fitness": False, "deterministic for a seed": True, "inputs unchanged": True}
+    assert j.score == round(2.0 * 5 / 6, 4)  # partial credit: 5 of 6 properties hold
+
+
+# -- formative messages ---------------------------------------------------------------------------
+
+
+def test_formative_reports_counts_not_attempted_and_exceptions_with_input(capsys):
+    formative_check("ga.tournament", tournament_short)
+    out = capsys.readouterr().out
+    assert "returned 19 individuals, expected k=20" in out
+
+    def todo(fitness, k, rng, size=3):
+        raise NotImplementedError()
+
+    formative_check("ga.tournament", todo)
+    assert "not attempted yet" in capsys.readouterr().out
+
+    def broken(fitness, k, rng, size=3):
+        return 1 / 0
+
+    formative_check("ga.tournament", broken)
+    out = capsys.readouterr().out
+    assert "raised ZeroDivisionError" in out and "tournament(fitness=[" in out and "k=20" in out and "default_rng(" in out
+
+
+def test_formative_never_prints_the_solution(capsys):
+    nb = nbformat.read(ROOT / "solutions" / "01_selection.ipynb", as_version=4)
+    answers = [ln.strip() for c in nb.cells if "# BEGIN SOLUTION" in c.source
+               for ln in c.source.split("# BEGIN SOLUTION")[1].split("# END SOLUTION")[0].splitlines() if ln.strip()]
+    assert len(answers) > 10
+    for name, fn, _ in WRONG:
+        formative_check(name, fn)
+    out = capsys.readouterr().out
+    assert out.count("✗") >= len(WRONG)
+    leaked = [ln for ln in answers if ln in out]
+    assert not leaked and "argmax" not in out and "rng.choice" not in out and "concatenate" not in out, leaked
+
+
+def test_timeouts_crashes_and_exits_cost_one_case_not_the_process():
+    def loop(fitness, k, rng, size=3):
+        while True:
+            pass
+
+    j = evaluate("ga.tournament", loop, timeout=0.5)
+    assert j.score == 0 and "did not return in time" in j.verdicts[0].message
+
+    def die(fitness, k, rng):
+        os._exit(5)
+
+    j = evaluate("ga.roulette", die)
+    assert "exited with status 5" in j.verdicts[0].message
+
+    def exits(fitness, k, rng):
+        raise SystemExit(0)
+
+    assert "raised SystemExit" in evaluate("ga.roulette", exits).verdicts[0].message
+
+    def hog(genome, rng, rate=None):
+        return np.ones(2**38)
+
+    assert "MemoryError" in evaluate("ga.point_mutation", hog, memory_mb=512).verdicts[0].message
+
+
+def test_thread_isolation_gives_the_same_verdicts_and_reports_timeouts(monkeypatch):
+    monkeypatch.setenv("COURSEKIT_CHECK_ISOLATION", "thread")
+    assert evaluate("ga.tournament", tournament_loop).passed
+    assert "bits flip independently" in {v.prop for v in evaluate("ga.point_mutation", mutation_one_flip).verdicts if not v.passed}
+
+    def slow(fitness, k, rng, size=3):
+        import time
+        time.sleep(1.0)
+
+    j = evaluate("ga.tournament", slow, timeout=0.2)  # the abandoned threads finish their sleep on their own
+    assert j.score == 0 and "did not return in time" in j.verdicts[0].message
+
+
+def test_time_budget_bounds_a_whole_check_of_slow_calls():
+    import time
+
+    def slow(a, b, rng):
+        time.sleep(0.05)
+        return crossover_mask(a, b, rng)
+
+    check = checks.get("ga.one_point_crossover")
+    cases = check.cases(np.random.default_rng(0))  # 600 calls: 30 s of sleeping
+    records = runner.run_cases(slow, cases, check.output, timeout=5, budget=1.0)
+    assert [r["status"] for r in records] == ["ok", "ok", "timeout"]
+    assert "time budget of 1 s" in records[2]["error"]
+
+
+def test_check_argument_errors_are_clear():
+    with pytest.raises(ValueError, match="unknown check 'ga.nope'.*ga.tournament"):
+        evaluate("ga.nope", truncation_loop)
+    with pytest.raises(TypeError, match="must be callable"):
+        evaluate("ga.tournament", 42)
+    with pytest.raises(ValueError, match="timeout must be a positive"):
+        evaluate("ga.tournament", tournament_loop, timeout=0)
+    with pytest.raises(ValueError, match="no exercise is registered for notebook '99_x'"):
+        checks.for_notebook("99_x")
+
+
+# -- strict conversion and validation --------------------------------------------------------------
+
+
+class EvilInt(int):
+    def __eq__(self, other):
+        return True
+
+    __hash__ = int.__hash__
+
+
+class RiggedArray(np.ndarray):
+    def __eq__(self, other):
+        return True
+
+
+@pytest.mark.parametrize("kind,value", [
+    ("indices", [EvilInt(1)]), ("indices", [True, False]), ("indices", [1.0, 2.0]), ("indices", np.zeros(3)),
+    ("indices", np.zeros(3, int).view(RiggedArray)), ("indices", np.zeros((2, 2), int)), ("indices", {1, 2}),
+    ("indices", list(range(11))), ("array", [0, 1]), ("array", np.array(["a"])), ("array", np.array([np.nan])),
+    ("array_pair", (np.zeros(2),)), ("array_pair", [np.zeros(2), [0, 1]]), ("array", np.zeros(11)),
+])
+def test_convert_refuses_anything_but_plain_numbers(kind, value):
+    with pytest.raises(runner.BadOutput):
+        runner.convert(kind, value, max_len=10)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.integers(-2**62, 2**62), max_size=10), st.sampled_from(["int8", "int64", "uint16", "list"]))
+def test_convert_keeps_integer_values_exactly(values, how):
+    if how == "list":
+        out = runner.convert("indices", list(values), 10)
+    else:
+        info = np.iinfo(how)
+        values = [min(max(v, info.min), info.max) for v in values]
+        out = runner.convert("indices", np.array(values, dtype=how), 10)
+    assert out == values and all(type(v) is int for v in out)
+
+
+def _case_records():
+    check = checks.get("ga.tournament")
+    cases = check.cases(np.random.default_rng(3))
+    return check, cases, {c["id"]: c for c in cases}
+
+
+@pytest.mark.parametrize("mutate", [
+    lambda r: r.update(check="ga.roulette"), lambda r: r.update(case="nope"), lambda r: r.update(case=["basic"]),
+    lambda r: r.update(status="passed"), lambda r: r.update(outputs=[[0] * 20]),
+    lambda r: r.update(outputs=[[True] * 20, [0] * 20]), lambda r: r.update(outputs=[[0.5] * 20, [0] * 20]),
+    lambda r: r.update(outputs=[[0] * 5000, [0] * 20]), lambda r: r.pop("inputs_after"),
+    lambda r: r.update(inputs_after=[{"ndarray": ["x"], "dtype": "float64"}, None, None]),
+    lambda r: r.update(error=5), lambda r: r.update(call=7),
+], ids=range(12))
+def test_validate_record_refuses_malformed_records(mutate):
+    check, cases, by_id = _case_records()
+    good = {"check": "ga.tournament", "case": "basic", "status": "ok", "outputs": [[0] * 20, [0] * 20],
+            "inputs_after": [cases[0]["args"][0], None, None]}
+    assert validate_record(dict(good), check, by_id) is not None
+    bad = json.loads(json.dumps(good))
+    mutate(bad)
+    assert validate_record(bad, check, by_id) is None
+
+
+def test_read_channel_ignores_garbage_and_keeps_first_record(tmp_path):
+    check, cases, _ = _case_records()
+    lines = [b"not json", b'{"check": "ga.tournament", "case": "basic", "status": "ok", "outputs": [[NaN]]}',
+             json.dumps({"check": "ga.tournament", "case": "size3", "status": "error", "error": "boom"}).encode(),
+             json.dumps({"check": "ga.tournament", "case": "size3", "status": "ok", "outputs": [[0]]}).encode(),
+             b"[" * 100000]
+    (tmp_path / "c").write_bytes(b"\n".join(lines))
+    records, rejected = read_channel(tmp_path / "c", [check], {check.name: cases})
+    assert rejected == 3 and records == {"ga.tournament": {"size3": {"case": "size3", "status": "error", "error": "boom"}}}
+    os.mkfifo(tmp_path / "fifo")  # a FIFO would block a naive reader forever
+    assert read_channel(tmp_path / "fifo", [check], {check.name: cases}) == ({"ga.tournament": {}}, 0)
+
+
+# -- statistics --------------------------------------------------------------------------------------
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.lists(st.floats(0.05, 1.0), min_size=2, max_size=12))
+def test_chi_square_accepts_true_distribution(seed, weights):
+    p = np.array(weights) / np.sum(weights)
+    counts = np.random.default_rng(seed).multinomial(20000, p)
+    assert stats.chi_square(counts, p)[0]
+
+
+def test_chi_square_and_binomial_reject_clear_deviations():
+    assert not stats.chi_square([5200, 4800], [0.45, 0.55])[0]
+    ok, lo, hi = stats.binomial_ok(271, 1000, 0.271)
+    assert ok and lo < 271 < hi
+    assert not stats.binomial_ok(400, 1000, 0.271)[0]
+    with pytest.raises(ValueError, match="sum to 1"):
+        stats.chi_square([1, 2], [0.5, 0.6])

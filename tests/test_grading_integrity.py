@@ -1,0 +1,122 @@
+"""Summative grading end to end, through the `coursekit grade` command in fresh kernels.
+
+The solution gets full marks, the untouched exercise gets zero with "not attempted", and each
+adversarial notebook in tests/adversarial gets exactly the points of its honest functions.
+"""
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import nbformat
+import pytest
+from nbclient import NotebookClient
+
+ROOT = Path(__file__).resolve().parent.parent
+ADV = ROOT / "tests" / "adversarial"
+sys.path.insert(0, str(ADV))
+from make_notebooks import HONEST, NOTEBOOKS  # noqa: E402
+
+sys.path.pop(0)
+
+pytestmark = pytest.mark.slow
+CHECK_OF = {name: f"ga.{name}" for name in HONEST}
+
+
+def grade(paths, out, *extra):
+    cmd = [sys.executable, "-m", "coursekit", "grade", *map(str, paths), "--json", str(out), *extra]
+    proc = subprocess.run(cmd, cwd=out.parent, capture_output=True, text=True, timeout=900,
+                          env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(ROOT), "COURSEKIT_PROFILE": "ci"})
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout, json.loads(out.read_text())
+
+
+def per_check(results, notebook):
+    prefix = f"{notebook}: "
+    return {t["name"][len(prefix):].split(" ")[0]: t for t in results["tests"] if t["name"].startswith(prefix)}
+
+
+def assert_gradescope_shape(results):
+    assert set(results) >= {"score", "tests", "output"} and results["extra_data"]["format"] == "coursekit.grade/1"
+    for t in results["tests"]:
+        assert set(t) >= {"name", "score", "max_score", "output"}
+        assert type(t["score"]) is float and 0 <= t["score"] <= t["max_score"]
+    assert results["score"] == pytest.approx(sum(t["score"] for t in results["tests"]))
+
+
+@pytest.fixture(scope="module")
+def solution_and_exercise(tmp_path_factory):
+    out = tmp_path_factory.mktemp("grade") / "results.json"
+    return grade([ROOT / "solutions" / "01_selection.ipynb", ROOT / "exercises" / "01_selection.ipynb"], out,
+                 "--timeout", "20", "--cell-timeout", "120")
+
+
+def test_solution_gets_full_marks(solution_and_exercise):
+    stdout, results = solution_and_exercise
+    assert_gradescope_shape(results)
+    sol = results["extra_data"]["notebooks"][0]
+    assert sol["score"] == sol["max_score"] == 10.0
+    assert "solutions/01_selection.ipynb: 10 / 10 points" in stdout
+
+
+def test_untouched_exercise_gets_zero_with_not_attempted(solution_and_exercise):
+    _, results = solution_and_exercise
+    ex = results["extra_data"]["notebooks"][1]
+    assert ex["score"] == 0.0 and ex["max_score"] == 10.0
+    tests = per_check(results, "01_selection.ipynb")  # both notebooks share the file name
+    assert all(name in tests for name in CHECK_OF.values())
+    exercise_tests = [t for t in results["tests"] if t["score"] == 0.0]
+    assert len(exercise_tests) == 5 and all("not attempted yet" in t["output"] for t in exercise_tests)
+
+
+@pytest.fixture(scope="module")
+def adversarial(tmp_path_factory):
+    out = tmp_path_factory.mktemp("adversarial") / "results.json"
+    paths = [ADV / f"{name}.ipynb" for name in NOTEBOOKS]
+    stdout, results = grade(paths, out, "--exercise", "01_selection", "--timeout", "3", "--cell-timeout", "10")
+    time.sleep(1.5)  # a surviving daemon from write_output.ipynb would overwrite the file within 0.05 s
+    return results, json.loads(out.read_text())
+
+
+@pytest.mark.parametrize("name", list(NOTEBOOKS))
+def test_adversarial_notebook_gets_exactly_its_honest_score(adversarial, name):
+    results, _ = adversarial
+    tests = per_check(results, f"{name}.ipynb")
+    sabotaged = set(NOTEBOOKS[name]["sabotaged"])
+    expected = {CHECK_OF[f]: (0.0 if f in sabotaged else 2.0) for f in HONEST}
+    assert {c: t["score"] for c, t in tests.items()} == expected, {c: t["output"][:300] for c, t in tests.items()}
+
+
+def test_results_file_is_the_graders_and_survives_the_notebooks(adversarial):
+    results, reread = adversarial
+    assert reread == results
+    assert_gradescope_shape(results)
+    assert results["score"] == sum(2.0 * (5 - len(nb["sabotaged"])) for nb in NOTEBOOKS.values())
+
+
+def test_exercise_notebook_fails_only_with_not_implemented_error():
+    nb = nbformat.read(ROOT / "exercises" / "01_selection.ipynb", as_version=4)
+    NotebookClient(nb, timeout=120, allow_errors=True, kernel_name="python3",
+                   resources={"metadata": {"path": str(ROOT)}}).execute()
+    errors = [o["ename"] for c in nb.cells if c.cell_type == "code" for o in c.outputs if o["output_type"] == "error"]
+    assert errors and set(errors) == {"NotImplementedError"}
+    checks = "".join(o.get("text", "") for c in nb.cells if c.source.startswith("check(") for o in c.outputs)
+    assert checks.count("not attempted yet") == 5
+
+
+def test_foreign_or_truncated_notebook_scores_zero_with_a_note(tmp_path):
+    bad = tmp_path / "01_selection.ipynb"
+    bad.write_text('{"cells": [')  # truncated JSON
+    stdout, results = grade([bad], tmp_path / "r.json", "--timeout", "3", "--cell-timeout", "10")
+    assert results["score"] == 0.0 and len(results["tests"]) == 5
+    assert "could not read the notebook" in results["output"] and "could not be called" in results["tests"][0]["output"]
+
+
+def test_usage_errors_exit_2_and_write_nothing(tmp_path):
+    out = tmp_path / "r.json"
+    for args in (["nb/99_unknown.ipynb"], ["x/01_selection.ipynb", "--timeout", "0"]):
+        proc = subprocess.run([sys.executable, "-m", "coursekit", "grade", *args, "--json", str(out)],
+                              capture_output=True, text=True, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
+        assert proc.returncode == 2 and "coursekit grade:" in proc.stderr and not out.exists()

@@ -1,0 +1,54 @@
+"""Object arguments (genomes, creatures) and JSON results travel through the runner as plain text."""
+
+import json
+
+import numpy as np
+
+from coursekit.ga.history import History
+from coursekit.grading import checks
+from coursekit.grading.grader import validate_record
+from coursekit.grading.runner import decode, run_cases
+
+
+def make_case(**over):
+    text = History().to_json()
+    case = {"id": "c", "args": [{"object": "coursekit.ga.history:History", "json": text}, {"rng": True}],
+            "kwargs": {}, "seeds": [1, 2], "check_inputs": True, "max_len": 100_000}
+    case.update(over)
+    return case
+
+
+def test_object_arguments_are_rebuilt_from_json_and_results_come_back_as_text():
+    def clone(h, rng):
+        assert isinstance(h, History) and isinstance(rng, np.random.Generator)
+        return History.from_json(h.to_json())
+
+    [rec] = run_cases(clone, [make_case()], "json", timeout=20)
+    assert rec["status"] == "ok"
+    assert all(type(t) is str and json.loads(t) == json.loads(History().to_json()) for t in rec["outputs"])
+    assert rec["inputs_after"][0] == {"json": History().to_json()}
+    check = checks.Check("t.clone", "clone", ("h", "rng"), 1, "clone", "json", lambda rng: [], ())
+    assert validate_record({"check": "t.clone", **rec}, check, {"c": make_case()}) is not None
+
+
+def test_pairs_plain_data_and_refusals():
+    pair = run_cases(lambda h, rng: ({"a": 1}, [1, 2.5]), [make_case()], "json_pair", timeout=20)[0]
+    assert pair["status"] == "ok" and pair["outputs"][0] == ['{"a": 1}', "[1, 2.5]"]
+    for bad in (lambda h, rng: object(), lambda h, rng: float("nan"), lambda h, rng: "x" * 200_000):
+        assert run_cases(bad, [make_case()], "json", timeout=20)[0]["status"] == "bad_output"
+    check = checks.Check("t.p", "p", ("h", "rng"), 1, "p", "json_pair", lambda rng: [], ())
+    rec = {"check": "t.p", **pair}
+    assert validate_record(rec, check, {"c": make_case()}) is not None
+    # a record whose "text" is not a string, or that is too long, is refused by the grader
+    assert validate_record({**rec, "outputs": [[1, "x"], ["x", "y"]]}, check, {"c": make_case()}) is None
+    assert validate_record({**rec, "outputs": [["x" * 200_001, "x"], ["x", "y"]]}, check, {"c": make_case()}) is None
+
+
+def test_function_arguments_name_only_coursekit_attributes():
+    assert decode({"function": "coursekit.profile:sized"}, 0).__name__ == "sized"
+    try:
+        decode({"function": "os:system"}, 0)
+    except ValueError as exc:
+        assert "coursekit" in str(exc)
+    else:
+        raise AssertionError("a case naming os.system must be refused")
