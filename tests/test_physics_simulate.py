@@ -6,7 +6,7 @@ from hypothesis import given, settings, strategies as st
 
 from coursekit.creatures.body import BodyTree, REVOLUTE, rotation_about
 from coursekit.creatures.fitness import WINDOWS, swimming_fitness
-from coursekit.creatures.physics import random_body_tree, spatial as sp
+from coursekit.creatures.physics import random_body_tree
 from coursekit.creatures.physics.contact import Contacts
 from coursekit.creatures.physics.model import Model
 from coursekit.creatures.physics.world import World

@@ -25,6 +25,7 @@ import numpy as np
 
 from . import backend as bk
 from . import spatial as sp
+from .aba import body_velocities, forward_kinematics, joint_transforms
 from .limits import STIFFNESS_PER_STEP
 
 
@@ -145,8 +146,6 @@ class Contacts:
             the world wrench fixed over a step, so the forces on a colliding pair stay equal and
             opposite and linear momentum is conserved exactly.
         """
-        from .aba import body_velocities, forward_kinematics, joint_transforms
-
         xp, m = self.xp, self.model
         N = m.n_bodies
         f_world = xp.zeros((N, 6), dtype=xp.float64, device=m.device)

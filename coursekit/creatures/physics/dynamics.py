@@ -47,7 +47,6 @@ def _unflatten(flat, sizes, form):
 
 def split_layout(model: Model, qpos: np.ndarray, qvel: np.ndarray):
     """Flat MuJoCo-layout qpos/qvel (numpy) -> internal arrays (numpy)."""
-    C = model.n_creatures
     oq = np.r_[0, np.cumsum(model.nq)[:-1]]
     ov = np.r_[0, np.cumsum(model.nv)[:-1]]
     pos = qpos[oq[:, None] + np.arange(3)]
@@ -60,7 +59,6 @@ def split_layout(model: Model, qpos: np.ndarray, qvel: np.ndarray):
     qd = np.empty(model.n_joints)
     q[model.joint_order] = jq
     qd[model.joint_order] = jv
-    assert pos.shape == (C, 3)
     return pos, quat, q, lin, omega, qd
 
 

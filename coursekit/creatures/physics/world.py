@@ -21,6 +21,7 @@ import numpy as np
 from . import backend as bk
 from . import spatial as sp
 from .aba import aba, articulated_inertias, body_velocities, forward_kinematics, joint_transforms
+from .contact import Contacts
 from .dynamics import _flatten, split_layout, join_velocity_layout
 from .integrate import INTEGRATORS, State, step
 from .limits import STIFFNESS_PER_STEP, limit_energy, limit_forces, limit_gains
@@ -90,8 +91,6 @@ class World:
         self.gain = f(m.gain_np)
         self.contacts = None
         if contacts:
-            from .contact import Contacts
-
             self.contacts = Contacts(m, stiffness=contact_stiffness, dt=self.h)
         self.caps = (float(max_speed), float(max_angular_speed), float(max_joint_speed))
         self.diverged = np.zeros(m.n_creatures, dtype=bool)
