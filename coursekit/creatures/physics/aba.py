@@ -60,11 +60,12 @@ def body_velocities(model, X, v0, qd):
 
 
 def articulated_inertias(model, q):
-    """The velocity-independent half of the inward sweep: ``(Xup, IA, Ia, U, d)`` at ``q``.
+    """The velocity-independent half of the inward sweep: ``(Xup, IA, U, d)`` at ``q``.
 
-    ``IA`` (N, 6, 6) are the articulated inertias (roots' included), ``Ia`` (M, 6, 6) what each
-    joint passes to its parent (before transforming), ``U = IA S`` and ``d = S' U``. They depend
-    on the positions only, so the Nyström stages 2 and 3, which share positions, share them.
+    ``IA`` (N, 6, 6) are the articulated inertias (roots' included), ``U = IA S`` and
+    ``d = S' U`` per joint. Each child passes ``Xup' (IA - U U' / d) Xup`` to its parent. They
+    depend on the positions only, so the Nyström stages 2 and 3, which share positions, share
+    them.
     """
     xp = model.xp
     C = model.n_creatures
@@ -72,18 +73,17 @@ def articulated_inertias(model, q):
     Xup = sp.transform_matrix(xp, E, r)
     IA = model.inertia_matrix + 0.0  # a fresh (N, 6, 6) copy of the rigid-body inertias
     S = model.S
-    Ia = xp.zeros_like(Xup)
     U = xp.zeros_like(S)
     d = xp.zeros_like(S[:, 0])
     for s, e, _, seg in reversed(model.levels):
         j = slice(s - C, e - C)
         Uj = sp.mv(IA[s:e], S[j])
         dj = xp.sum(S[j] * Uj, axis=-1)
-        Iaj = IA[s:e] - Uj[:, :, None] * (Uj / dj[:, None])[:, None, :]
-        U[j], d[j], Ia[j] = Uj, dj, Iaj
+        U[j], d[j] = Uj, dj
         X = Xup[j]
-        seg.add_into(IA, X.mT @ (Iaj @ X))
-    return Xup, IA, Ia, U, d
+        w = sp.mv(X.mT, Uj)  # Xup' U
+        seg.add_into(IA, X.mT @ (IA[s:e] @ X) - w[:, :, None] * (w / dj[:, None])[:, None, :])
+    return Xup, IA, U, d
 
 
 def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
@@ -104,7 +104,7 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
     """
     xp = model.xp
     C, N = model.n_creatures, model.n_bodies
-    Xup, IA, Ia, U, d = articulated_inertias(model, q) if inertias is None else inertias
+    Xup, IA, U, d = articulated_inertias(model, q) if inertias is None else inertias
     v, c = body_velocities(model, Xup, v0, qd)
 
     I = model.inertia_diag
@@ -119,7 +119,8 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
         j = slice(s - C, e - C)
         uj = tau[j] - xp.sum(S[j] * pA[s:e], axis=-1)
         u[j] = uj
-        pa = pA[s:e] + sp.mv(Ia[j], c[s:e]) + U[j] * (uj / d[j])[:, None]
+        # pa = pA + Ia c + U u / d with Ia = IA - U U' / d
+        pa = pA[s:e] + sp.mv(IA[s:e], c[s:e]) + U[j] * ((uj - xp.sum(U[j] * c[s:e], axis=-1)) / d[j])[:, None]
         seg.add_into(pA, sp.mv(Xup[j].mT, pa))
 
     a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
