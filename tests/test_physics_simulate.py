@@ -94,6 +94,15 @@ def test_passive_body_at_rest_stays_at_rest():
     assert np.all(r.com == r.com[:, :1]) and r.fitness[0] == 0.0
 
 
+def test_population_of_single_boxes_coasts_and_stops():
+    rng = np.random.default_rng(9)
+    boxes = [random_body_tree(rng, 1) for _ in range(3)]
+    start = ([np.r_[0, 0, 0, 1, 0, 0, 0]] * 3, [np.r_[0.5, 0, 0, 0, 0, 1.0]] * 3)
+    r = simulate(boxes, 2.0, settle=0.0, initial_state=start)
+    speed_late = np.linalg.norm(r.com[:, -1] - r.com[:, -2], axis=1) / r.dt
+    assert not r.diverged.any() and np.all(speed_late < 0.5) and np.all(r.fitness > 0)
+
+
 def test_simulate_refuses_bad_arguments():
     tree = random_body_tree(np.random.default_rng(2), 3)
     with pytest.raises(ValueError, match="seconds"):

@@ -19,7 +19,7 @@ import numpy as np
 from coursekit.creatures.body import REVOLUTE
 from coursekit.creatures.fitness import swimming_fitness
 from coursekit.creatures.physics import backend as bk
-from coursekit.creatures.physics.model import Model, as_trees
+from coursekit.creatures.physics.model import as_trees
 from coursekit.creatures.physics.world import World
 
 
@@ -93,7 +93,7 @@ def simulate(
         controller, bodies = _brains(creatures)
     else:
         bodies = as_trees(creatures)
-    world = World(bodies if not isinstance(creatures, Model) else creatures, dt=dt, **options)
+    world = World(bodies, dt=dt, **options)
     m = world.model
     if initial_state is not None:
         world.set_state(*initial_state)
