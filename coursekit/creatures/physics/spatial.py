@@ -19,15 +19,6 @@ def cross3(xp, a, b):
     return xp.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
-def skew(xp, v):
-    """(..., 3) -> (..., 3, 3) matrices with ``skew(v) @ x == cross(v, x)``."""
-    z = xp.zeros_like(v[..., 0])
-    x, y, w = v[..., 0], v[..., 1], v[..., 2]
-    return xp.stack(
-        [xp.stack([z, -w, y], axis=-1), xp.stack([w, z, -x], axis=-1), xp.stack([-y, x, z], axis=-1)], axis=-2
-    )
-
-
 def mv(A, x):
     """Stacked matrix-vector product ``A @ x`` for (..., n, m) and (..., m)."""
     return (A @ x[..., None])[..., 0]
@@ -51,12 +42,6 @@ def transform_motion(xp, E, r, m):
     """``X @ m`` for the transform ``X = (E, r)``."""
     mw, mu = m[..., :3], m[..., 3:]
     return xp.concat([mv(E, mw), mv(E, mu - cross3(xp, r, mw))], axis=-1)
-
-
-def transform_force_back(xp, E, r, f):
-    """``X.T @ f``: a force in B-coordinates expressed in A-coordinates."""
-    n, fl = mv(E.mT, f[..., :3]), mv(E.mT, f[..., 3:])
-    return xp.concat([n + cross3(xp, r, fl), fl], axis=-1)
 
 
 def transform_matrix(xp, E, r):
