@@ -100,6 +100,7 @@ def _cube_rotations() -> tuple:
 
 #: The 24 rotations of the cube: the predefined orientations of links.
 ROTATIONS = _cube_rotations()
+_ROTATION_ARRAY = np.array(ROTATIONS)
 IDENTITY = ROTATIONS[0]
 FACES = tuple(tuple(float(v) for v in f) for f in [(-1, 0, 0), (1, 0, 0), (0, -1, 0), (0, 1, 0), (0, 0, -1), (0, 0, 1)])
 
@@ -294,16 +295,37 @@ def validate_node(node: Node, where: str, n_nodes: int, n_brain: int) -> None:
 
 
 def preorder(nodes: list) -> list[int]:
-    """Node ids in LR (pre-order) traversal from the root, each at its first visit."""
+    """Node ids in LR (pre-order) traversal from the root, each at its first visit.
+
+    ``None`` entries (empty positions during recombination) are skipped.
+    """
     order, seen, stack = [], set(), [0]
     while stack:
         i = stack.pop()
-        if i in seen:
+        if i in seen or nodes[i] is None:
             continue
         seen.add(i)
         order.append(i)
         stack.extend(c.child for c in reversed(nodes[i].children) if c.child not in seen)
     return order
+
+
+def renumber(nodes: list) -> list:
+    """Nodes reachable from the root, renumbered in LR (pre-order) order; links follow.
+
+    Unreachable nodes are dropped (garbage collection). The nodes are modified in place.
+    """
+    order = preorder(nodes)
+    new_id = {old: k for k, old in enumerate(order)}
+    out = []
+    for old in order:
+        node = nodes[old]
+        for c in node.children:
+            c.child = new_id[c.child]
+        for s in node.symmetry:
+            s.child = new_id.get(s.child, -1)
+        out.append(node)
+    return out
 
 
 def has_cycle(nodes: list) -> bool:
@@ -431,7 +453,7 @@ class Creature:
             p_recursion, p_symmetry: chance a node recurses / a link gets a symmetric copy.
 
         Returns:
-            A :class:`Creature` (nodes in pre-order, all reachable, acyclic).
+            A :class:`Creature` (nodes numbered in LR pre-order, all reachable, acyclic).
         """
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"Creature.random: rng must be a numpy.random.Generator, got {type(rng).__name__}")
@@ -478,7 +500,7 @@ class Creature:
             nc = max(1, len(node.children) + len(node.recursion))
             node.neurons = [random_neuron(rng, brain=False, n_local=n_local, n_brain=nb, n_children=nc) for _ in range(k)]
             node.effectors = [random_input(rng, brain=False, n_local=n_local, n_brain=nb, n_children=nc) for _ in range(node.dof)]
-        return cls(nodes, brain)
+        return cls(renumber(nodes), brain)
 
     @classmethod
     def figure1_snake(cls, segments: int = 4) -> "Creature":
@@ -533,8 +555,8 @@ def facing_rotation(rng, parent_pos, child_joint_pos) -> tuple:
     pn = np.where(np.abs(pn) == np.abs(pn).max(), np.sign(pn), 0.0)
     cn = np.where(np.abs(cn) == np.abs(cn).max(), np.sign(cn), 0.0)
     # Want R @ cn ≈ -pn: the joint face of the child points back at the parent.
-    good = [R for R in ROTATIONS if np.allclose(np.asarray(R) @ cn, -pn)]
-    return _choice(rng, good) if good else _choice(rng, ROTATIONS)
+    good = np.nonzero(np.abs(_ROTATION_ARRAY @ cn + pn).max(axis=1) < 1e-9)[0]
+    return ROTATIONS[int(_choice(rng, good))] if good.size else _choice(rng, ROTATIONS)
 
 
 def random_node(rng) -> Node:

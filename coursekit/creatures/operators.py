@@ -47,6 +47,7 @@ from .genotype import (
     Symmetry,
     _choice,
     preorder,
+    renumber,
     random_face_point,
     random_link,
     random_node,
@@ -108,7 +109,7 @@ def repair(nodes: list, brain: list, rng: np.random.Generator, *, reattach: bool
     _break_cycles(nodes)
     # Re-attach orphans (a taken node keeps its place in the child when it can).
     while reattach:
-        reach = set(preorder_partial(nodes))
+        reach = set(preorder(nodes))
         orphans = [i for i in range(n) if nodes[i] is not None and i not in reach]
         if not orphans:
             break
@@ -120,40 +121,22 @@ def repair(nodes: list, brain: list, rng: np.random.Generator, *, reattach: bool
             nodes[i] = None  # nowhere to hang it: collected
             continue
         nodes[host].children.append(random_link(rng, i, nodes[host], nodes[i]))
-    # Pre-order renumbering, garbage collection and the node cap.
-    order = preorder_partial(nodes)[:MAX_NODES]
-    new_id = {old: k for k, old in enumerate(order)}
-    out = []
-    for old in order:
-        node = nodes[old]
-        node.children = [c for c in node.children if c.child in new_id]
-        for c in node.children:
-            c.child = new_id[c.child]
-        linked = {c.child for c in node.children}
-        sym, seen = [], set()
+    # Garbage collection, pre-order renumbering and the node cap.
+    kept = preorder(nodes)[:MAX_NODES]
+    keep = set(kept)
+    for i in kept:
+        node = nodes[i]
+        node.children = [c for c in node.children if c.child in keep]
+        linked, seen, sym = {c.child for c in node.children}, set(), []
         for s in node.symmetry:
-            s.child = new_id.get(s.child, -1)
             if s.child in linked and s.child not in seen:
                 sym.append(s)
                 seen.add(s.child)
         node.symmetry = sym[:MAX_SYMMETRY]
-        out.append(node)
+    out = renumber([nodes[i] if i in keep else None for i in range(n)])
     brain = brain[:MAX_BRAIN_NEURONS]
     _repair_neural(out, brain, rng)
     return Creature(out, brain)
-
-
-def preorder_partial(nodes: list) -> list[int]:
-    """Pre-order ids reachable from node 0 in a list that may hold ``None`` positions."""
-    order, seen, stack = [], set(), [0]
-    while stack:
-        i = stack.pop()
-        if i in seen or nodes[i] is None:
-            continue
-        seen.add(i)
-        order.append(i)
-        stack.extend(c.child for c in reversed(nodes[i].children) if c.child not in seen)
-    return order
 
 
 def _reaches(nodes: list, a: int, b: int) -> bool:
