@@ -91,8 +91,9 @@ def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, 
         centre = 0.5 * (lo + hi)
         radius = max(float(np.linalg.norm(hi - lo)), 0.1)
         az, el = np.radians(azimuth), np.radians(elevation)
-        eye = centre + 1.25 * radius * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+        eye = centre + radius * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
         pl.camera_position = [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)]
+        pl.reset_camera()  # keep the direction, fit the distance to the bounds
         if path is None:
             return np.asarray(pl.screenshot(return_img=True))[..., :3].copy()
         path = Path(path)
