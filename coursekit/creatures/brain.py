@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .neural import FUNCTION_CODE, FUNCTION_NAMES, MAX_INPUTS, N_SENSORS, SENSORS, evaluate
+from .neural import FUNCTION_CODE, FUNCTION_NAMES, MAX_INPUTS, N_SENSORS, SENSORS, evaluate, function_groups
 
 ZERO, ONE = 0, 1
 N_CONST = 2
@@ -177,6 +177,7 @@ class BrainBatch:
         self.src = cat(lambda c, b: remap(b.src, c).reshape(-1, MAX_INPUTS))
         self.weight = cat(lambda c, b: b.weight.reshape(-1, MAX_INPUTS))
         self.n_inputs = cat(lambda c, b: b.n_inputs)
+        self.groups = function_groups(self.func)
         joint_rows = np.ones(TB, dtype=bool)
         joint_rows[self.body_offset[:-1]] = False  # drop every root
         self.joint_body = np.nonzero(joint_rows)[0]  # global part index of every joint
@@ -222,7 +223,7 @@ class BrainBatch:
         x = v[self.src] * self.weight
         y_prev = v[self.neuron_slot]
         out, self._s_prev = evaluate(self.func, x, self.n_inputs, self.param, y_prev, self._s_prev, self._first,
-                                     self.time, dt)
+                                     self.time, dt, self.groups)
         v[self.neuron_slot] = out
         self._first = False
         self.time += dt

@@ -251,8 +251,13 @@ def random_neuron(rng: np.random.Generator, *, brain: bool, n_local: int, n_brai
 # -------------------------------------------------------------------------- the functions
 
 
+def function_groups(code: np.ndarray) -> list[tuple[int, np.ndarray]]:
+    """``(function code, neuron indices)`` for every function present (computed once per batch)."""
+    return [(int(c), np.nonzero(code == c)[0]) for c in np.unique(code)]
+
+
 def evaluate(code: np.ndarray, x: np.ndarray, n_inputs: np.ndarray, param: np.ndarray, y_prev: np.ndarray,
-             s_prev: np.ndarray, first: bool, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+             s_prev: np.ndarray, first: bool, t: float, dt: float, groups=None) -> tuple[np.ndarray, np.ndarray]:
     """Evaluate many neurons at once; one vectorised branch per function present.
 
     Args:
@@ -264,6 +269,7 @@ def evaluate(code: np.ndarray, x: np.ndarray, n_inputs: np.ndarray, param: np.nd
         s_prev: (N,) input sums of the previous tick (state of differentiate).
         first: True on the first tick after a reset.
         t: brain time of this tick; dt: tick length (> 0).
+        groups: :func:`function_groups` of ``code`` (computed here when omitted).
 
     Returns:
         (outputs (N,), input sums (N,)) — the sums are the next call's ``s_prev``.
@@ -272,9 +278,8 @@ def evaluate(code: np.ndarray, x: np.ndarray, n_inputs: np.ndarray, param: np.nd
     xm = np.where(mask, x, 0.0)
     s = xm.sum(axis=1)
     out = np.zeros_like(s)
-    for c in np.unique(code):
+    for c, i in function_groups(code) if groups is None else groups:
         name = FUNCTION_NAMES[c]
-        i = np.nonzero(code == c)[0]
         si, p = s[i], param[i]
         defaults = FUNCTIONS[name]
         if defaults is not None:
