@@ -43,7 +43,17 @@ def assert_valid(c: Creature) -> None:
 @settings(max_examples=10_000, deadline=None)
 @given(seeds, st.integers(1, 10))
 def test_ten_thousand_random_genomes_are_valid(seed, size):
-    assert_valid(Creature.random(np.random.default_rng(seed), n_nodes=(1, size), neurons=(0, 4)))
+    c = Creature.random(np.random.default_rng(seed), n_nodes=(1, size), neurons=(0, 4))
+    assert_valid(c)
+    assert not c.expand().body.meta["truncated"]  # random creatures fit the cap whole
+
+
+@settings(max_examples=100, deadline=None)
+@given(seeds, st.integers(8, 30))
+def test_random_respects_a_small_part_budget(seed, cap):
+    c = Creature.random(np.random.default_rng(seed), n_nodes=(1, 8), max_parts=cap, p_recursion=0.8, p_symmetry=0.8)
+    body = c.expand(max_parts=1000).body
+    assert body.n_bodies <= cap and not body.meta["truncated"]
 
 
 @settings(max_examples=60, deadline=None)

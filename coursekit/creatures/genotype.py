@@ -441,7 +441,7 @@ class Creature:
     @classmethod
     def random(cls, rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), max_children: int = 3,
                neurons: tuple = (0, 3), brain_neurons: tuple = (0, 3), p_recursion: float = 0.3,
-               p_symmetry: float = 0.4) -> "Creature":
+               p_symmetry: float = 0.4, max_parts: int | None = None) -> "Creature":
         """A random valid creature.
 
         Args:
@@ -451,6 +451,9 @@ class Creature:
             neurons: inclusive range of local neurons per node (within [0, MAX_NEURONS]).
             brain_neurons: inclusive range of brain neurons (within [0, MAX_BRAIN_NEURONS]).
             p_recursion, p_symmetry: chance a node recurses / a link gets a symmetric copy.
+            max_parts: the expansion must fit this many parts without truncation (default
+                ``phenotype.MAX_PARTS``); recursion and symmetry entries are pruned at random
+                until it does.
 
         Returns:
             A :class:`Creature` (nodes numbered in LR pre-order, all reachable, acyclic).
@@ -468,6 +471,11 @@ class Creature:
         for name, p in (("p_recursion", p_recursion), ("p_symmetry", p_symmetry)):
             if not 0.0 <= p <= 1.0:
                 raise ValueError(f"Creature.random.{name}: must be a probability in [0, 1], got {p!r}")
+        from .phenotype import MAX_PARTS
+
+        max_parts = MAX_PARTS if max_parts is None else max_parts
+        if not _is_int(max_parts) or max_parts < hi:
+            raise ValueError(f"Creature.random.max_parts: must be an int >= the largest node count {hi}, got {max_parts!r}")
         count = int(rng.integers(lo, hi + 1))
         nodes = [random_node(rng) for _ in range(count)]
         # A random tree over the nodes (parent id < child id keeps the graph acyclic), then a few
@@ -489,7 +497,9 @@ class Creature:
                 node.recursive_limit = int(rng.integers(1, 4))
             for c in node.children:
                 if rng.random() < p_symmetry and len(node.symmetry) < MAX_SYMMETRY and all(s.child != c.child for s in node.symmetry):
-                    node.symmetry.append(Symmetry(c.child, int(rng.integers(3))))
+                    axis = mirror_axis(rng, node, c.child)
+                    if axis is not None:
+                        node.symmetry.append(Symmetry(c.child, axis))
         brain = []
         nb = int(rng.integers(brain_neurons[0], brain_neurons[1] + 1))
         for _ in range(nb):
@@ -500,7 +510,14 @@ class Creature:
             nc = max(1, len(node.children) + len(node.recursion))
             node.neurons = [random_neuron(rng, brain=False, n_local=n_local, n_brain=nb, n_children=nc) for _ in range(k)]
             node.effectors = [random_input(rng, brain=False, n_local=n_local, n_brain=nb, n_children=nc) for _ in range(node.dof)]
-        return cls(renumber(nodes), brain)
+        creature = cls(renumber(nodes), brain)
+        # Sims discards creatures over the part cap; we prune multipliers until it fits.
+        from .phenotype import expand
+
+        while expand(creature, max_parts).body.meta["truncated"]:
+            _prune_one(creature, rng)
+            creature.nodes = renumber(creature.nodes)
+        return creature
 
     @classmethod
     def figure1_snake(cls, segments: int = 4) -> "Creature":
@@ -511,10 +528,10 @@ class Creature:
         segment only, and a symmetry entry mirrors it across the segment's y plane.
 
         Args:
-            segments: number of body segments (2..MAX_RECURSIVE_LIMIT + 1).
+            segments: number of body segments (1..MAX_RECURSIVE_LIMIT + 1).
         """
-        if not _is_int(segments) or not 2 <= segments <= MAX_RECURSIVE_LIMIT + 1:
-            raise ValueError(f"figure1_snake.segments: must be an int in [2, {MAX_RECURSIVE_LIMIT + 1}], got {segments!r}")
+        if not _is_int(segments) or not 1 <= segments <= MAX_RECURSIVE_LIMIT + 1:
+            raise ValueError(f"figure1_snake.segments: must be an int in [1, {MAX_RECURSIVE_LIMIT + 1}], got {segments!r}")
         brain = [Neuron("oscillate_wave", [Input(None, 0, 0.0)], 1.0)]
         segment = Node(
             size=(0.2, 0.08, 0.06), joint_type="revolute", joint_pos=(-1.0, 0.0, 0.0), joint_axis=(0.0, 0.0, 1.0),
@@ -534,6 +551,33 @@ class Creature:
 
 
 # ----------------------------------------------------------------------- random elements
+
+
+def _prune_one(creature: Creature, rng) -> None:
+    """Remove one random multiplier (a recursion step, a symmetry entry or a shared link)."""
+    options = []
+    for i, node in enumerate(creature.nodes):
+        if node.recursion and node.recursive_limit > 0:
+            options.append(("limit", i))
+        if node.symmetry:
+            options.append(("symmetry", i))
+    seen = set()
+    for i, node in enumerate(creature.nodes):  # links beyond each node's first incoming one
+        for k, c in enumerate(node.children):
+            if c.child in seen:
+                options.append(("link", (i, k)))
+            seen.add(c.child)
+    kind, where = _choice(rng, options)
+    if kind == "limit":
+        creature.nodes[where].recursive_limit -= 1
+    elif kind == "symmetry":
+        creature.nodes[where].symmetry.pop(int(rng.integers(len(creature.nodes[where].symmetry))))
+    else:
+        i, k = where
+        node = creature.nodes[i]
+        child = node.children.pop(k).child
+        if all(c.child != child for c in node.children):
+            node.symmetry = [s for s in node.symmetry if s.child != child]
 
 
 def _choice(rng, seq):
@@ -559,13 +603,21 @@ def facing_rotation(rng, parent_pos, child_joint_pos) -> tuple:
     return ROTATIONS[int(_choice(rng, good))] if good.size else _choice(rng, ROTATIONS)
 
 
+def mirror_axis(rng, node: Node, child: int) -> int | None:
+    """A random axis that moves every link to ``child`` when mirrored (so copies don't
+    coincide), or None when there is none."""
+    links = [c.pos for c in node.children if c.child == child]
+    axes = [k for k in range(3) if all(abs(p[k]) > 0 for p in links)]
+    return _choice(rng, axes) if links and axes else None
+
+
 def random_node(rng) -> Node:
     """A random node with no links and no neurons (effector: constant 0 until wired)."""
     jt = _choice(rng, ("revolute", "revolute", "revolute", "prismatic"))
     lim = _choice(rng, REVOLUTE_LIMITS if jt == "revolute" else PRISMATIC_LIMITS)
     lim2 = _choice(rng, REVOLUTE_LIMITS if jt == "revolute" else PRISMATIC_LIMITS)
     node = Node(
-        size=tuple(_choice(rng, SIZES[2:]) for _ in range(3)), joint_type=jt, joint_pos=random_face_point(rng),
+        size=tuple(_choice(rng, SIZES[2:]) for _ in range(3)), joint_type=jt, joint_pos=_choice(rng, FACES),
         joint_axis=_choice(rng, AXES), limits=(-lim, lim2), force=_choice(rng, FORCES),
     )
     node.effectors = [None] * node.dof
@@ -580,5 +632,14 @@ def random_link(rng, child: int, parent_node: Node, child_node: Node) -> ChildLi
 
 
 def random_recursion(rng, node: Node) -> Recursion:
-    pos = random_face_point(rng)
+    """A recursion entry; usually on the face opposite the node's joint, so that the copies form
+    a chain (a snake, a tail) rather than folding back onto themselves."""
+    jp = np.asarray(node.joint_pos, dtype=float)
+    if rng.random() < 0.7 and np.abs(jp).max() > 0:
+        k = int(np.argmax(np.abs(jp)))
+        p = [0.0, 0.0, 0.0]
+        p[k] = -float(np.sign(jp[k]))
+        pos = tuple(p)
+    else:
+        pos = random_face_point(rng)
     return Recursion(pos, _choice(rng, SCALES), facing_rotation(rng, pos, node.joint_pos))

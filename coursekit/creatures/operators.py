@@ -46,6 +46,7 @@ from .genotype import (
     Node,
     Symmetry,
     _choice,
+    mirror_axis,
     preorder,
     renumber,
     random_face_point,
@@ -357,11 +358,17 @@ def _mutate_symmetry(node: Node, rng) -> None:
     linked = sorted({c.child for c in node.children} - {s.child for s in node.symmetry})
     r = rng.random()
     if linked and len(node.symmetry) < MAX_SYMMETRY and (r < 0.5 or not node.symmetry):
-        node.symmetry.append(Symmetry(_choice(rng, linked), int(rng.integers(3))))
+        child = _choice(rng, linked)
+        axis = mirror_axis(rng, node, child)
+        if axis is not None:
+            node.symmetry.append(Symmetry(child, axis))
     elif node.symmetry and r < 0.75:
         node.symmetry.pop(int(rng.integers(len(node.symmetry))))
     elif node.symmetry:
-        node.symmetry[int(rng.integers(len(node.symmetry)))].axis = int(rng.integers(3))
+        s = node.symmetry[int(rng.integers(len(node.symmetry)))]
+        axis = mirror_axis(rng, node, s.child)
+        if axis is not None:
+            s.axis = axis
 
 
 MODIFY_STEPS = (_mutate_joint, _mutate_size, _mutate_limits, _mutate_force, _mutate_recursion, _mutate_symmetry)

@@ -81,8 +81,8 @@ def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, 
             colour = cmap(0.15 + 0.75 * depth[b] / top)[:3]
             pl.add_mesh(box, color=colour, show_edges=True, edge_color="black", line_width=1, smooth_shading=False)
         if joint_axes and body.n_bodies > 1:
-            L = 1.6 * float(body.half_extents.max())
             for b in range(1, body.n_bodies):
+                L = 2.4 * float(body.half_extents[b].max())
                 anchor = R[b] @ body.joint_pos_child[b] + t[b]
                 a = R[b] @ body.joint_axis[b]
                 colour = "blue" if body.joint_type[b] == PRISMATIC else "red"
