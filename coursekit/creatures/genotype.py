@@ -539,9 +539,12 @@ class Creature:
             children=[ChildLink(1, pos=(0.5, 1.0, 0.0), terminal_only=True)],
             recursion=[Recursion(pos=(1.0, 0.0, 0.0), scale=1.0)],
             symmetry=[Symmetry(1, axis=1)],
-            # Each segment follows the brain's wave, delayed through its parent segment's neuron.
-            neurons=[Neuron("smooth", [Input(-2, 0, 1.0), Input(-1, N_SENSORS, 0.5)], 4.0)],
-            effectors=[Input(0, N_SENSORS, 1.0)],
+            # A travelling wave: neuron 0 accumulates a phase along the spine (its parent's
+            # phase minus 0.8 rad; the root has no parent and reads 0), neuron 1 oscillates at
+            # 1 Hz with that phase and drives the segment's joint.
+            neurons=[Neuron("sum", [Input(-1, N_SENSORS, 1.0), Input(None, 0, -0.8)]),
+                     Neuron("oscillate_wave", [Input(0, N_SENSORS, 1.0)], 1.0)],
+            effectors=[Input(0, N_SENSORS + 1, 1.0)],
         )
         leg = Node(
             size=(0.04, 0.15, 0.04), joint_type="revolute", joint_pos=(0.0, -1.0, 0.0), joint_axis=(1.0, 0.0, 0.0),
