@@ -62,7 +62,6 @@ from .neural import (
     N_SENSORS,
     PARAM_RANGE,
     WEIGHT_LIMIT,
-    Input,
     random_input,
     random_neuron,
     random_param,

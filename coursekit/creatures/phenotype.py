@@ -43,7 +43,7 @@ from .brain import Brain, build_brain
 from .genotype import MAX_HALF_EXTENT, Creature
 
 MAX_PARTS = 64
-STRENGTH_PER_AREA = 50.0
+STRENGTH_PER_AREA = 0.2  #: N·m (or N) per m² of cross-section, as physics.samples uses
 
 
 @dataclass
