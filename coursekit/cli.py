@@ -17,9 +17,12 @@ def _cmd_lab(args: argparse.Namespace) -> int:
     if not lessons.is_dir():
         print(f"coursekit lab: no lessons folder at {lessons}", file=sys.stderr)
         return 2
-    cmd = [sys.executable, "-m", "jupyterlab", f"--ServerApp.root_dir={lessons.parent}", str(lessons.relative_to(lessons.parent))]
+    # Serve the whole course (lessons link to ../exercises) and open the lessons folder.
+    cmd = [sys.executable, "-m", "jupyterlab", f"--ServerApp.root_dir={lessons.parent}", f"--LabApp.default_url=/lab/tree/{lessons.name}"]
     if args.no_browser:
         cmd.append("--no-browser")
+    if hasattr(os, "geteuid") and os.geteuid() == 0:  # containers and CI machines run as root
+        cmd.append("--allow-root")
     cmd += args.extra
     print("coursekit: starting JupyterLab on", lessons)
     return subprocess.call(cmd)
@@ -47,7 +50,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             print(f"coursekit bench: no benchmark named {name!r}; have {sorted(p.stem for p in bench_dir.glob('*.py'))}", file=sys.stderr)
             return 2
         print(f"== benchmarks/{name}.py")
-        rc |= subprocess.call([sys.executable, str(script), *args.extra], env={**os.environ, "PYTHONPATH": str(ROOT)})
+        rc |= subprocess.call([sys.executable, str(script)], env={**os.environ, "PYTHONPATH": str(ROOT)})
     return rc
 
 
@@ -58,7 +61,6 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("lab", help="open JupyterLab on the lessons")
     s.add_argument("--dir", default=str(ROOT / "lessons"), help="lessons folder (default: the repository's lessons/)")
     s.add_argument("--no-browser", action="store_true", help="do not open a browser window")
-    s.add_argument("extra", nargs=argparse.REMAINDER, help="further JupyterLab options")
     s.set_defaults(func=_cmd_lab)
 
     s = sub.add_parser("grade", help="grade exercise notebooks in isolated kernels (Gradescope JSON)")
@@ -75,14 +77,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("bench", help="run the benchmarks (tables against a reference, same run)")
     s.add_argument("names", nargs="*", help="benchmark names (default: all)")
-    s.add_argument("--", dest="extra", nargs=argparse.REMAINDER, default=[])
-    s.set_defaults(func=_cmd_bench, extra=[])
+    s.set_defaults(func=_cmd_bench)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if args.command == "lab":
+        args.extra = unknown  # everything else goes to JupyterLab (--port=..., --ServerApp.*)
+    elif unknown:
+        parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     if not getattr(args, "func", None):
         parser.print_help()
         return 0

@@ -1,0 +1,77 @@
+"""The `coursekit` command and the size profiles."""
+
+import subprocess
+import sys
+
+import pytest
+
+from coursekit import profile
+from coursekit.cli import build_parser
+
+
+def test_help_lists_every_subcommand():
+    out = subprocess.run([sys.executable, "-m", "coursekit", "--help"], capture_output=True, text=True, check=True).stdout
+    for sub in ("lab", "grade", "exercises", "bench"):
+        assert sub in out
+
+
+def test_grade_requires_notebooks():
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["grade"])
+
+
+def test_profiles(monkeypatch):
+    monkeypatch.setenv("COURSEKIT_PROFILE", "ci")
+    assert profile.sized(classroom=40, ci=3) == 3
+    monkeypatch.setenv("COURSEKIT_PROFILE", "classroom")
+    assert profile.sized(classroom=40, ci=3) == 40
+    monkeypatch.setenv("COURSEKIT_PROFILE", "huge")
+    with pytest.raises(ValueError, match="COURSEKIT_PROFILE"):
+        profile.current()
+
+
+def test_lab_serves_the_course_and_opens_the_lessons(tmp_path):
+    """`coursekit lab` (the README's first command) really serves JupyterLab on lessons/."""
+    import json
+    import socket
+    import time
+    import urllib.error
+    import urllib.request
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    env = {**__import__("os").environ, "JUPYTER_RUNTIME_DIR": str(tmp_path), "JUPYTER_CONFIG_DIR": str(tmp_path)}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "coursekit", "lab", "--no-browser", f"--ServerApp.port={port}", "--ServerApp.token=t", "--ServerApp.ip=127.0.0.1"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env=env,
+    )
+    try:
+        base = f"http://127.0.0.1:{port}"
+        deadline = time.monotonic() + 60
+        while True:
+            try:
+                listing = json.load(urllib.request.urlopen(f"{base}/api/contents?token=t", timeout=5))
+                break
+            except (urllib.error.URLError, ConnectionError):
+                assert proc.poll() is None, "JupyterLab exited early"
+                assert time.monotonic() < deadline, "JupyterLab did not come up within 60 s"
+                time.sleep(0.5)
+        names = {c["name"] for c in listing["content"]}
+        assert {"lessons", "exercises"} <= names  # lessons link to ../exercises: both must be reachable
+
+        class NoRedirect(urllib.request.HTTPRedirectHandler):
+            def redirect_request(self, *a, **k):
+                return None
+
+        try:
+            urllib.request.build_opener(NoRedirect).open(f"{base}/?token=t", timeout=5)
+            location = ""
+        except urllib.error.HTTPError as e:
+            location = e.headers["Location"]
+        assert "/lab/tree/lessons" in location
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
