@@ -206,3 +206,42 @@ def test_graft_appends_a_subgraph_of_the_second_parent(seed, la, lb):
     b_part = [k for p, k in src if p == "b"]
     assert a_part == list(range(len(a_part))) and a_part[0] == 0  # a prefix of a's chain
     assert b_part and b_part == list(range(b_part[0], lb))  # a whole subgraph (a suffix) of b
+
+
+def test_deleting_every_node_removes_every_reference():
+    c = Creature.random(np.random.default_rng(8), n_nodes=6)
+    out = operators.mutate(c, np.random.default_rng(0), p_delete=10.0, p_add=0.0, p_modify=0.0, p_link=0.0, p_neural=0.0)
+    assert len(out.nodes) == 1  # only the root survives (it cannot be deleted)
+    assert out.nodes[0].children == [] and out.nodes[0].symmetry == []
+    assert_valid(out)
+
+
+@pytest.mark.parametrize("k, fields", [
+    (0, {"joint_axis", "joint_pos", "joint_type", "limits"}),  # 1. joint axis and position
+    (1, {"size"}),  # 2. body size
+    (2, {"limits"}),  # 3. mobility
+    (3, {"force"}),  # 4. force coefficient
+    (4, {"recursion", "recursive_limit"}),  # 5. recursion
+    (5, {"symmetry"}),  # 6. symmetry
+])
+def test_each_modification_step_touches_only_its_attributes(k, fields):
+    """The paper's six modification steps (2.2.2), each drawing from the predefined lists."""
+    from coursekit.creatures.genotype import AXES, SIZES
+
+    step = operators.MODIFY_STEPS[k]
+    rng = np.random.default_rng(k)
+    changed = set()
+    for seed in range(40):
+        c = Creature.random(np.random.default_rng(seed), n_nodes=(2, 4), p_symmetry=0.5)
+        node = c.copy().nodes[0]
+        step(node, rng)
+        before, after = c.nodes[0].to_dict(), node.to_dict()
+        diff = {f for f in before if before[f] != after[f]}
+        assert diff <= fields, (diff, fields)
+        changed |= diff
+        assert set(node.size) <= set(SIZES) or k != 1
+        assert tuple(node.joint_axis) in AXES or k != 0
+        nodes = c.copy().nodes
+        nodes[0] = node
+        assert_valid(Creature(nodes, c.brain))
+    assert changed  # the step does change things
