@@ -209,3 +209,35 @@ def test_joint_types_and_axes_units():
     assert set(body.joint_type[1:].tolist()) <= {REVOLUTE, PRISMATIC}
     np.testing.assert_allclose(np.linalg.norm(body.joint_axis[1:], axis=1), 1.0)
     assert FORMAT == "coursekit.creature/1"
+
+
+json_values = st.recursive(
+    st.none() | st.booleans() | st.integers(-3, 30) | st.floats(allow_nan=True, allow_infinity=True) | st.text(max_size=3),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=3), inner, max_size=3),
+    max_leaves=6,
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(seed=seeds, value=json_values, pick=st.integers(0, 10**6))
+def test_corrupted_files_give_clear_errors_or_valid_creatures(seed, value, pick):
+    """Replace one random field anywhere in a valid file: loading either raises ValueError /
+    TypeError or yields a creature that passes validation and expands."""
+    d = Creature.random(np.random.default_rng(seed), n_nodes=(1, 4), neurons=(0, 2), brain_neurons=(0, 2)).to_dict()
+    slots = []
+
+    def walk(obj):
+        items = obj.items() if isinstance(obj, dict) else enumerate(obj) if isinstance(obj, list) else []
+        for k, v in items:
+            slots.append((obj, k))
+            walk(v)
+
+    walk(d)
+    obj, k = slots[pick % len(slots)]
+    obj[k] = value
+    try:
+        c = Creature.from_dict(d)
+    except (ValueError, TypeError):
+        return
+    c.validate()
+    c.expand()
