@@ -185,7 +185,7 @@ def validate_neuron(n: Neuron, where: str, *, brain: bool, n_local: int, n_brain
     """Check a neuron's function, parameter and inputs (see :func:`validate_input`)."""
     if not isinstance(n, Neuron):
         raise TypeError(f"{where}: expected a Neuron, got {type(n).__name__}")
-    if n.func not in FUNCTIONS:
+    if not isinstance(n.func, str) or n.func not in FUNCTIONS:
         raise ValueError(f"{where}.func: unknown neuron function {n.func!r}; allowed: {', '.join(FUNCTION_NAMES)}")
     if not _is_real(n.param):
         raise ValueError(f"{where}.param: must be a finite number, got {n.param!r}")
