@@ -45,8 +45,9 @@ oscillate_wave        ``sin(2π p t + s)`` (``p`` a frequency in Hz, ``s`` a pha
 oscillate_saw         ``2 * frac(p t + s / 2π) − 1``
 ====================  ============================================================
 
-Every output is made finite and clipped to ``±OUTPUT_LIMIT``. Sims' divergences noted: his
-oscillator formulas and thresholds are unpublished, so these are ours.
+Every output is made finite and clipped to ``±OUTPUT_LIMIT``. Sims did not publish his
+oscillator formulas or thresholds; these are ours. Sensors are per part and per joint DOF (all
+joints have one DOF today; multi-DOF joints would add angle/velocity ids per DOF).
 """
 
 from __future__ import annotations
