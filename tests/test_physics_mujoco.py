@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-mujoco = pytest.importorskip("mujoco")
+import mujoco  # in the [test] extra: the cross-check must run, never skip
 
 from coursekit.creatures.mjcf import to_mjcf
 from coursekit.creatures.physics import Model, forward_dynamics, random_body_tree, random_state
