@@ -5,7 +5,7 @@ in the paper: ``ZeroArgChrom`` (terminals: constants, colours, coordinates, ramp
 turbulence, gradients, pixel maps), ``OneArgChrom`` and ``TwoArgChrom`` (functions). This module
 is the registry: name, arity, parameters (with the range a random chromosome draws them
 from) and what each primitive does. The whole-image implementations live in
-:mod:`coursekit.pictures.render`, the per-pixel ones in :mod:`coursekit.pictures.reference`.
+:mod:`coursekit.pictures.evaluate`, the per-pixel ones in :mod:`coursekit.pictures.reference`.
 
 Conventions shared by both evaluators:
 
@@ -13,7 +13,7 @@ Conventions shared by both evaluators:
   square ``[0, 1] x [0, 1]``. ``radius`` and ``angle`` are measured around the centre
   ``(0.5, 0.5)``. Everything is defined in world coordinates, so zooming re-evaluates.
 - Values are grey (one channel) or colour (three channels, RGB). "Nice" values lie in
-  [0, 1]; the final mapping (:func:`coursekit.pictures.render.to_rgb`) folds any value into
+  [0, 1]; the final mapping (:func:`coursekit.pictures.evaluate.to_rgb`) folds any value into
   [0, 1], so primitives need not clip.
 - Parameters are floats stored in the chromosome (so random interpolation can blend them);
   integer-like parameters (octaves, picture index) are floored where used.

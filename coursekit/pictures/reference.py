@@ -2,7 +2,7 @@
 
 Sims (1991) evaluated a genotype's symbolic expression once per pixel coordinate. This module
 does exactly that in plain Python floats (double precision), one pixel at a time, with the
-``math`` module: it is the independent definition the tensorised :mod:`.render` is tested
+``math`` module: it is the independent definition the tensorised :mod:`.evaluate` is tested
 against, and the baseline of the lesson's speed comparison. It is slow on purpose.
 
 Neighbourhood primitives (``blur``, ``band-pass``, ``bump``, ``grad-mag``, ``grad-dir``) need
@@ -19,7 +19,7 @@ import numpy as np
 
 from . import textures as T
 from .genome import Genome, Node
-from .render import _parse_size, _parse_window
+from .evaluate import _parse_size, _parse_window
 
 __all__ = ["render_reference"]
 
@@ -314,7 +314,7 @@ def render_reference(genome: Genome, size=(16, 16), *, window=(0.0, 0.0, 1.0, 1.
         window: world rectangle ``(x0, y0, x1, y1)``.
         time: animation time.
     Returns:
-        ``(H, W, 3)`` float64 array in [0, 1] (the same final mapping as :func:`.render.render`).
+        ``(H, W, 3)`` float64 array in [0, 1] (the same final mapping as :func:`.evaluate.render`).
     """
     if not isinstance(genome, Genome):
         raise TypeError(f"genome: expected a Genome, got {type(genome).__name__}")
