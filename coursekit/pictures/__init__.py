@@ -9,6 +9,10 @@ gallery where the user is the fitness function (:mod:`.gallery`).
 
 from . import primitives
 from .genome import Chromosome, ChromosomeString, Genome
+from . import operators
 from .evaluate import render
+from .files import load_genome, save_image
+from .reference import render_reference
 
-__all__ = ["primitives", "Chromosome", "ChromosomeString", "Genome", "render"]
+__all__ = ["primitives", "operators", "Chromosome", "ChromosomeString", "Genome", "render",
+           "render_reference", "save_image", "load_genome"]

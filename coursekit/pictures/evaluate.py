@@ -522,13 +522,14 @@ def render(genomes, size=(128, 128), *, window=(0.0, 0.0, 1.0, 1.0), time: float
             out[idx] = to_rgb(v, H, W).expand(len(idx), 3, H, W).permute(0, 2, 3, 1)
 
     jobs = list(groups.values())
-    if device.type != "cpu":
+    if device.type != "cpu" or len(jobs) == 1:
         for idx in jobs:
             run(idx)
     else:
-        # One thread per core, each running whole genomes with single-threaded torch ops:
-        # intra-op threading on many small images thrashes (measured 10-30x slower on a
-        # loaded 2-core machine), genome-level parallelism does not.
+        # Several genomes: one thread per core, each running whole genomes with
+        # single-threaded torch ops. Intra-op threading on many small images thrashes
+        # (measured 10-30x slower on a loaded 2-core machine); genome-level parallelism
+        # does not. A single job (one big image) keeps torch's intra-op threads.
         workers = int(workers or os.cpu_count() or 1)
         saved = torch.get_num_threads()
         torch.set_num_threads(1)
