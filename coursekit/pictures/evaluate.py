@@ -79,6 +79,9 @@ class _Resources:
         self.device = device
         self.table = torch.from_numpy(T.noise_table()).to(device)
         self.flat = self.table.reshape(-1)
+        wrapped = torch.cat([self.table, self.table[:1]], dim=0)
+        self.wrapped = torch.cat([wrapped, wrapped[:, :1]], dim=1)[None, None].contiguous()
+        self.box_matrices: dict = {}
         self.pixmaps: dict[int, torch.Tensor] = {}
 
     @classmethod
@@ -87,6 +90,18 @@ class _Resources:
         if key not in cls._cache:
             cls._cache[key] = cls(device)
         return cls._cache[key]
+
+    def box_matrix(self, n: int, r: int) -> torch.Tensor:
+        """(n, n) matrix of three replicate-border box passes of radius r."""
+        key = (n, r)
+        if key not in self.box_matrices:
+            b = torch.zeros(n, n, dtype=torch.float64)
+            rows = torch.arange(n).repeat_interleave(2 * r + 1)
+            cols = (torch.arange(n)[:, None] + torch.arange(-r, r + 1)[None, :]).clamp(0, n - 1).reshape(-1)
+            b.index_put_((rows, cols), torch.full_like(rows, 1.0 / (2 * r + 1), dtype=torch.float64),
+                         accumulate=True)
+            self.box_matrices[key] = (b @ b @ b).float().to(self.device)
+        return self.box_matrices[key]
 
     def pixmap(self, i: int) -> torch.Tensor:
         if i not in self.pixmaps:
@@ -158,17 +173,16 @@ def _noise(ctx: _Ctx, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
             block = res.table[rows.unsqueeze(-1), cols.unsqueeze(1)]  # (B, ky, kx)
             out = torch.bmm(torch.bmm(wy, block), wx.transpose(1, 2))
             return out.unsqueeze(1)
+    # general coordinates: bilinear lookup at i0 + smooth(frac) is exactly the smoothstep
+    # interpolation; the table is padded with its first row and column to wrap around
     u, v = torch.broadcast_tensors(u, v)
     i0, j0 = torch.floor(u), torch.floor(v)
-    su, sv = _smooth(u - i0), _smooth(v - j0)
-    i0 = torch.remainder(i0.long(), T.LATTICE)
-    j0 = torch.remainder(j0.long(), T.LATTICE)
-    i1 = torch.remainder(i0 + 1, T.LATTICE)
-    j1 = torch.remainder(j0 + 1, T.LATTICE)
-    f = res.flat
-    a = f[j0 * T.LATTICE + i0] + su * (f[j0 * T.LATTICE + i1] - f[j0 * T.LATTICE + i0])
-    b = f[j1 * T.LATTICE + i0] + su * (f[j1 * T.LATTICE + i1] - f[j1 * T.LATTICE + i0])
-    return a + sv * (b - a)
+    pu = torch.remainder(i0, T.LATTICE) + _smooth(u - i0)
+    pv = torch.remainder(j0, T.LATTICE) + _smooth(v - j0)
+    half = T.LATTICE / 2.0
+    grid = torch.stack([pu[:, 0] / half - 1.0, pv[:, 0] / half - 1.0], dim=-1)
+    return torch.nn.functional.grid_sample(res.wrapped.expand(grid.shape[0], -1, -1, -1), grid,
+                                           mode="bilinear", align_corners=True)
 
 
 # ---- terminals (p: list of (B, 1, 1, 1) parameter tensors) ---------------------------------
@@ -334,8 +348,14 @@ def _blur_by(v, sigma: torch.Tensor, ctx):
         rx = T.box_radius(abs(s) / ctx.px, 4 * ctx.W)
         ry = T.box_radius(abs(s) / ctx.py, 4 * ctx.H)
         o = v[b:b + 1]
-        for _ in range(3):
-            o = _box(_box(o, rx, 3), ry, 2)
+        if max(ctx.H, ctx.W) <= 1024:  # one banded matrix per axis (fast for small images)
+            if rx and o.shape[3] > 1:
+                o = o @ ctx.res.box_matrix(ctx.W, rx).T
+            if ry and o.shape[2] > 1:
+                o = ctx.res.box_matrix(ctx.H, ry) @ o
+        else:  # large images: cumulative sums, cost independent of the radius
+            for _ in range(3):
+                o = _box(_box(o, rx, 3), ry, 2)
         outs.append(o)
     return torch.cat(outs, dim=0)
 
@@ -522,14 +542,14 @@ def render(genomes, size=(128, 128), *, window=(0.0, 0.0, 1.0, 1.0), time: float
             out[idx] = to_rgb(v, H, W).expand(len(idx), 3, H, W).permute(0, 2, 3, 1)
 
     jobs = list(groups.values())
-    if device.type != "cpu" or len(jobs) == 1:
+    if device.type != "cpu" or (len(jobs) == 1 and H * W > 512 * 512):
+        # GPU, or one big image (a file export): torch's own intra-op threads
         for idx in jobs:
             run(idx)
     else:
-        # Several genomes: one thread per core, each running whole genomes with
-        # single-threaded torch ops. Intra-op threading on many small images thrashes
-        # (measured 10-30x slower on a loaded 2-core machine); genome-level parallelism
-        # does not. A single job (one big image) keeps torch's intra-op threads.
+        # Small images: one thread per core, each running whole genomes with single-threaded
+        # torch ops. Intra-op threading on small images thrashes (measured 10-30x slower on
+        # a loaded 2-core machine); genome-level parallelism does not.
         workers = int(workers or os.cpu_count() or 1)
         saved = torch.get_num_threads()
         torch.set_num_threads(1)
