@@ -114,10 +114,14 @@ def _sane(v: torch.Tensor) -> torch.Tensor:
     return torch.nan_to_num(v, nan=0.0, posinf=_BIG, neginf=-_BIG).clamp_(-_BIG, _BIG)
 
 
+def _fmod(v: torch.Tensor, m) -> torch.Tensor:
+    """Floored modulo v - m floor(v / m) (sign of m, like Python's %), cheaper than remainder."""
+    return v - m * torch.floor(v / m)
+
+
 def fold(v: torch.Tensor) -> torch.Tensor:
-    """Mirror-repeat into [0, 1] with period 2."""
-    m = torch.remainder(v, 2.0)
-    return torch.where(m > 1.0, 2.0 - m, m)
+    """Mirror-repeat into [0, 1] with period 2: 1 - |(v mod 2) - 1|."""
+    return 1.0 - torch.abs(_fmod(v, 2.0) - 1.0)
 
 
 def to_rgb(v: torch.Tensor, H: int, W: int) -> torch.Tensor:
@@ -177,8 +181,8 @@ def _noise(ctx: _Ctx, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
     # interpolation; the table is padded with its first row and column to wrap around
     u, v = torch.broadcast_tensors(u, v)
     i0, j0 = torch.floor(u), torch.floor(v)
-    pu = torch.remainder(i0, T.LATTICE) + _smooth(u - i0)
-    pv = torch.remainder(j0, T.LATTICE) + _smooth(v - j0)
+    pu = _fmod(i0, float(T.LATTICE)) + _smooth(u - i0)
+    pv = _fmod(j0, float(T.LATTICE)) + _smooth(v - j0)
     half = T.LATTICE / 2.0
     grid = torch.stack([pu[:, 0] / half - 1.0, pv[:, 0] / half - 1.0], dim=-1)
     return torch.nn.functional.grid_sample(res.wrapped.expand(grid.shape[0], -1, -1, -1), grid,
@@ -200,7 +204,7 @@ def _radius(ctx, p):
 
 
 def _angle(ctx, p):
-    return torch.remainder(torch.atan2(ctx.y - 0.5, ctx.x - 0.5) / TWO_PI, 1.0)
+    return _fmod(torch.atan2(ctx.y - 0.5, ctx.x - 0.5) / TWO_PI, 1.0)
 
 
 def _along(ctx, turns):
@@ -265,10 +269,10 @@ def _hsv_to_rgb(a):
         h, s, v = a, torch.ones_like(a), torch.ones_like(a)
     else:
         h, s, v = a[:, 0:1], a[:, 1:2].clamp(0, 1), a[:, 2:3].clamp(0, 1)
-    h = torch.remainder(_sane(h), 1.0)
+    h = _fmod(_sane(h), 1.0)
     out = []
     for n in (5.0, 3.0, 1.0):
-        k = torch.remainder(n + 6.0 * h, 6.0)
+        k = _fmod(n + 6.0 * h, 6.0)
         out.append(v - v * s * torch.minimum(k, 4.0 - k).clamp(0.0, 1.0))
     return torch.cat(out, dim=1)
 
@@ -280,7 +284,7 @@ def _safe_div(a, b):
 
 def _mod(a, b):
     small = b.abs() < 1e-3
-    return torch.where(small, a, torch.remainder(a, torch.where(small, 1.0, b)))
+    return torch.where(small, a, _fmod(a, torch.where(small, 1.0, b)))
 
 
 def _quant(v):
@@ -361,13 +365,16 @@ def _blur_by(v, sigma: torch.Tensor, ctx):
 
 
 def _diff(v, dim, step):
+    """Central difference along ``dim`` with replicated borders, divided by 2 step."""
     n = v.shape[dim]
     if n == 1:
         return torch.zeros_like(v)
-    idx = torch.arange(n, device=v.device)
-    up = v.index_select(dim, (idx + 1).clamp(max=n - 1))
-    dn = v.index_select(dim, (idx - 1).clamp(min=0))
-    return (up - dn) / (2.0 * step)
+    out = torch.empty_like(v)
+    if n > 2:
+        out.narrow(dim, 1, n - 2).copy_(v.narrow(dim, 2, n - 2) - v.narrow(dim, 0, n - 2))
+    out.narrow(dim, 0, 1).copy_(v.narrow(dim, 1, 1) - v.narrow(dim, 0, 1))
+    out.narrow(dim, n - 1, 1).copy_(v.narrow(dim, n - 1, 1) - v.narrow(dim, n - 2, 1))
+    return out / (2.0 * step)
 
 
 def _gradients(v, ctx):
@@ -390,7 +397,7 @@ def _grad_mag(v, p, ctx):
 
 def _grad_dir(v, p, ctx):
     gx, gy = _gradients(v, ctx)
-    return torch.remainder(torch.atan2(gy, gx) / TWO_PI, 1.0)
+    return _fmod(torch.atan2(gy, gx) / TWO_PI, 1.0)
 
 
 # ---- coordinate transforms ------------------------------------------------------------------
@@ -469,7 +476,7 @@ def _eval(n: _BNode, ctx: _Ctx) -> torch.Tensor:
         ci = torch.remainder(torch.floor(_sane(x * T.DISSOLVE_CELLS + p[2])).long(), T.LATTICE)
         cj = torch.remainder(torch.floor(_sane(y * T.DISSOLVE_CELLS + p[3])).long(), T.LATTICE)
         cell = ctx.res.flat[cj * T.LATTICE + ci]
-        amount = torch.remainder(p[0] + p[1] * ctx.time, 1.0)
+        amount = _fmod(p[0] + p[1] * ctx.time, 1.0)
         return torch.where(cell < amount, b, a)
     raise ValueError(f"primitive {s!r} has no whole-image implementation")  # pragma: no cover
 
@@ -539,7 +546,9 @@ def render(genomes, size=(128, 128), *, window=(0.0, 0.0, 1.0, 1.0), time: float
     def run(idx):
         with torch.no_grad():
             v = _eval(_stack_trees([trees[i] for i in idx], device), ctx)
-            out[idx] = to_rgb(v, H, W).expand(len(idx), 3, H, W).permute(0, 2, 3, 1)
+            rgb = to_rgb(v, H, W)
+            for k, i in enumerate(idx):  # copy_ into a view: ~5x faster than out[idx] = ...
+                out[i].copy_(rgb[k if rgb.shape[0] > 1 else 0].permute(1, 2, 0))
 
     jobs = list(groups.values())
     if device.type != "cpu" or (len(jobs) == 1 and H * W > 512 * 512):
