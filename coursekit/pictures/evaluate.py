@@ -36,7 +36,6 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from . import primitives as P
 from . import textures as T
 from .genome import Genome, Node
 
