@@ -27,10 +27,11 @@ in world units.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
@@ -60,9 +61,10 @@ class _Ctx:
     py: float
     time: float
     res: "_Resources"
+    memo: dict = field(default_factory=dict)  # shared subtree values, shared by derived contexts
 
     def with_coords(self, x, y) -> "_Ctx":
-        return _Ctx(_sane(x), _sane(y), self.H, self.W, self.px, self.py, self.time, self.res)
+        return _Ctx(_sane(x), _sane(y), self.H, self.W, self.px, self.py, self.time, self.res, self.memo)
 
     @property
     def separable(self) -> bool:
@@ -422,27 +424,47 @@ _TERMINALS = {
 _NEIGHBOURHOOD = {"bump": _bump, "grad-mag": _grad_mag, "grad-dir": _grad_dir}
 
 
-@dataclass
+@dataclass(eq=False)
 class _BNode:
-    """A node of a batch of same-shaped trees: one symbol, parameters stacked over the batch."""
+    """A node of a batch of same-shaped trees: one symbol, parameters stacked over the batch.
+
+    Identical subtrees (same symbols and parameters, e.g. clones made by transposition) are
+    one shared node, evaluated once per coordinate context (``uses`` counts its parents).
+    """
 
     symbol: str
     params: list  # of (B, 1, 1, 1) tensors
     children: list
+    uses: int = 1
 
 
-def _stack_trees(trees: Sequence[Node], device) -> _BNode:
+def _stack_trees(trees: Sequence[Node], device, shared: dict | None = None) -> _BNode:
+    shared = {} if shared is None else shared
     first = trees[0]
+    kids = [_stack_trees([t.children[i] for t in trees], device, shared) for i in range(len(first.children))]
+    key = (first.symbol, tuple(t.params for t in trees), tuple(id(k) for k in kids))
+    if key in shared:
+        shared[key].uses += 1
+        return shared[key]
     if first.params:
         arr = torch.tensor([t.params for t in trees], dtype=torch.float32, device=device)
         params = [arr[:, i].reshape(-1, 1, 1, 1) for i in range(arr.shape[1])]
     else:
         params = []
-    kids = [_stack_trees([t.children[i] for t in trees], device) for i in range(len(first.children))]
-    return _BNode(first.symbol, params, kids)
+    node = shared[key] = _BNode(first.symbol, params, kids)
+    return node
 
 
 def _eval(n: _BNode, ctx: _Ctx) -> torch.Tensor:
+    if n.uses == 1:
+        return _eval_node(n, ctx)
+    key = (id(n), id(ctx))
+    if key not in ctx.memo:
+        ctx.memo[key] = (_eval_node(n, ctx), ctx)  # keep ctx alive so its id is not reused
+    return ctx.memo[key][0]
+
+
+def _eval_node(n: _BNode, ctx: _Ctx) -> torch.Tensor:
     s, p = n.symbol, n.params
     if s in _TERMINALS:
         return _TERMINALS[s](ctx, p)
@@ -544,7 +566,8 @@ def render(genomes, size=(128, 128), *, window=(0.0, 0.0, 1.0, 1.0), time: float
 
     def run(idx):
         with torch.no_grad():
-            v = _eval(_stack_trees([trees[i] for i in idx], device), ctx)
+            tree = _stack_trees([trees[i] for i in idx], device)
+            v = _eval(tree, dataclasses.replace(ctx, memo={}))  # a fresh memo per group
             rgb = to_rgb(v, H, W)
             for k, i in enumerate(idx):  # copy_ into a view: ~5x faster than out[idx] = ...
                 out[i].copy_(rgb[k if rgb.shape[0] > 1 else 0].permute(1, 2, 0))
