@@ -86,7 +86,7 @@ def main(argv=None):
         print(f"{'size':>5} | {'evaluator':42} | {'images':>6} | {'images/s':>9} | "
               f"{'s per 20 images':>15} | {'vs per-pixel':>12}")
         for s, name, n, t in [r for r in rows if r[0] == size]:
-            print(f"{s:>4}² | {name:42} | {n:>6} | {1 / t:>9.1f} | {20 * t:>15.3f} | {ref / t:>11.0f}×")
+            print(f"{s:>4}² | {name:42} | {n:>6} | {1 / t:>9.3g} | {20 * t:>15.3f} | {ref / t:>11.0f}×")
     return rows
 
 

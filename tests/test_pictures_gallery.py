@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from coursekit.pictures import Genome, operators as O
+from coursekit.pictures import operators as O
 from coursekit.pictures.gallery import Gallery, GalleryState
 from tests.test_pictures_genome import assert_valid
 

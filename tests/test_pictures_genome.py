@@ -87,6 +87,7 @@ def test_random_genomes_obey_head_tail_rule_and_round_trip(seed, n_strings, h):
     assert all(st_.head_length == h and st_.tail_length == h + 1 for st_ in g.strings)
     text = g.to_json()
     assert json.loads(text)["format"] == FORMAT
+    assert json.loads(text)["expression"] == g.expression()
     assert Genome.from_json(text) == g
     assert Genome.from_json(text).expression() == g.expression()
     assert g.size() == sum(len(v) for v in g.active.values())

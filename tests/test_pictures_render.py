@@ -163,3 +163,16 @@ def test_render_validates_its_arguments():
     with pytest.raises(TypeError, match=r"genomes\[1\]"):
         render([g, "nope"], 4)
     assert render([], 4).shape == (0, 4, 4, 3)
+
+
+def test_shared_subtrees_are_evaluated_once_with_the_same_result():
+    # a clone made by transposition: the same subtree twice, under plain and warped coordinates
+    noise = C("turbulence", (3.0, 3.0, 5.0, 6.0))
+    warped = one(C("plus"), C("swirl", (2.0, 0.4)), noise, noise, noise, h=2)
+    same = one(C("minus"), noise, noise, h=1)  # shared and cached: noise - noise = 0
+    assert warped.expression().count("turbulence") == 2
+    for g in (warped, same):
+        a = render(g, (12, 10), window=WINDOW)[0]
+        b = render_reference(g, (12, 10), window=WINDOW)
+        assert mismatch(a, b) == 0.0
+    assert np.all(render(same, 8)[0] == 0.0)

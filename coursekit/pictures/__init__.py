@@ -12,7 +12,8 @@ from .genome import Chromosome, ChromosomeString, Genome
 from . import operators
 from .evaluate import render
 from .files import load_genome, save_image
+from .gallery import Gallery, GalleryState
 from .reference import render_reference
 
 __all__ = ["primitives", "operators", "Chromosome", "ChromosomeString", "Genome", "render",
-           "render_reference", "save_image", "load_genome"]
+           "render_reference", "save_image", "load_genome", "Gallery", "GalleryState"]

@@ -27,7 +27,7 @@ from . import operators as O
 from .evaluate import render
 from .genome import Genome
 
-__all__ = ["GalleryState", "Gallery", "GALLERY_FORMAT"]
+__all__ = ["GalleryState", "Evolution", "Gallery", "GALLERY_FORMAT", "png_bytes"]
 
 GALLERY_FORMAT = "coursekit.gallery/1"
 
@@ -82,7 +82,7 @@ class Evolution:
     def __init__(self, state: GalleryState, rng: np.random.Generator, *,
                  mutations: Mapping[str, Callable] | None = None,
                  recombinations: Mapping[str, Callable] | None = None,
-                 genome_params: Mapping | None = None, autosave=None, max_history: int = 100):
+                 genome_params: Mapping | None = None, autosave=None, max_history: int = 50):
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng: expected numpy.random.Generator, got {type(rng).__name__}")
         self.state, self.rng = state, rng
@@ -165,11 +165,13 @@ class Evolution:
         if not parents:
             return "select at least one picture"
         pop = list(parents)
-        ops = list(self.mutations.items()) + (list(self.recombinations.items()) if len(parents) > 1 else [])
+        ops = [(name, op, False) for name, op in self.mutations.items()]
+        if len(parents) > 1:
+            ops += [(name, op, True) for name, op in self.recombinations.items()]
         try:
             while len(pop) < self.size:
-                name, op = ops[int(self.rng.integers(len(ops)))]
-                if name in self.recombinations and op is self.recombinations[name]:
+                name, op, pair = ops[int(self.rng.integers(len(ops)))]
+                if pair:
                     i, j = self.rng.choice(len(parents), size=2, replace=False)
                     pop.append(op(parents[i], parents[j], self.rng)[int(self.rng.integers(2))])
                 else:

@@ -334,12 +334,17 @@ class Genome:
         def chrom(c):
             return [c.symbol, list(c.params)]
         return {"format": FORMAT,
+                "expression": self.expression(),  # for readers; ignored when loading
                 "preheader": [chrom(c) for c in self.preheader],
                 "strings": [{"head_length": s.head_length, "chromosomes": [chrom(c) for c in s.chromosomes]}
                             for s in self.strings]}
 
     def to_json(self, indent: int | None = None) -> str:
-        """Versioned JSON (``"format": "coursekit.genome/1"``); floats round-trip exactly."""
+        """Versioned JSON (``"format": "coursekit.genome/1"``); floats round-trip exactly.
+
+        Holds ``preheader`` and ``strings`` (each ``head_length`` and ``chromosomes`` as
+        ``[symbol, [params]]``), plus the readable ``expression`` of the coding part.
+        """
         return json.dumps(self.to_dict(), indent=indent)
 
     @classmethod

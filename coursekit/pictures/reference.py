@@ -111,6 +111,12 @@ class _Reference:
         return self.grids[key]
 
     def blur(self, node, C, sigma):
+        key = ("blur", id(node), id(C), sigma)
+        if key not in self.grids:
+            self.grids[key] = self._blur(node, C, sigma)
+        return self.grids[key]
+
+    def _blur(self, node, C, sigma):
         g = [[list(v) for v in row] for row in self.grid(node, C)]
         rx = T.box_radius(abs(sigma) / self.px, 4 * self.W)
         ry = T.box_radius(abs(sigma) / self.py, 4 * self.H)
