@@ -467,3 +467,13 @@ def test_messages_never_show_a_solution(capsys):
                    for ln in c.source.split("# BEGIN SOLUTION")[1].split("# END SOLUTION")[0].splitlines()
                    if len(ln.strip()) > 12}
         assert answers and not [ln for ln in answers if ln in out]
+
+
+def test_decode_that_consumes_its_list_is_judged_on_the_original_string(monkeypatch):
+    def decode_consuming(symbols):  # correct tree, but it empties the caller's list
+        tree = PC.karva(list(symbols))
+        symbols.clear()
+        return tree
+
+    monkeypatch.setenv("COURSEKIT_CHECK_ISOLATION", "thread")  # calls share the cases' lists
+    assert evaluate("pictures.decode", decode_consuming).passed
