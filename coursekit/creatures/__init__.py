@@ -1,0 +1,39 @@
+"""Swimming creatures (paper section 2, after Sims 1994).
+
+- :mod:`.genotype` — the morphology graph (section 2.1.1) and :class:`Creature`;
+- :mod:`.neural` — the nested neural genotype and Sims' 23 neuron functions (2.1.2);
+- :mod:`.operators` — recombination, grafting and mutation (2.2);
+- :mod:`.phenotype` — expansion into a :class:`~.body.BodyTree` (2.3);
+- :mod:`.brain` — the expanded networks, evaluated in batches (2.3);
+- :mod:`.render` — pyvista pictures of creatures;
+- :mod:`.mjcf`, :mod:`.physics`, :mod:`.simulate`, :mod:`.fitness` — MuJoCo export and the
+  swimming simulation (2.4).
+"""
+
+from . import operators
+from .body import BodyTree
+from .brain import Brain, BrainBatch
+from .genotype import FORMAT, ChildLink, Creature, Node, Recursion, Symmetry
+from .neural import FUNCTION_NAMES, SENSORS, Input, Neuron
+from .phenotype import MAX_PARTS, Phenotype, expand, part_poses
+
+
+def to_mjcf(creature, **options) -> str:
+    """MuJoCo MJCF of ``creature``'s expanded body (see :mod:`coursekit.creatures.mjcf`)."""
+    from .mjcf import to_mjcf as _to_mjcf
+
+    return _to_mjcf(creature, **options)
+
+
+def render(creature, path=None, **options):
+    """Render a creature or phenotype off-screen (see :func:`coursekit.creatures.render.render`)."""
+    from .render import render as _render
+
+    return _render(creature, path, **options)
+
+
+__all__ = [
+    "BodyTree", "Brain", "BrainBatch", "ChildLink", "Creature", "FORMAT", "FUNCTION_NAMES", "Input", "MAX_PARTS",
+    "Neuron", "Node", "Phenotype", "Recursion", "SENSORS", "Symmetry", "expand", "operators", "part_poses", "render",
+    "to_mjcf",
+]
