@@ -14,6 +14,8 @@ import nbformat
 import pytest
 from nbclient import NotebookClient
 
+from coursekit.grading import checks
+
 ROOT = Path(__file__).resolve().parent.parent
 ADV = ROOT / "tests" / "adversarial"
 sys.path.insert(0, str(ADV))
@@ -46,29 +48,40 @@ def assert_gradescope_shape(results):
     assert results["score"] == pytest.approx(sum(t["score"] for t in results["tests"]))
 
 
+#: Graded exercise notebooks and their full marks; one grading run covers all of them.
+EXERCISES = {"01_selection": 10.0, "05_creature_operators": 12.0}
+
+
 @pytest.fixture(scope="module")
 def solution_and_exercise(tmp_path_factory):
     out = tmp_path_factory.mktemp("grade") / "results.json"
-    return grade([ROOT / "solutions" / "01_selection.ipynb", ROOT / "exercises" / "01_selection.ipynb"], out,
-                 "--timeout", "20", "--cell-timeout", "120")
+    paths = [ROOT / folder / f"{stem}.ipynb" for stem in EXERCISES for folder in ("solutions", "exercises")]
+    return grade(paths, out, "--timeout", "20", "--cell-timeout", "120")
 
 
-def test_solution_gets_full_marks(solution_and_exercise):
+def notebook_result(results, path):
+    return next(nb for nb in results["extra_data"]["notebooks"] if nb["path"].endswith(path))
+
+
+@pytest.mark.parametrize("stem", list(EXERCISES))
+def test_solution_gets_full_marks(solution_and_exercise, stem):
     stdout, results = solution_and_exercise
     assert_gradescope_shape(results)
-    sol = results["extra_data"]["notebooks"][0]
-    assert sol["score"] == sol["max_score"] == 10.0
-    assert "solutions/01_selection.ipynb: 10 / 10 points" in stdout
+    sol = notebook_result(results, f"solutions/{stem}.ipynb")
+    assert sol["score"] == sol["max_score"] == EXERCISES[stem]
+    assert f"solutions/{stem}.ipynb: {EXERCISES[stem]:g} / {EXERCISES[stem]:g} points" in stdout
 
 
-def test_untouched_exercise_gets_zero_with_not_attempted(solution_and_exercise):
+@pytest.mark.parametrize("stem", list(EXERCISES))
+def test_untouched_exercise_gets_zero_with_not_attempted(solution_and_exercise, stem):
     _, results = solution_and_exercise
-    ex = results["extra_data"]["notebooks"][1]
-    assert ex["score"] == 0.0 and ex["max_score"] == 10.0
-    tests = per_check(results, "01_selection.ipynb")  # both notebooks share the file name
-    assert all(name in tests for name in CHECK_OF.values())
-    exercise_tests = [t for t in results["tests"] if t["score"] == 0.0]
-    assert len(exercise_tests) == 5 and all("not attempted yet" in t["output"] for t in exercise_tests)
+    ex = notebook_result(results, f"exercises/{stem}.ipynb")
+    assert ex["score"] == 0.0 and ex["max_score"] == EXERCISES[stem]
+    names = [c.name for c in checks.for_notebook(stem)]
+    tests = per_check(results, f"{stem}.ipynb")  # both notebooks share the file name
+    assert set(tests) == set(names)
+    exercise_tests = [t for t in results["tests"] if t["name"].startswith(f"{stem}.ipynb: ") and t["score"] == 0.0]
+    assert len(exercise_tests) == len(names) and all("not attempted yet" in t["output"] for t in exercise_tests)
 
 
 @pytest.fixture(scope="module")
@@ -96,14 +109,15 @@ def test_results_file_is_the_graders_and_survives_the_notebooks(adversarial):
     assert results["score"] == sum(2.0 * (5 - len(nb["sabotaged"])) for nb in NOTEBOOKS.values())
 
 
-def test_exercise_notebook_fails_only_with_not_implemented_error():
-    nb = nbformat.read(ROOT / "exercises" / "01_selection.ipynb", as_version=4)
+@pytest.mark.parametrize("stem", list(EXERCISES))
+def test_exercise_notebook_fails_only_with_not_implemented_error(stem):
+    nb = nbformat.read(ROOT / "exercises" / f"{stem}.ipynb", as_version=4)
     NotebookClient(nb, timeout=120, allow_errors=True, kernel_name="python3",
                    resources={"metadata": {"path": str(ROOT)}}).execute()
     errors = [o["ename"] for c in nb.cells if c.cell_type == "code" for o in c.outputs if o["output_type"] == "error"]
     assert errors and set(errors) == {"NotImplementedError"}
-    checks = "".join(o.get("text", "") for c in nb.cells if c.source.startswith("check(") for o in c.outputs)
-    assert checks.count("not attempted yet") == 5
+    checks_out = "".join(o.get("text", "") for c in nb.cells if c.source.startswith("check(") for o in c.outputs)
+    assert checks_out.count("not attempted yet") == len(checks.for_notebook(stem))
 
 
 def test_foreign_or_truncated_notebook_scores_zero_with_a_note(tmp_path):
