@@ -167,6 +167,7 @@ def test_synchronous_update_delays_one_tick_per_neuron():
 def test_batch_equals_creatures_run_alone(seed):
     rng = np.random.default_rng(seed)
     creatures = [Creature.random(rng, neurons=(1, 4), brain_neurons=(1, 3)) for _ in range(4)]
+    creatures.insert(int(rng.integers(5)), Creature([Node(effectors=[None])]))  # no joints, no neurons
     phs = [c.expand() for c in creatures]
     batch = BrainBatch(phs)
     alone = [BrainBatch([p]) for p in phs]

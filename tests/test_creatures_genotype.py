@@ -218,11 +218,11 @@ json_values = st.recursive(
 )
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=500, deadline=None)
 @given(seed=seeds, value=json_values, pick=st.integers(0, 10**6))
 def test_corrupted_files_give_clear_errors_or_valid_creatures(seed, value, pick):
     """Replace one random field anywhere in a valid file: loading either raises ValueError /
-    TypeError or yields a creature that passes validation and expands."""
+    TypeError naming the field or yields a creature that passes validation and expands."""
     d = Creature.random(np.random.default_rng(seed), n_nodes=(1, 4), neurons=(0, 2), brain_neurons=(0, 2)).to_dict()
     slots = []
 
@@ -237,7 +237,8 @@ def test_corrupted_files_give_clear_errors_or_valid_creatures(seed, value, pick)
     obj[k] = value
     try:
         c = Creature.from_dict(d)
-    except (ValueError, TypeError):
+    except (ValueError, TypeError) as e:
+        assert "reature" in str(e), str(e)  # the message names the field's path in the creature
         return
     c.validate()
     c.expand()

@@ -113,10 +113,11 @@ def _vec(v, where: str, *, lo=-1.0, hi=1.0) -> None:
 
 
 def _rot(R, where: str) -> None:
-    if not isinstance(R, (list, tuple)) or len(R) != 3 or not all(isinstance(r, (list, tuple)) and len(r) == 3 for r in R):
-        raise ValueError(f"{where}: expected a 3x3 rotation matrix, got {R!r}")
+    if (not isinstance(R, (list, tuple)) or len(R) != 3
+            or not all(isinstance(r, (list, tuple)) and len(r) == 3 and all(_is_real(v) for v in r) for r in R)):
+        raise ValueError(f"{where}: expected a 3x3 rotation matrix of finite numbers, got {R!r}")
     A = np.asarray(R, dtype=float)
-    if not np.all(np.isfinite(A)) or np.abs(A @ A.T - np.eye(3)).max() > 1e-9 or np.linalg.det(A) < 0:
+    if np.abs(A).max() > 1.0 + 1e-9 or np.abs(A @ A.T - np.eye(3)).max() > 1e-9 or np.linalg.det(A) < 0:
         raise ValueError(f"{where}: must be a proper rotation matrix (orthonormal, det +1), got {A.tolist()}")
 
 
@@ -228,8 +229,11 @@ def validate_node(node: Node, where: str, n_nodes: int, n_brain: int) -> None:
     """Check one node's fields and references (``n_nodes`` nodes, ``n_brain`` brain neurons)."""
     if not isinstance(node, Node):
         raise TypeError(f"{where}: expected a Node, got {type(node).__name__}")
+    for k in ("children", "recursion", "symmetry", "neurons", "effectors"):
+        if not isinstance(getattr(node, k), list):
+            raise TypeError(f"{where}.{k}: expected a list, got {type(getattr(node, k)).__name__}")
     _vec(node.size, f"{where}.size", lo=MIN_HALF_EXTENT, hi=MAX_HALF_EXTENT)
-    if node.joint_type not in JOINT_DOF:
+    if not isinstance(node.joint_type, str) or node.joint_type not in JOINT_DOF:
         raise ValueError(f"{where}.joint_type: must be one of {list(JOINT_DOF)}, got {node.joint_type!r}")
     _vec(node.joint_pos, f"{where}.joint_pos")
     _vec(node.joint_axis, f"{where}.joint_axis", lo=None)
@@ -481,12 +485,10 @@ class Creature:
         # A random tree over the nodes (parent id < child id keeps the graph acyclic), then a few
         # extra links to later nodes (shared subgraphs, as Sims' graphs allow).
         for i in range(1, count):
+            # i nodes hold i - 1 tree links so far, so one always has room
             cands = [j for j in range(i) if len(nodes[j].children) < max_children]
-            j = cands[int(rng.integers(len(cands)))] if cands else i - 1
-            if len(nodes[j].children) < MAX_CHILDREN:
-                nodes[j].children.append(random_link(rng, i, nodes[j], nodes[i]))
-            else:  # pragma: no cover - only when every earlier node is full
-                nodes[i - 1].children.append(random_link(rng, i, nodes[i - 1], nodes[i]))
+            j = cands[int(rng.integers(len(cands)))]
+            nodes[j].children.append(random_link(rng, i, nodes[j], nodes[i]))
         for i in range(count - 1):
             if rng.random() < 0.15 and len(nodes[i].children) < max_children:
                 j = int(rng.integers(i + 1, count))

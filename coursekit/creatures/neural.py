@@ -45,8 +45,9 @@ oscillate_wave        ``sin(2π p t + s)`` (``p`` a frequency in Hz, ``s`` a pha
 oscillate_saw         ``2 * frac(p t + s / 2π) − 1``
 ====================  ============================================================
 
-Every output is made finite and clipped to ``±OUTPUT_LIMIT``. Sims' divergences noted: his
-oscillator formulas and thresholds are unpublished, so these are ours.
+Every output is made finite and clipped to ``±OUTPUT_LIMIT``. Sims did not publish his
+oscillator formulas or thresholds; these are ours. Sensors are per part and per joint DOF (all
+joints have one DOF today; multi-DOF joints would add angle/velocity ids per DOF).
 """
 
 from __future__ import annotations
@@ -185,7 +186,7 @@ def validate_neuron(n: Neuron, where: str, *, brain: bool, n_local: int, n_brain
     """Check a neuron's function, parameter and inputs (see :func:`validate_input`)."""
     if not isinstance(n, Neuron):
         raise TypeError(f"{where}: expected a Neuron, got {type(n).__name__}")
-    if n.func not in FUNCTIONS:
+    if not isinstance(n.func, str) or n.func not in FUNCTIONS:
         raise ValueError(f"{where}.func: unknown neuron function {n.func!r}; allowed: {', '.join(FUNCTION_NAMES)}")
     if not _is_real(n.param):
         raise ValueError(f"{where}.param: must be a finite number, got {n.param!r}")

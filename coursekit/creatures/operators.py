@@ -243,9 +243,8 @@ def graft(a: Creature, b: Creature, rng: np.random.Generator) -> Creature:
 
     The subgraph (every node of ``b`` reachable from the chosen one) is appended to ``a``'s
     nodes; nodes of ``a`` that lose their last link are dropped. The brain is ``a``'s; neural
-    references of the appended nodes that ``a``'s brain cannot hold are redrawn. When no
-    subgraph of ``b`` fits under ``MAX_NODES``, the smallest one is grafted and the excess
-    collected.
+    references of the appended nodes that ``a``'s brain cannot hold are redrawn. Nodes past
+    ``MAX_NODES`` in LR order are collected.
     """
     _check(a, "graft.a")
     _check(b, "graft.b")
