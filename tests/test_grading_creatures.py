@@ -8,6 +8,7 @@ with the paper's Figure 1.
 """
 
 import copy
+from collections import Counter
 from pathlib import Path
 
 import nbformat
@@ -111,18 +112,25 @@ def test_figure1_snake_count_from_the_paper(segments):
 
 @settings(max_examples=40, deadline=None)
 @given(st.integers(0, 2**31 - 1))
-def test_recursion_formula_and_local_rule_match_the_library_expansion(seed):
-    c = Creature.random(np.random.default_rng(seed), n_nodes=(1, 7), p_recursion=0.7, p_symmetry=0.7, max_parts=200)
+def test_recursion_formula_and_mirror_rule_match_the_library_expansion(seed):
+    rng = np.random.default_rng(seed)
+    c = Creature.random(rng, n_nodes=(1, 7), p_recursion=0.7, p_symmetry=0.7, max_parts=200)
+    links = [lk for n in c.nodes for lk in n.children]
+    if links:
+        links[int(rng.integers(len(links)))].reflect = int(rng.integers(-1, 3))
+    for node in c.nodes[1:]:  # negative forces: the library's gain is negative exactly on mirrored parts
+        node.force = -abs(node.force)
     ph = c.expand(max_parts=200)
     assert not ph.body.meta["truncated"]
     assert cc._full_count(c) == ph.body.n_bodies
     node_id, parent = ph.body.node_id.tolist(), ph.body.parent.tolist()
+    mirrored = (ph.body.gain < 0).tolist()
     depth = [0] * len(node_id)
     for b in range(1, len(node_id)):
         depth[b] = depth[parent[b]] + 1 if node_id[b] == node_id[parent[b]] else 0
     for b, kids in enumerate(ph.children):
-        want = sorted(k[0] for k in cc._expected_children(c.nodes[node_id[b]], node_id[b], depth[b], 1.0))
-        assert sorted(node_id[k] for k in kids) == want
+        want = Counter(cc._expected_children(c.nodes[node_id[b]], node_id[b], depth[b]))
+        assert Counter((node_id[k], mirrored[k] != mirrored[b]) for k in kids) == want
 
 
 def test_cases_are_deterministic_valid_creatures():

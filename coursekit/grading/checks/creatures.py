@@ -107,18 +107,18 @@ def _terminal(node, depth):
     return depth >= node.recursive_limit or not node.recursion
 
 
-def _expected_children(node, node_id, depth, scale):
-    """[(child node, depth, scale, relative mirror parity)] that one instance of ``node`` makes."""
+def _expected_children(node, node_id, depth):
+    """[(child node, mirrored relative to the parent)] for one instance of ``node`` at ``depth``."""
     out = []
     term = _terminal(node, depth)
     for link in node.children:
         if link.terminal_only and not term:
             continue
         own = link.reflect >= 0
-        out.append((link.child, 0, scale * link.scale, own))
-        out += [(link.child, 0, scale * link.scale, not own) for s in node.symmetry if s.child == link.child]
+        out.append((link.child, own))
+        out += [(link.child, not own) for s in node.symmetry if s.child == link.child]
     if not term:
-        out += [(node_id, depth + 1, scale * r.scale, False) for r in node.recursion]
+        out += [(node_id, False) for _ in node.recursion]
     return out
 
 
@@ -250,7 +250,7 @@ def _expand_counts(ctx):
         parts = _parts(ctx, cid)
         for i, kids in enumerate(_children_of(parts)):
             p = parts[i]
-            exp = Counter(c[0] for c in _expected_children(creature.nodes[p["node"]], p["node"], p["depth"], 1.0))
+            exp = Counter(c[0] for c in _expected_children(creature.nodes[p["node"]], p["node"], p["depth"]))
             got = Counter(parts[k]["node"] for k in kids)
             if got != exp:
                 node = next(n for n in sorted(set(exp) | set(got)) if exp[n] != got[n])
@@ -310,9 +310,9 @@ def _expand_mirror(ctx):
                                "unmirrored part gets |force| and a mirrored one the signed force")
         for i, kids in enumerate(_children_of(parts)):
             q = parts[i]
-            exp = _expected_children(creature.nodes[q["node"]], q["node"], q["depth"], 1.0)
-            for node in {c[0] for c in exp}:
-                want = Counter(c[3] for c in exp if c[0] == node)
+            exp = _expected_children(creature.nodes[q["node"]], q["node"], q["depth"])
+            for node in {c for c, _ in exp}:
+                want = Counter(m for c, m in exp if c == node)
                 got = Counter(parts[k]["mirrored"] != q["mirrored"] for k in kids if parts[k]["node"] == node)
                 if sum(got.values()) == sum(want.values()) and got != want:
                     return False, (f"{_where(cid, i, q)}: of its {sum(want.values())} children from node {node}, "
@@ -358,7 +358,11 @@ def body_signature(node) -> str:
 
 
 def _forward_only(c):
-    return all(lk.child > i for i, n in enumerate(c.nodes) for lk in n.children)
+    """Stored in LR order, every link pointing to a later position (so no mix of two can cycle)."""
+    from coursekit.creatures.genotype import preorder
+
+    return preorder(c.nodes) == list(range(len(c.nodes))) and \
+        all(lk.child > i for i, n in enumerate(c.nodes) for lk in n.children)
 
 
 def _parent_pair(rng, lo, hi):
