@@ -155,7 +155,7 @@ def _pid(_):
 
 @pytest.mark.slow
 def test_serial_process_pool_and_dask_give_identical_runs():
-    distributed = pytest.importorskip("distributed")
+    import distributed  # in the [test] extra: never skipped
     serial = run()
     with ProcessPoolExecutor(2) as ex:
         pool = run(executor=ex)

@@ -7,7 +7,8 @@
 - :mod:`.brain` — the expanded networks, evaluated in batches (2.3);
 - :mod:`.render` — pyvista pictures of creatures;
 - :mod:`.mjcf`, :mod:`.physics`, :mod:`.simulate`, :mod:`.fitness` — MuJoCo export and the
-  swimming simulation (2.4).
+  swimming simulation (2.4);
+- :mod:`.evolution` — :func:`evolve_swimmers`, the GA of 2.2 driven by swimming speed.
 """
 
 from . import operators
@@ -16,6 +17,8 @@ from .brain import Brain, BrainBatch
 from .genotype import FORMAT, ChildLink, Creature, Node, Recursion, Symmetry
 from .neural import FUNCTION_NAMES, SENSORS, Input, Neuron
 from .phenotype import MAX_PARTS, Phenotype, expand, part_poses
+from .simulate import SimulationResult, simulate
+from .evolution import evolve_swimmers
 
 
 def to_mjcf(creature, **options) -> str:
@@ -34,6 +37,6 @@ def render(creature, path=None, **options):
 
 __all__ = [
     "BodyTree", "Brain", "BrainBatch", "ChildLink", "Creature", "FORMAT", "FUNCTION_NAMES", "Input", "MAX_PARTS",
-    "Neuron", "Node", "Phenotype", "Recursion", "SENSORS", "Symmetry", "expand", "operators", "part_poses", "render",
-    "to_mjcf",
+    "Neuron", "Node", "Phenotype", "Recursion", "SENSORS", "SimulationResult", "Symmetry", "evolve_swimmers", "expand",
+    "operators", "part_poses", "render", "simulate", "to_mjcf",
 ]

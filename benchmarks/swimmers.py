@@ -1,0 +1,99 @@
+"""Swimmer simulator throughput vs MuJoCo, same creatures, same step, same run (issue #5).
+
+For batches of random creatures (10-20 boxes each) this prints body-steps and creature-steps per
+second of our batched simulator (numpy, torch CPU, torch CUDA when present) next to MuJoCo
+stepping the very same exported creatures (``to_mjcf``, all creatures in one model) with its RK4
+integrator, the same step and one thread, and the ratio. Ours runs the full swimmer physics
+(water drag, joint-limit springs; self-collisions in a separate row); MuJoCo runs the exported
+articulated bodies (joint limits as constraints, no fluid, no contacts).
+
+    python benchmarks/swimmers.py [--batches 1 30 300] [--seconds 2]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from coursekit.creatures.mjcf import to_mjcf  # noqa: E402
+from coursekit.creatures.physics import random_body_tree, random_state  # noqa: E402
+from coursekit.creatures.physics.world import World  # noqa: E402
+
+DT = 1.0 / 60.0
+
+
+def _population(n: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    trees = [random_body_tree(rng, (10, 20)) for _ in range(n)]
+    states = [random_state(rng, t, speed=0.5, inside=0.5) for t in trees]
+    return trees, states
+
+
+def _timed(step, seconds: float, min_steps: int = 3) -> tuple[float, int]:
+    step()  # warm up
+    n, t0 = 0, time.perf_counter()
+    while n < min_steps or time.perf_counter() - t0 < seconds:
+        step()
+        n += 1
+    return (time.perf_counter() - t0) / n, n
+
+
+def bench_ours(trees, states, backend, seconds, device=None, contacts=False):
+    w = World(trees, dt=DT, backend=backend, device=device, contacts=contacts)
+    w.set_state([s[0] for s in states], [s[1] for s in states])
+    per_step, n = _timed(w.step, seconds)
+    if device is not None and "cuda" in str(device):
+        import torch
+
+        torch.cuda.synchronize()
+    return per_step
+
+
+def bench_mujoco(trees, states, seconds):
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(to_mjcf(trees, timestep=DT, integrator="RK4"))
+    data = mujoco.MjData(model)
+    data.qpos[:] = np.concatenate([s[0] for s in states])
+    data.qvel[:] = np.concatenate([s[1] for s in states])
+    per_step, _ = _timed(lambda: mujoco.mj_step(model, data), seconds)
+    return per_step
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--batches", type=int, nargs="+", default=[1, 30, 300])
+    ap.add_argument("--seconds", type=float, default=2.0, help="wall time per measurement")
+    args = ap.parse_args(argv)
+    import torch
+
+    torch.set_num_threads(1)
+    rows = []
+    for batch in args.batches:
+        trees, states = _population(batch)
+        bodies = sum(t.n_bodies for t in trees)
+        ref = bench_mujoco(trees, states, args.seconds)
+        rows.append((batch, bodies, "mujoco RK4 (1 thread)", ref, ref))
+        configs = [("numpy", None, False), ("numpy", None, True), ("torch", "cpu", False)]
+        if torch.cuda.is_available():
+            configs.append(("torch", "cuda", False))
+        for backend, device, contacts in configs:
+            t = bench_ours(trees, states, backend, args.seconds, device=device, contacts=contacts)
+            name = f"ours {backend}{'/' + device if device else ''} RKN{' +collisions' if contacts else ''}"
+            rows.append((batch, bodies, name, t, ref))
+    print(f"step dt = {DT:.5f} s, random creatures of 10-20 boxes; ratio = our body-steps/s over MuJoCo's\n")
+    print(f"{'batch':>5} {'bodies':>6}  {'engine':<34} {'ms/step':>9} {'body-steps/s':>13} {'creature-steps/s':>17} {'ratio':>6}")
+    for batch, bodies, name, t, ref in rows:
+        print(f"{batch:>5} {bodies:>6}  {name:<34} {t * 1e3:>9.3f} {bodies / t:>13,.0f} {batch / t:>17,.0f} {ref / t:>6.2f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,135 @@
+"""Evolving swimmers: the paper's GA (section 2.2) driven by swimming speed (section 2.4).
+
+:func:`evolve_swimmers` plugs the creature operators into the shared engine
+(:func:`coursekit.ga.evolve`) with Sims' 1994 settings by default: survivors are the best fifth,
+offspring per survivor proportional to fitness (:func:`coursekit.ga.sims_select`), survivors kept
+(elitism), and children made 40 % by mutation, 30 % by the paper's recombination and 30 % by
+grafting (mated children are mutated at a reduced rate, as Sims did). Fitness is evaluated for
+the whole generation in one batched simulation (:func:`coursekit.creatures.simulate.simulate`),
+so it goes in as the engine's ``map``. Every operator is a parameter: a student's own
+``mutate(creature, rng)`` or ``crossover(a, b, rng)`` plugs in where the library's does.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from coursekit import ga
+from coursekit.creatures import operators
+from coursekit.creatures.genotype import Creature
+
+
+@dataclass(frozen=True)
+class Mated:
+    """A binary creature operator made into the engine's pair form, with a light mutation after.
+
+    ``op(a, b, rng) -> child`` (the paper's recombination and grafting make one child) becomes
+    ``(a, b, rng) -> (op(a, b), op(b, a))``; each child is then mutated with ``mutate`` at
+    ``rate`` (Sims: "mated offspring get mutations at reduced rates"): passed as ``rate=`` when
+    ``mutate`` takes one, otherwise each child is mutated with probability ``rate``. Picklable, so
+    it runs in process pools and checkpoints.
+    """
+
+    op: object
+    mutate: object = operators.mutate
+    rate: float = 0.25
+
+    def __call__(self, a, b, rng):
+        children = (self.op(a, b, rng), self.op(b, a, rng))
+        if self.rate > 0:
+            if "rate" in inspect.signature(self.mutate).parameters:
+                children = tuple(self.mutate(c, rng, rate=self.rate) for c in children)
+            else:
+                children = tuple(self.mutate(c, rng) if rng.random() < self.rate else c for c in children)
+        return children
+
+
+@dataclass
+class SwimmerFitness:
+    """Batched evaluation: ``map(fitness, creatures)`` simulates the whole list at once.
+
+    Given to :func:`coursekit.ga.evolve` as ``map`` (the engine's per-genome ``fitness`` is not
+    called); every option goes to :func:`~coursekit.creatures.simulate.simulate`.
+    """
+
+    seconds: float = 10.0
+    options: dict = field(default_factory=dict)
+
+    def __call__(self, _fitness, creatures):
+        from coursekit.creatures.simulate import simulate
+
+        creatures = list(creatures)
+        if not creatures:
+            return []
+        return [float(f) for f in simulate(creatures, self.seconds, **self.options).fitness]
+
+
+def _unbatched(creature):  # pragma: no cover - never called: SwimmerFitness evaluates the batch
+    raise RuntimeError("swimmer fitness is evaluated in batches by SwimmerFitness")
+
+
+def evolve_swimmers(
+    population=None,
+    *,
+    generations: int,
+    rng: np.random.Generator,
+    population_size: int = 300,
+    seconds: float = 10.0,
+    mutate=operators.mutate,
+    crossover=operators.crossover,
+    graft=operators.graft,
+    ratios=(0.4, 0.3, 0.3),
+    select=ga.sims_select,
+    elite: int | None = None,
+    checkpoint=None,
+    progress: bool = True,
+    callback=None,
+    random_options: dict | None = None,
+    **simulate_options,
+) -> ga.EvolutionResult:
+    """Evolve swimmers for speed.
+
+    Args:
+        population: initial creatures; default ``population_size`` random ones
+            (``Creature.random(rng, **random_options)``).
+        generations: generations to breed after the initial one.
+        rng: the only source of randomness.
+        population_size: size of a random initial population (Sims used 300).
+        seconds: swimming time per evaluation (after the settle phase).
+        mutate, crossover, graft: operators ``mutate(c, rng)``, ``crossover(a, b, rng) -> child``,
+            ``graft(a, b, rng) -> child``; pass ``None`` for crossover or graft to leave it out.
+        ratios: shares of children from mutation, crossover and grafting (Sims: 40/30/30).
+        select: parent selector (default Sims' fitness-proportional offspring of the top fifth).
+        elite: survivors copied unchanged (default: the top fifth, as Sims kept his survivors).
+        checkpoint, progress, callback: as for :func:`coursekit.ga.evolve`.
+        random_options: options for ``Creature.random``.
+        **simulate_options: options for :func:`~coursekit.creatures.simulate.simulate` (``dt``,
+            ``settle``, ``backend``, ``drag_coefficient`` ...).
+
+    Returns:
+        The engine's :class:`~coursekit.ga.EvolutionResult`; ``best`` is the fastest swimmer.
+    """
+    if population is None:
+        if not (isinstance(population_size, int) and population_size >= 2):
+            raise ValueError(f"population_size: must be an integer >= 2, got {population_size!r}")
+        population = [Creature.random(rng, **(random_options or {})) for _ in range(population_size)]
+    population = list(population)
+    if len(ratios) != 3 or any(not (r >= 0) for r in ratios):
+        raise ValueError(f"ratios: need three shares >= 0 (mutation, crossover, grafting), got {ratios!r}")
+    parts = [(ratios[0], mutate, 1)]
+    if crossover is not None and ratios[1] > 0:
+        parts.append((ratios[1], Mated(crossover, mutate), 2))
+    if graft is not None and ratios[2] > 0:
+        parts.append((ratios[2], Mated(graft, mutate), 2))
+    vary = ga.Variation(parts)
+    if elite is None:
+        elite = max(1, math.ceil(len(population) / 5))
+    evaluate = SwimmerFitness(seconds, dict(simulate_options))
+    return ga.evolve(
+        population, _unbatched, vary, generations=generations, rng=rng, select=select, elite=elite,
+        map=evaluate, checkpoint=checkpoint, progress=progress, callback=callback,
+    )

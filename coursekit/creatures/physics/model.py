@@ -1,0 +1,162 @@
+"""A population of body trees packed into one batch, sorted by tree depth (paper section 2.4).
+
+All bodies of all creatures live in flat arrays. They are stored level by level -- every root
+first (in creature order), then every body of depth 1, and so on -- and inside a level sorted by
+parent, so each level is one contiguous slice and the children of a level can be summed into
+their parents with one segment sum. Bodies ``C..N-1`` (``C`` creatures, ``N`` bodies) are the
+joints, so per-joint arrays have ``M = N - C`` rows in the same order.
+
+The user-facing layout (MuJoCo's, see :func:`coursekit.creatures.mjcf.to_mjcf`) lists each
+creature's joints in BodyTree order; :attr:`Model.joint_order` maps between the two.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from coursekit.creatures.body import PRISMATIC, REVOLUTE, BodyTree
+
+from . import backend as bk
+
+
+def as_trees(creatures) -> list[BodyTree]:
+    """BodyTrees of ``creatures``: BodyTrees, or objects with ``.expand().body`` or ``.body``."""
+    if isinstance(creatures, BodyTree) or hasattr(creatures, "expand") or hasattr(creatures, "body"):
+        creatures = [creatures]
+    trees = []
+    for i, c in enumerate(creatures):
+        if isinstance(c, BodyTree):
+            trees.append(c)
+        elif hasattr(c, "expand"):
+            trees.append(c.expand().body)
+        elif isinstance(getattr(c, "body", None), BodyTree):
+            trees.append(c.body)
+        else:
+            raise TypeError(f"creatures[{i}]: expected a BodyTree or a creature with .expand(), got {type(c).__name__}")
+    if not trees:
+        raise ValueError("creatures: need at least one creature, got an empty list")
+    return trees
+
+
+class Model:
+    """Constant data of a packed population, on one backend.
+
+    Args:
+        creatures: BodyTrees or creatures (see :func:`as_trees`).
+        backend: "numpy" or "torch".
+        device: torch device (ignored for numpy).
+    """
+
+    def __init__(self, creatures, backend: str = "numpy", device=None):
+        self.trees = as_trees(creatures)
+        self.backend = backend
+        xp = self.xp = bk.namespace(backend)
+        self.device = device
+        trees = self.trees
+        C = self.n_creatures = len(trees)
+        sizes = np.array([t.n_bodies for t in trees])
+        N = self.n_bodies = int(sizes.sum())
+        self.n_joints = N - C
+        self.bodies_per_creature = sizes
+        first = np.r_[0, np.cumsum(sizes)[:-1]]
+        creature = np.repeat(np.arange(C), sizes)
+        parent = np.concatenate([np.where(t.parent >= 0, t.parent + f, -1) for t, f in zip(trees, first)])
+        depth = np.concatenate([t.depth for t in trees])
+
+        # depth-sorted order, inside a level sorted by the parent's new position
+        order = []
+        new_pos = np.full(N, -1)
+        level_bounds = []
+        for d in range(int(depth.max()) + 1):
+            members = np.flatnonzero(depth == d)
+            if d > 0:
+                members = members[np.lexsort((members, new_pos[parent[members]]))]
+            level_bounds.append((len(order), len(order) + len(members)))
+            new_pos[members] = np.arange(len(order), len(order) + len(members))
+            order.extend(members.tolist())
+        order = np.asarray(order, dtype=np.int64)
+        self.order = order  # sorted position -> packed (creature-concatenated pre-order) index
+        self.position = new_pos  # packed index -> sorted position
+        self.creature = creature[order]
+        par = np.where(parent[order] >= 0, new_pos[np.maximum(parent[order], 0)], -1)
+        self.parent = par
+        self.levels = []  # (start, stop, parent positions, Segments)
+        for (ps, pe), (s, e) in zip(level_bounds[:-1], level_bounds[1:]):
+            self.levels.append((s, e, bk.index(xp, par[s:e], device=device), bk.Segments(xp, par[s:e], (ps, pe), device=device)))
+        # joints: sorted body C + j; user layout: creature-concatenated BodyTree order (bodies 1..)
+        packed_joint = np.concatenate([np.arange(f + 1, f + n) for f, n in zip(first, sizes)])
+        self.joint_order = new_pos[packed_joint] - C  # user joint k -> internal joint row
+        self.joints_per_creature = sizes - 1
+        self.joint_creature = self.creature[C:]
+
+        cat = lambda name: np.concatenate([getattr(t, name) for t in trees])[order]  # noqa: E731
+        self.half_extents_np = cat("half_extents")
+        mass = np.concatenate([t.mass for t in trees])[order]
+        inertia = np.concatenate([t.inertia for t in trees])[order]
+        self.mass_np = mass
+        self.inertia_diag_np = np.concatenate([inertia, np.repeat(mass[:, None], 3, axis=1)], axis=1)  # (N, 6)
+        jt = cat("joint_type")[C:]
+        axis = cat("joint_axis")[C:]
+        jpc = cat("joint_pos_child")[C:]
+        S = np.zeros((N - C, 6))
+        rev = jt == REVOLUTE
+        S[rev, :3] = axis[rev]
+        S[rev, 3:] = np.cross(jpc[rev], axis[rev])
+        S[jt == PRISMATIC, 3:] = axis[jt == PRISMATIC]
+        self.joint_type_np = jt
+        self.limits_np = cat("limits")[C:]
+        self.gain_np = cat("gain")[C:]
+        self.strength_np = cat("strength")[C:]
+        self.S_np = S
+        self.axis_np = axis
+        self.jpp_np = cat("joint_pos_parent")[C:]
+        self.joint_rot_np = cat("joint_rot")[C:]
+
+        f = lambda a: bk.asarray(xp, a, device=device)  # noqa: E731
+        self.inertia_diag = f(self.inertia_diag_np)
+        self.S = f(S)
+        self.inertia_matrix = f(np.einsum("ni,ij->nij", self.inertia_diag_np, np.eye(6)))
+        self.revolute = bk.asarray(xp, rev, dtype=xp.bool, device=device)
+        self.axis = f(axis)
+        self.jpp = f(self.jpp_np)
+        self.jpc = f(jpc)
+        self.joint_rot = f(self.joint_rot_np)
+        # Rodrigues with constant factors: Rot(a, q) = 1 + sin q K + (1 - cos q) K^2, K = [a]x, so
+        # E(q) = Rot(a, -q) J' and r(q) = jpp + J (slide a - Rot(a, q) c) are sums of constants
+        K = np.cross(axis[:, None, :], -np.eye(3)[None])  # K @ x == cross(axis, x)
+        K2 = K @ K
+        JT = np.swapaxes(self.joint_rot_np, 1, 2)
+        J = self.joint_rot_np
+        self.E0, self.E1, self.E2 = f(np.ascontiguousarray(JT)), f(-K @ JT), f(K2 @ JT)
+        self.Rq1, self.Rq2 = f(J @ K), f(J @ K2)
+        Jc = np.einsum("mij,mj->mi", J, jpc)
+        self.r0 = f(self.jpp_np - Jc)
+        self.r1 = f(-np.einsum("mij,mj->mi", J @ K, jpc))
+        self.r2 = f(-np.einsum("mij,mj->mi", J @ K2, jpc))
+        self.r3 = f(np.einsum("mij,mj->mi", J, axis))
+        self.half_extents = f(self.half_extents_np)
+        self.mass = f(mass)
+        self.body_creature = bk.index(xp, self.creature, device=device)
+        self.by_creature = np.argsort(self.creature, kind="stable")
+        self.creature_start = np.r_[0, np.cumsum(sizes)[:-1]]
+        self.total_mass = np.bincount(self.creature, weights=mass, minlength=C)
+
+    # ------------------------------------------------------------------ user layout helpers
+    @property
+    def nq(self) -> np.ndarray:
+        """(C,) qpos length per creature: 7 + joints."""
+        return 7 + self.joints_per_creature
+
+    @property
+    def nv(self) -> np.ndarray:
+        """(C,) qvel length per creature: 6 + joints."""
+        return 6 + self.joints_per_creature
+
+    def segment_sum(self, values):
+        """Sum per-body rows (N, ...) into per-creature rows (C, ...)."""
+        xp = self.xp
+        if bk.is_torch(xp):
+            out = xp.zeros((self.n_creatures,) + tuple(values.shape[1:]), dtype=values.dtype, device=self.device)
+            bk.scatter_add(xp, out, self.body_creature, values)
+            return out
+        return np.add.reduceat(values[self.by_creature], self.creature_start, axis=0)

@@ -1,0 +1,187 @@
+"""Batched spatial vector algebra in Featherstone's notation (paper section 2.4).
+
+Spatial motion vectors are ``(angular, linear)`` 6-vectors, spatial forces ``(moment, force)``.
+A Plücker transform ``X`` from frame A to frame B is stored as its 3x3 blocks: ``E`` (rotation
+taking A-coordinates to B-coordinates) and ``r`` (B's origin in A-coordinates), so that
+``X = [[E, 0], [-E rx, E]]``. Every function works on stacks (leading batch axes) and on numpy and
+torch arrays alike; ``xp`` is the array namespace.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def cross3(xp, a, b):
+    """Row-wise cross product of (..., 3) arrays (written out: torch and numpy agree bit for bit)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return xp.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def mv(A, x):
+    """Stacked matrix-vector product ``A @ x`` for (..., n, m) and (..., m)."""
+    return (A @ x[..., None])[..., 0]
+
+
+def cross_motion(xp, v, m):
+    """Spatial motion cross product ``v x m`` (Featherstone's crm(v) @ m)."""
+    w, u = v[..., :3], v[..., 3:]
+    mw, mu = m[..., :3], m[..., 3:]
+    return xp.concat([cross3(xp, w, mw), cross3(xp, w, mu) + cross3(xp, u, mw)], axis=-1)
+
+
+def cross_force(xp, v, f):
+    """Spatial force cross product ``v x* f`` (Featherstone's crf(v) @ f)."""
+    w, u = v[..., :3], v[..., 3:]
+    n, fl = f[..., :3], f[..., 3:]
+    return xp.concat([cross3(xp, w, n) + cross3(xp, u, fl), cross3(xp, w, fl)], axis=-1)
+
+
+def transform_motion(xp, E, r, m):
+    """``X @ m`` for the transform ``X = (E, r)``."""
+    mw, mu = m[..., :3], m[..., 3:]
+    return xp.concat([mv(E, mw), mv(E, mu - cross3(xp, r, mw))], axis=-1)
+
+
+def transform_matrix(xp, E, r):
+    """The 6x6 matrix of ``X = (E, r)``."""
+    X = xp.zeros(tuple(E.shape[:-2]) + (6, 6), dtype=E.dtype, device=getattr(E, "device", None))
+    X[..., :3, :3] = E
+    X[..., 3:, 3:] = E
+    X[..., 3:, :3] = cross3(xp, r[..., None, :], E)  # rows of -E rx are r x (rows of E)
+    return X
+
+
+def rotation_about(xp, axis, angle):
+    """Rodrigues: (..., 3, 3) rotation by ``angle`` (...) about unit ``axis`` (..., 3)."""
+    x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
+    c, s = xp.cos(angle), xp.sin(angle)
+    C = 1.0 - c
+    return xp.stack(
+        [
+            xp.stack([c + x * x * C, x * y * C - z * s, x * z * C + y * s], axis=-1),
+            xp.stack([y * x * C + z * s, c + y * y * C, y * z * C - x * s], axis=-1),
+            xp.stack([z * x * C - y * s, z * y * C + x * s, c + z * z * C], axis=-1),
+        ],
+        axis=-2,
+    )
+
+
+# ---------------------------------------------------------------- quaternions (w, x, y, z)
+
+
+def quat_to_mat(xp, q):
+    """Unit quaternions (..., 4) (w, x, y, z) -> rotation matrices (..., 3, 3)."""
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return xp.stack(
+        [
+            xp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
+            xp.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
+            xp.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
+        ],
+        axis=-2,
+    )
+
+
+def quat_mul(xp, a, b):
+    """Hamilton product ``a * b`` of (..., 4) quaternions."""
+    aw, av = a[..., :1], a[..., 1:]
+    bw, bv = b[..., :1], b[..., 1:]
+    w = aw * bw - xp.sum(av * bv, axis=-1, keepdims=True)
+    v = aw * bv + bw * av + cross3(xp, av, bv)
+    return xp.concat([w, v], axis=-1)
+
+
+def quat_exp(xp, theta):
+    """Unit quaternion of the rotation vector ``theta`` (..., 3) (exponential map of SO(3))."""
+    phi2 = xp.sum(theta * theta, axis=-1, keepdims=True)
+    phi = xp.sqrt(phi2)
+    small = phi < 1e-4
+    safe = xp.where(small, xp.ones_like(phi), phi)
+    # sin(phi/2)/phi, with its Taylor series near 0
+    k = xp.where(small, 0.5 - phi2 / 48.0 + phi2 * phi2 / 3840.0, xp.sin(0.5 * safe) / safe)
+    return xp.concat([xp.cos(0.5 * phi), k * theta], axis=-1)
+
+
+def quat_canonical(xp, q):
+    """Normalise quaternions and pick the sign with ``w >= 0``."""
+    q = q / xp.sqrt(xp.sum(q * q, axis=-1, keepdims=True))
+    return xp.where(q[..., :1] < 0, -q, q)
+
+
+def mat_to_quat(R: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) -> unit quaternions (w, x, y, z), ``w >= 0`` (numpy)."""
+    R = np.asarray(R, dtype=np.float64)
+    m = R.reshape(-1, 3, 3)
+    t = np.trace(m, axis1=1, axis2=2)
+    # Shepperd: candidate 4*component^2 values; build from the largest for accuracy
+    cand = np.stack([1 + t, 1 + 2 * m[:, 0, 0] - t, 1 + 2 * m[:, 1, 1] - t, 1 + 2 * m[:, 2, 2] - t], axis=1)
+    k = np.argmax(cand, axis=1)
+    out = np.empty((len(m), 4))
+    for i, kk in enumerate(k):
+        a = m[i]
+        s = 2.0 * np.sqrt(cand[i, kk])
+        if kk == 0:
+            q = [s / 4, (a[2, 1] - a[1, 2]) / s, (a[0, 2] - a[2, 0]) / s, (a[1, 0] - a[0, 1]) / s]
+        elif kk == 1:
+            q = [(a[2, 1] - a[1, 2]) / s, s / 4, (a[0, 1] + a[1, 0]) / s, (a[0, 2] + a[2, 0]) / s]
+        elif kk == 2:
+            q = [(a[0, 2] - a[2, 0]) / s, (a[0, 1] + a[1, 0]) / s, s / 4, (a[1, 2] + a[2, 1]) / s]
+        else:
+            q = [(a[1, 0] - a[0, 1]) / s, (a[0, 2] + a[2, 0]) / s, (a[1, 2] + a[2, 1]) / s, s / 4]
+        out[i] = q
+    out /= np.linalg.norm(out, axis=1, keepdims=True)
+    out[out[:, 0] < 0] *= -1
+    return out.reshape(R.shape[:-2] + (4,))
+
+
+# ---------------------------------------------------------------- SO(3) chart for the integrator
+
+
+def _dexp_coefficients(xp, theta):
+    """alpha = (1 - cos p)/p^2, beta = (p - sin p)/p^3 and their derivatives over p (divided by p)."""
+    p2 = xp.sum(theta * theta, axis=-1)
+    p = xp.sqrt(p2)
+    small = p < 1e-3
+    ps = xp.where(small, xp.ones_like(p), p)
+    s, c = xp.sin(ps), xp.cos(ps)
+    alpha = xp.where(small, 0.5 - p2 / 24.0 + p2 * p2 / 720.0, (1 - c) / ps**2)
+    beta = xp.where(small, 1.0 / 6.0 - p2 / 120.0 + p2 * p2 / 5040.0, (ps - s) / ps**3)
+    # d(alpha)/dp / p and d(beta)/dp / p
+    dalpha = xp.where(small, -1.0 / 12.0 + p2 / 180.0 - p2 * p2 / 6720.0, (ps * s - 2 * (1 - c)) / ps**4)
+    dbeta = xp.where(small, -1.0 / 60.0 + p2 / 1260.0 - p2 * p2 / 60480.0, (3 * s - ps * c - 2 * ps) / ps**5)
+    return alpha, beta, dalpha, dbeta
+
+
+def dexp(xp, theta, theta_dot):
+    """Body angular velocity of ``R0 @ exp(theta)`` when ``theta`` moves at ``theta_dot``.
+
+    ``omega = theta_dot - alpha theta x theta_dot + beta theta x (theta x theta_dot)``.
+    """
+    alpha, beta, _, _ = _dexp_coefficients(xp, theta)
+    t1 = cross3(xp, theta, theta_dot)
+    return theta_dot - alpha[..., None] * t1 + beta[..., None] * cross3(xp, theta, t1)
+
+
+def dexp_dot(xp, theta, theta_dot):
+    """Time derivative of ``dexp(theta)`` applied to ``theta_dot`` (the chart's curvature term)."""
+    alpha, beta, dalpha, dbeta = _dexp_coefficients(xp, theta)
+    pdot = xp.sum(theta * theta_dot, axis=-1)  # p * dp/dt
+    t1 = cross3(xp, theta, theta_dot)
+    term_a = -(dalpha * pdot)[..., None] * t1  # theta_dot x theta_dot = 0
+    term_b = (dbeta * pdot)[..., None] * cross3(xp, theta, t1) + beta[..., None] * cross3(xp, theta_dot, t1)
+    return term_a + term_b
+
+
+def dexp_inv(xp, theta, omega):
+    """Solve ``dexp(theta) @ x = omega`` for ``x`` (exactly, by the closed-form inverse)."""
+    p2 = xp.sum(theta * theta, axis=-1)
+    p = xp.sqrt(p2)
+    small = p < 1e-3
+    ps = xp.where(small, xp.ones_like(p), p)
+    half = 0.5 * ps
+    # gamma = (1 - (p/2) cot(p/2)) / p^2
+    gamma = xp.where(small, 1.0 / 12.0 + p2 / 720.0 + p2 * p2 / 30240.0, (1 - half * xp.cos(half) / xp.sin(half)) / ps**2)
+    t1 = cross3(xp, theta, omega)
+    return omega + 0.5 * t1 + gamma[..., None] * cross3(xp, theta, t1)

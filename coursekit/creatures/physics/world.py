@@ -1,0 +1,242 @@
+"""A population of swimmers stepping together: water, limits, effectors, guards (paper section 2.4).
+
+:class:`World` owns a packed :class:`~coursekit.creatures.physics.model.Model` and its
+:class:`~coursekit.creatures.physics.integrate.State`. Each :meth:`World.step` advances every
+creature by ``dt`` with the chosen integrator (sub-stepped when the water would be too stiff, see
+:mod:`~coursekit.creatures.physics.water`). Joint forces from effectors and self-collision forces
+are held constant over a step; drag and limit springs are evaluated at every stage.
+
+Guards: after each step a creature whose state is not finite or whose root speed, root spin or
+any joint rate exceeds its cap is flagged ``diverged`` and frozen at its last good state with zero
+velocity (and no forces); the rest of the batch goes on unaffected -- creatures never share
+arrays rows, so NaNs cannot leak between them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import backend as bk
+from . import spatial as sp
+from .aba import aba, articulated_inertias, body_velocities, forward_kinematics, joint_transforms
+from .contact import Contacts
+from .dynamics import _flatten, split_layout, join_velocity_layout
+from .integrate import INTEGRATORS, State, step
+from .limits import STIFFNESS_PER_STEP, limit_energy, limit_forces, limit_gains
+from .model import Model
+from .water import DRAG_COEFFICIENT, STABLE_DRAG_STEP, drag_matrix, max_drag_rate
+
+#: Default guard caps: root speed (m/s), root spin (rad/s), joint rate (rad/s or m/s).
+MAX_SPEED = 20.0
+MAX_ANGULAR_SPEED = 100.0
+MAX_JOINT_SPEED = 100.0
+
+
+class World:
+    """A batch of creatures in water.
+
+    Args:
+        creatures: BodyTrees / creatures, or a packed :class:`Model`.
+        dt: physics step (s).
+        backend: "numpy" or "torch"; device: torch device.
+        integrator: "rkn" (default) or "rk4".
+        drag: water on/off; drag_coefficient: ``k`` of :mod:`water`.
+        limits: joint-limit springs on/off; limit_frequency (rad/s, default ``STIFFNESS_PER_STEP / substep``)
+            and limit_damping_ratio of :mod:`limits`.
+        contacts: self-collision penalty forces on/off (see :mod:`contact`).
+        max_speed, max_angular_speed, max_joint_speed: divergence caps.
+    """
+
+    def __init__(
+        self,
+        creatures,
+        *,
+        dt: float = 1.0 / 60.0,
+        backend: str = "numpy",
+        device=None,
+        integrator: str = "rkn",
+        drag: bool = True,
+        drag_coefficient: float = DRAG_COEFFICIENT,
+        limits: bool = True,
+        limit_frequency: float | None = None,
+        limit_damping_ratio: float = 1.0,
+        contacts: bool = True,
+        contact_stiffness: float | None = None,
+        max_speed: float = MAX_SPEED,
+        max_angular_speed: float = MAX_ANGULAR_SPEED,
+        max_joint_speed: float = MAX_JOINT_SPEED,
+    ):
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt: must be a positive number of seconds, got {dt!r}")
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"integrator: got {integrator!r}; allowed: {', '.join(INTEGRATORS)}")
+        for name, cap in (("max_speed", max_speed), ("max_angular_speed", max_angular_speed), ("max_joint_speed", max_joint_speed)):
+            if not (cap > 0):
+                raise ValueError(f"{name}: must be > 0, got {cap}")
+        self.model = m = creatures if isinstance(creatures, Model) else Model(creatures, backend=backend, device=device)
+        self.xp = xp = m.xp
+        self.dt = float(dt)
+        self.integrator = integrator
+        self.damping = drag_matrix(m, drag_coefficient) if drag else None
+        rate = max_drag_rate(m, drag_coefficient) if drag else 0.0
+        self.substeps = max(1, math.ceil(self.dt * rate / STABLE_DRAG_STEP))
+        self.h = self.dt / self.substeps
+        self.limits = limits
+        f = lambda a: bk.asarray(xp, a, device=m.device)  # noqa: E731
+        self.lo, self.hi = f(m.limits_np[:, 0]), f(m.limits_np[:, 1])
+        self.limit_k, self.limit_b = limit_gains(m, limit_frequency if limit_frequency is not None else STIFFNESS_PER_STEP / self.h, limit_damping_ratio)
+        self.strength = f(m.strength_np)
+        self.gain = f(m.gain_np)
+        self.contacts = None
+        if contacts:
+            self.contacts = Contacts(m, stiffness=contact_stiffness, dt=self.h)
+        self.caps = (float(max_speed), float(max_angular_speed), float(max_joint_speed))
+        self.diverged = np.zeros(m.n_creatures, dtype=bool)
+        self.time = 0.0
+        C, M = m.n_creatures, m.n_joints
+        z = lambda *s: xp.zeros(s, dtype=xp.float64, device=m.device)  # noqa: E731
+        quat = z(C, 4)
+        quat[:, 0] = 1.0
+        self.state = State(z(C, 3), quat, z(M), z(C, 3), z(C, 3), z(M))
+        self.tau = z(M)
+        self.f_world = None
+        self._inertia_q = self._inertia = None
+        self.contact_sensors = None
+        self._joint_creature = bk.index(xp, m.joint_creature, device=m.device)
+
+    # ------------------------------------------------------------------ state in MuJoCo layout
+    def set_state(self, qpos, qvel) -> None:
+        """Set every creature's state from MuJoCo-layout ``qpos``/``qvel`` (see ``forward_dynamics``)."""
+        m, xp = self.model, self.xp
+        qp, _ = _flatten(qpos, m.nq, "qpos")
+        qv, _ = _flatten(qvel, m.nv, "qvel")
+        pos, quat, q, lin, omega, qd = split_layout(m, qp, qv)
+        f = lambda a: bk.asarray(xp, a, device=m.device)  # noqa: E731
+        self.state = State(f(pos), sp.quat_canonical(xp, f(quat)), f(q), f(lin), f(omega), f(qd))
+
+    def get_state(self):
+        """``(qpos, qvel)`` as lists of per-creature numpy vectors (MuJoCo layout)."""
+        m, s = self.model, self.state
+        n = bk.to_numpy
+        qpos = join_velocity_layout(m, n(s.pos), n(s.quat), n(s.q))  # same packing, 3 + 4 + joints
+        qvel = join_velocity_layout(m, n(s.lin), n(s.omega), n(s.qd))
+        oq = np.r_[0, np.cumsum(m.nq)]
+        ov = np.r_[0, np.cumsum(m.nv)]
+        return [qpos[oq[i] : oq[i + 1]] for i in range(m.n_creatures)], [qvel[ov[i] : ov[i + 1]] for i in range(m.n_creatures)]
+
+    # ------------------------------------------------------------------ dynamics
+    def _accel(self, pos, R, q, lin, omega, qd):
+        xp, m = self.xp, self.model
+        vb = sp.mv(R.mT, lin)
+        tau = self.tau
+        if self.limits:
+            tau = tau + limit_forces(xp, q, qd, self.lo, self.hi, self.limit_k, self.limit_b)
+        f_ext = None
+        if self.f_world is not None:  # contact wrenches are held in world axes: rotate into each body
+            Rb, _ = forward_kinematics(m, R, pos, q)
+            f_ext = xp.concat([sp.mv(Rb.mT, self.f_world[:, :3]), sp.mv(Rb.mT, self.f_world[:, 3:])], axis=1)
+        if q is not self._inertia_q:  # RKN stages 2 and 3 share positions, hence inertias
+            self._inertia_q, self._inertia = q, articulated_inertias(m, q)
+        a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping, inertias=self._inertia)
+        lin_acc = sp.mv(R, a0[:, 3:] + sp.cross3(xp, omega, vb))
+        return lin_acc, a0[:, :3], qdd
+
+    def set_effectors(self, effector) -> None:
+        """Joint forces from effector outputs (M,) in user joint order: ``clip(gain * e, +-strength)``."""
+        xp, m = self.xp, self.model
+        e = bk.asarray(xp, effector, device=m.device)
+        if tuple(e.shape) != (m.n_joints,):
+            raise ValueError(f"effector: expected shape ({m.n_joints},), got {tuple(e.shape)}")
+        e_int = xp.zeros_like(e)
+        e_int[bk.index(xp, m.joint_order, device=m.device)] = e
+        e_int = xp.where(xp.isfinite(e_int), e_int, xp.zeros_like(e_int))
+        self.tau = xp.clip(self.gain * e_int, -self.strength, self.strength)
+
+    def step(self) -> None:
+        """Advance the whole batch by ``dt``."""
+        xp, m = self.xp, self.model
+        jfrozen = bk.asarray(xp, self.diverged, dtype=xp.bool, device=m.device)[self._joint_creature]
+        self.tau = xp.where(jfrozen, xp.zeros_like(self.tau), self.tau)
+        for _ in range(self.substeps):
+            if self.contacts is not None:
+                f_world, self.contact_sensors = self.contacts.forces(self.state)
+                self.f_world = f_world if bool(xp.any(f_world != 0)) else None
+            prev = self.state
+            new = step(xp, prev, self.h, self._accel, self.integrator)
+            self.state = self._guard(prev, new)
+        self.time += self.dt
+
+    def _guard(self, prev: State, new: State) -> State:
+        xp, m = self.xp, self.model
+        C = m.n_creatures
+        vmax, wmax, qmax = self.caps
+        root = xp.concat([new.pos, new.quat, new.lin, new.omega], axis=1)
+        ok = xp.all(xp.isfinite(root), axis=1)
+        ok = ok & (xp.sum(new.lin**2, axis=1) <= vmax**2) & (xp.sum(new.omega**2, axis=1) <= wmax**2)
+        jbad = ~(xp.isfinite(new.q) & xp.isfinite(new.qd) & (xp.abs(new.qd) <= qmax))
+        if m.n_joints:
+            nbad = xp.zeros((C,), dtype=xp.float64, device=m.device)
+            if bk.is_torch(xp):
+                bk.scatter_add(xp, nbad, self._joint_creature, jbad.to(xp.float64))
+            else:
+                nbad = np.bincount(m.joint_creature, weights=jbad, minlength=C)
+            ok = ok & (nbad == 0)
+        bad = bk.to_numpy(~ok)
+        if not bad.any():
+            return new
+        self.diverged |= bad
+        badC = ~ok
+        badJ = badC[self._joint_creature]
+        pick = lambda mask, a, b: xp.where(mask[:, None] if a.ndim > 1 else mask, b, a)  # noqa: E731
+        zc, zj = xp.zeros_like(new.lin), xp.zeros_like(new.qd)
+        return State(
+            pick(badC, new.pos, prev.pos),
+            pick(badC, new.quat, prev.quat),
+            pick(badJ, new.q, prev.q),
+            pick(badC, new.lin, zc),
+            pick(badC, new.omega, zc),
+            pick(badJ, new.qd, zj),
+        )
+
+    # ------------------------------------------------------------------ observables
+    def body_poses(self):
+        """World rotations (N, 3, 3) and positions (N, 3) of all bodies (internal order)."""
+        s = self.state
+        return forward_kinematics(self.model, sp.quat_to_mat(self.xp, s.quat), s.pos, s.q)
+
+    def body_velocities(self):
+        """Body-frame spatial velocities (N, 6) of all bodies (internal order)."""
+        xp, m, s = self.xp, self.model, self.state
+        R0 = sp.quat_to_mat(xp, s.quat)
+        E, r = joint_transforms(m, s.q)
+        v, _ = body_velocities(m, sp.transform_matrix(xp, E, r), xp.concat([s.omega, sp.mv(R0.mT, s.lin)], axis=1), s.qd)
+        return v
+
+    def centre_of_mass(self) -> np.ndarray:
+        """(C, 3) centre of mass of every creature (numpy)."""
+        _, p = self.body_poses()
+        m = self.model
+        return bk.to_numpy(m.segment_sum(p * m.mass[:, None])) / m.total_mass[:, None]
+
+    def kinetic_energy(self) -> np.ndarray:
+        """(C,) kinetic energy of every creature (numpy)."""
+        v = self.body_velocities()
+        return bk.to_numpy(self.model.segment_sum(0.5 * self.xp.sum(v * v * self.model.inertia_diag, axis=1)))
+
+    def potential_energy(self) -> np.ndarray:
+        """(C,) energy stored in the joint-limit springs (numpy)."""
+        m = self.model
+        e = limit_energy(self.xp, self.state.q, self.lo, self.hi, self.limit_k) if self.limits else self.xp.zeros_like(self.state.q)
+        return np.bincount(m.joint_creature, weights=bk.to_numpy(e), minlength=m.n_creatures)
+
+    def momentum(self) -> tuple[np.ndarray, np.ndarray]:
+        """(C, 3) world linear momentum and (C, 3) angular momentum about the world origin (numpy)."""
+        xp, m = self.xp, self.model
+        R, p = self.body_poses()
+        v = self.body_velocities()
+        I = m.inertia_diag
+        lin = sp.mv(R, I[:, 3:] * v[:, 3:])
+        ang = sp.mv(R, I[:, :3] * v[:, :3]) + sp.cross3(xp, p, lin)
+        return bk.to_numpy(m.segment_sum(lin)), bk.to_numpy(m.segment_sum(ang))

@@ -1,0 +1,161 @@
+"""Evaluate a population of swimmers: settle, swim with brains in the loop, score (paper section 2.5).
+
+``simulate`` packs the creatures into one :class:`~coursekit.creatures.physics.world.World`,
+lets them settle passively in the water for ``settle`` seconds (effectors off, so that residual
+motion from the initial pose does not count), resets the brains (so oscillator phase does not
+depend on the settle length), then runs ``seconds`` of swimming. The brains tick twice per
+physics step on the sensors (joint angles, wrapped to (-pi, pi] for revolute joints; joint
+rates; per-face contact sensors) and the last tick's effector outputs become joint forces
+``clip(gain * e, -strength, strength)``. The centre of mass of every creature is recorded after
+every step and scored with :func:`coursekit.creatures.fitness.swimming_fitness`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from coursekit.creatures.body import REVOLUTE
+from coursekit.creatures.fitness import swimming_fitness
+from coursekit.creatures.physics import backend as bk
+from coursekit.creatures.physics.model import as_trees
+from coursekit.creatures.physics.world import World
+
+
+@dataclass
+class SimulationResult:
+    """Outcome of :func:`simulate`.
+
+    ``fitness`` (C,), ``com`` (C, T, 3) centre-of-mass trajectory of the evaluation phase,
+    ``times`` (T,) its sample times (0 = end of settling), ``diverged`` (C,) flags, the
+    final ``qpos``/``qvel`` (lists, MuJoCo layout), and with ``record_every=k`` the ``trajectory``:
+    per creature an (F, nq) array of ``qpos`` every k steps from the start of the evaluation
+    (times ``frame_times``), for animations.
+    """
+
+    fitness: np.ndarray
+    com: np.ndarray
+    times: np.ndarray
+    diverged: np.ndarray
+    qpos: list
+    qvel: list
+    dt: float
+    trajectory: list | None = None
+    frame_times: np.ndarray | None = None
+
+
+def _brains(creatures):
+    """A BrainBatch for creatures that have brains, if the brain module is available."""
+    try:
+        from coursekit.creatures.brain import BrainBatch  # provided by the genotype work
+    except ImportError:
+        return None, as_trees(creatures)
+    seq = creatures if isinstance(creatures, (list, tuple)) else [creatures]
+    if not all(hasattr(c, "expand") for c in seq):
+        return None, as_trees(creatures)
+    phenotypes = [c.expand() for c in seq]
+    return BrainBatch([p.brain for p in phenotypes]), [p.body for p in phenotypes]
+
+
+def simulate(
+    creatures,
+    seconds: float = 10.0,
+    *,
+    dt: float = 1.0 / 60.0,
+    settle: float = 0.5,
+    controller=None,
+    initial_state=None,
+    progress: bool = False,
+    record_every: int = 0,
+    **options,
+) -> SimulationResult:
+    """Simulate and score a population of swimmers together.
+
+    Args:
+        creatures: creatures (with ``.expand()``) or BodyTrees.
+        seconds: evaluation time after settling (s).
+        dt: physics step (s).
+        settle: passive settling time before the evaluation (s).
+        controller: object with ``step(joint_angle, joint_velocity, contact, dt) -> effector`` (and
+            optionally ``reset()``), or such a callable; arrays are flat over all creatures in
+            list order (joints = bodies 1..B-1, contact (total_bodies, 6), faces -x,+x,-y,+y,-z,+z).
+            Default: the creatures' own brains (``BrainBatch``) when they have them, else none
+            (passive bodies).
+        initial_state: optional ``(qpos, qvel)`` in MuJoCo layout; default at rest at the origin.
+        progress: show a tqdm progress bar.
+        record_every: record every creature's ``qpos`` every this many steps (0: don't).
+        **options: passed to :class:`~coursekit.creatures.physics.world.World` (``backend``,
+            ``device``, ``integrator``, ``drag_coefficient``, ``contacts``, caps ...).
+
+    Returns:
+        A :class:`SimulationResult`.
+    """
+    if not (np.isfinite(seconds) and seconds > 0):
+        raise ValueError(f"seconds: must be a positive number, got {seconds}")
+    if not (np.isfinite(settle) and settle >= 0):
+        raise ValueError(f"settle: must be >= 0 seconds, got {settle}")
+    if controller is None:
+        controller, bodies = _brains(creatures)
+    else:
+        bodies = as_trees(creatures)
+    world = World(bodies, dt=dt, **options)
+    m = world.model
+    if initial_state is not None:
+        world.set_state(*initial_state)
+    tick = getattr(controller, "step", controller)
+    revolute = m.joint_type_np[m.joint_order] == REVOLUTE
+    user_joint = bk.index(world.xp, m.joint_order, device=m.device)
+
+    def sense():
+        s = world.state
+        q = bk.to_numpy(s.q[user_joint])
+        q = np.where(revolute, np.mod(q + np.pi, 2 * np.pi) - np.pi, q)
+        qd = bk.to_numpy(s.qd[user_joint])
+        contact = -np.ones((m.n_bodies, 6))
+        if world.contact_sensors is not None:
+            contact[m.order] = bk.to_numpy(world.contact_sensors)
+        return q, qd, contact
+
+    if not (isinstance(record_every, (int, np.integer)) and record_every >= 0):
+        raise ValueError(f"record_every: must be an integer >= 0 (steps), got {record_every!r}")
+    n_settle = int(round(settle / dt))
+    n_steps = int(round(seconds / dt))
+    if n_steps < 11:
+        raise ValueError(f"seconds: need at least 11 steps of dt={dt}, got {seconds} s")
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=n_settle + n_steps, desc="swimming", unit="step")
+    world.set_effectors(np.zeros(m.n_joints))
+    for _ in range(n_settle):
+        world.step()
+        if bar:
+            bar.update()
+    if controller is not None and hasattr(controller, "reset"):
+        controller.reset()
+    com = np.empty((m.n_creatures, n_steps + 1, 3))
+    com[:, 0] = world.centre_of_mass()
+    frames = [world.get_state()[0]] if record_every else None
+    for i in range(n_steps):
+        if controller is not None:
+            for _ in range(2):  # two brain ticks per physics step (Sims 1994 section 3)
+                effector = tick(*sense(), dt / 2)
+            world.set_effectors(np.asarray(bk.to_numpy(effector), dtype=np.float64))
+        world.step()
+        com[:, i + 1] = world.centre_of_mass()
+        if record_every and (i + 1) % record_every == 0:
+            frames.append(world.get_state()[0])
+        if bar:
+            bar.update()
+    if bar:
+        bar.close()
+    times = np.arange(n_steps + 1) * dt
+    fitness = swimming_fitness(com, times, world.diverged)
+    qpos, qvel = world.get_state()
+    trajectory = frame_times = None
+    if record_every:
+        trajectory = [np.stack([f[c] for f in frames]) for c in range(m.n_creatures)]
+        frame_times = np.arange(len(frames)) * record_every * dt
+    return SimulationResult(fitness, com, times, world.diverged.copy(), qpos, qvel, dt, trajectory, frame_times)

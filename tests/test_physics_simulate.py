@@ -1,0 +1,203 @@
+"""simulate(), Sims swimming fitness and self-collisions (issue #5)."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from coursekit.creatures.body import BodyTree, REVOLUTE, rotation_about
+from coursekit.creatures.fitness import WINDOWS, swimming_fitness
+from coursekit.creatures.physics import random_body_tree
+from coursekit.creatures.physics.contact import Contacts
+from coursekit.creatures.physics.model import Model
+from coursekit.creatures.physics.world import World
+from coursekit.creatures.simulate import simulate
+
+
+def _line(v, times, direction=(1.0, 0.0, 0.0)):
+    return np.asarray(direction)[None, :] * v(times)[:, None]
+
+
+# ---------------------------------------------------------------- fitness
+
+
+@given(st.floats(0.01, 5.0), st.floats(2.0, 20.0))
+@settings(max_examples=30, deadline=None)
+def test_steady_swimmer_scores_its_speed(speed, duration):
+    t = np.linspace(0, duration, 200)
+    f = swimming_fitness(_line(lambda t: speed * t, t)[None], t)
+    assert f[0] == pytest.approx(speed, rel=1e-9)
+
+
+@given(st.floats(0.1, 5.0), st.floats(0.05, 2.0))
+@settings(max_examples=30, deadline=None)
+def test_one_push_scores_below_a_steady_swimmer_of_equal_distance(v0, tau):
+    t = np.linspace(0, 10.0, 601)
+    coast = _line(lambda t: v0 * tau * (1 - np.exp(-t / tau)), t)  # pushed once, then coasting
+    distance = coast[-1, 0]
+    steady = _line(lambda t: distance * t / t[-1], t)
+    f = swimming_fitness(np.stack([coast, steady]), t)
+    assert f[0] < f[1]
+
+
+def test_circling_scores_below_straight_swimming_and_diverged_scores_zero():
+    t = np.linspace(0, 10.0, 601)
+    circle = np.stack([np.cos(t) - 1, np.sin(t), 0 * t], axis=1)  # speed 1 m/s on a circle
+    straight = _line(lambda t: t, t)
+    f = swimming_fitness(np.stack([circle, straight, straight]), t, diverged=[False, False, True])
+    assert f[0] < 0.5 * f[1] and f[2] == 0.0
+
+
+def test_fitness_refuses_bad_shapes():
+    with pytest.raises(ValueError, match="com"):
+        swimming_fitness(np.zeros((2, 20)), np.arange(20.0))
+    with pytest.raises(ValueError, match="times"):
+        swimming_fitness(np.zeros((1, WINDOWS, 3)), np.arange(float(WINDOWS)))
+
+
+# ---------------------------------------------------------------- simulate
+
+
+def _sine_controller():
+    calls = []
+
+    def controller(q, qd, contact, dt):
+        calls.append((q.copy(), qd.shape, contact.shape, dt))
+        t = len(calls) * dt
+        return np.sin(2 * np.pi * t + np.arange(q.size))
+
+    return controller, calls
+
+
+def test_simulate_is_deterministic_and_feeds_the_controller():
+    rng = np.random.default_rng(0)
+    trees = [random_body_tree(rng, (4, 8)) for _ in range(3)]
+    results = []
+    for _ in range(2):
+        controller, calls = _sine_controller()
+        results.append(simulate(trees, 0.5, dt=1 / 60, settle=0.1, controller=controller))
+    a, b = results
+    np.testing.assert_array_equal(a.fitness, b.fitness)
+    np.testing.assert_array_equal(a.com, b.com)
+    n_joints = sum(t.n_joints for t in trees)
+    n_bodies = sum(t.n_bodies for t in trees)
+    assert len(calls) == 2 * 30  # two brain ticks per physics step
+    q, qd_shape, contact_shape, dt = calls[-1]
+    assert q.shape == (n_joints,) and qd_shape == (n_joints,) and contact_shape == (n_bodies, 6)
+    assert dt == pytest.approx(1 / 120) and np.all(np.abs(q) <= np.pi)
+    assert a.com.shape == (3, 31, 3) and not a.diverged.any()
+    assert np.all(a.fitness > 0)
+
+
+def test_passive_body_at_rest_stays_at_rest():
+    tree = random_body_tree(np.random.default_rng(1), 2)
+    r = simulate([tree], 1.0, settle=0.0)
+    assert np.all(r.com == r.com[:, :1]) and r.fitness[0] == 0.0
+
+
+def test_population_of_single_boxes_coasts_and_stops():
+    rng = np.random.default_rng(9)
+    boxes = [random_body_tree(rng, 1) for _ in range(3)]
+    start = ([np.r_[0, 0, 0, 1, 0, 0, 0]] * 3, [np.r_[0.5, 0, 0, 0, 0, 1.0]] * 3)
+    r = simulate(boxes, 2.0, settle=0.0, initial_state=start)
+    speed_late = np.linalg.norm(r.com[:, -1] - r.com[:, -2], axis=1) / r.dt
+    assert not r.diverged.any() and np.all(speed_late < 0.5) and np.all(r.fitness > 0)
+
+
+def test_simulate_refuses_bad_arguments():
+    tree = random_body_tree(np.random.default_rng(2), 3)
+    with pytest.raises(ValueError, match="seconds"):
+        simulate([tree], -1.0)
+    with pytest.raises(ValueError, match="settle"):
+        simulate([tree], 1.0, settle=-0.5)
+
+
+# ---------------------------------------------------------------- collisions
+
+
+def _two_boxes(R_b, p_b, half_a=(0.3, 0.2, 0.1), half_b=(0.15, 0.25, 0.2)):
+    """A 3-body chain whose ends (bodies 0 and 2) are non-adjacent; we place them by hand."""
+    tree = BodyTree(
+        parent=[-1, 0, 1],
+        half_extents=[half_a, (0.05, 0.05, 0.05), half_b],
+        joint_type=[0, REVOLUTE, REVOLUTE],
+        joint_axis=[(0, 0, 0), (0, 0, 1), (0, 0, 1)],
+        joint_pos_parent=[(0, 0, 0), (0.3, 0, 0), (0.05, 0, 0)],
+        joint_pos_child=[(0, 0, 0), (-0.05, 0, 0), (-0.15, 0, 0)],
+        joint_rot=[np.eye(3)] * 3,
+        limits=[(0, 0), (-1, 1), (-1, 1)],
+        gain=[0, 1, 1],
+        strength=[0, 1, 1],
+    )
+    m = Model([tree])
+    R = np.stack([np.eye(3), np.eye(3), R_b])
+    p = np.stack([np.zeros(3), np.array([5.0, 5.0, 5.0]), p_b])
+    return Contacts(m), m, R[m.order], p[m.order]
+
+
+def _brute_force_overlap(R, p, h, rng, n=20000):
+    """Sample points of box B and test whether any lies inside box A (A at the origin)."""
+    u = rng.uniform(-1, 1, size=(n, 3)) * h[1]
+    x = u @ R[1].T + p[1]
+    return np.any(np.all(np.abs(x) < h[0], axis=1))
+
+
+@given(st.integers(0, 2**32 - 1))
+@settings(max_examples=40, deadline=None)
+def test_separating_axis_test_agrees_with_sampling(seed):
+    rng = np.random.default_rng(seed)
+    axis = rng.normal(size=3)
+    Rb = rotation_about(axis / np.linalg.norm(axis), rng.uniform(0, np.pi))
+    pb = rng.uniform(-0.7, 0.7, size=3)
+    contacts, m, R, p = _two_boxes(Rb, pb)
+    hit = contacts.detect(R, p)[0].size > 0
+    h = np.array([[0.3, 0.2, 0.1], [0.15, 0.25, 0.2]])
+    sampled = _brute_force_overlap(np.stack([np.eye(3), Rb]), np.stack([np.zeros(3), pb]), h, rng)
+    if sampled:  # a sampled point of B inside A proves overlap
+        assert hit
+    if not hit:
+        assert not sampled
+
+
+def test_face_contact_depth_normal_and_sensors():
+    # B sits on A's +z face, sunk 0.02 deep: normal +z, depth 0.02, A's +z and B's -z faces touch
+    pb = np.array([0.0, 0.0, 0.1 + 0.2 - 0.02])
+    contacts, m, R, p = _two_boxes(np.eye(3), pb)
+    pair, a, b, n, depth, x = contacts.detect(R, p)
+    assert depth.size == 1 and depth[0] == pytest.approx(0.02)
+    np.testing.assert_allclose(n[0] * np.sign(n[0, 2]), [0, 0, 1], atol=1e-12)
+    assert x[0, 2] == pytest.approx(0.09) and abs(x[0, 0]) < 1e-12 and abs(x[0, 1]) < 1e-12
+
+
+def test_contact_forces_are_internal_linear_momentum_is_conserved():
+    # contact wrenches are held in world axes over a step, so pairs stay equal and opposite; the
+    # remaining drift is integration error (contact onsets are not smooth), shrinking with dt
+    rng = np.random.default_rng(3)
+    tree = random_body_tree(rng, 12, size_range=(0.1, 0.35))
+    qpos = np.r_[0, 0, 0, 1, 0, 0, 0, np.zeros(tree.n_joints)]
+    qvel = np.r_[0.1, 0, 0, 0, 0, 0.2, rng.normal(size=tree.n_joints)]
+    drift = []
+    for dt in (1 / 120, 1 / 240):
+        w = World([tree], dt=dt, drag=False, limits=True, contacts=True, limit_frequency=30, contact_stiffness=30)
+        w.set_state([qpos], [qvel])
+        f, _ = w.contacts.forces(w.state)
+        assert np.abs(f).max() > 0, "this creature must start in self-contact"
+        P0, _ = w.momentum()
+        for _ in range(round(0.5 / dt)):
+            w.step()
+        P, _ = w.momentum()
+        assert not w.diverged.any()
+        drift.append(np.abs(P - P0).max() / np.abs(P0).max())
+    assert drift[1] < 2e-4 and drift[1] < 0.5 * drift[0], drift
+
+
+def test_genotype_creatures_swim_with_their_brains():
+    # runs once the genotype/brain work (coursekit.creatures.genotype, .brain) is merged
+    from coursekit.creatures import genotype
+    rng = np.random.default_rng(11)
+    creatures = [genotype.Creature.random(rng) for _ in range(12)]
+    r = simulate(creatures, 1.0, settle=0.2)
+    assert r.fitness.shape == (12,) and np.all(np.isfinite(r.fitness)) and np.all(r.fitness >= 0)
+    assert r.diverged.sum() <= 2
+    assert r.fitness.max() > 0  # brains drive at least one creature away from its start
+    again = simulate(creatures, 1.0, settle=0.2)
+    np.testing.assert_array_equal(r.fitness, again.fitness)
