@@ -14,6 +14,8 @@ import nbformat
 import pytest
 from nbclient import NotebookClient
 
+from coursekit.grading import checks
+
 ROOT = Path(__file__).resolve().parent.parent
 ADV = ROOT / "tests" / "adversarial"
 sys.path.insert(0, str(ADV))
@@ -24,7 +26,8 @@ sys.path.pop(0)
 pytestmark = pytest.mark.slow
 CHECK_OF = {name: f"ga.{name}" for name in HONEST}
 # exercise notebook stem -> (max points, number of checks); each is graded once as solution and as exercise
-EXERCISES = {"01_selection": (10.0, 5), "02_picture_mutations": (10.0, 5), "03_picture_recombination": (6.0, 3)}
+EXERCISES = {"01_selection": (10.0, 5), "02_picture_mutations": (10.0, 5), "03_picture_recombination": (6.0, 3),
+             "05_creature_operators": (12.0, 3)}
 
 
 def grade(paths, out, *extra):
