@@ -74,7 +74,7 @@ def body_drag(half_extents: np.ndarray, k: float, box_drag=None) -> np.ndarray:
     for i, hb in enumerate(h):
         d = np.asarray(box_drag(hb.copy(), float(k)), dtype=np.float64)
         if d.shape != (6,) or not np.all(np.isfinite(d)) or np.any(d < 0):
-            raise ValueError(f"drag: {getattr(box_drag, '__name__', 'box_drag')}({hb.tolist()}, {k}) returned {d!r}; "
+            raise ValueError(f"drag: {getattr(box_drag, '__name__', 'box_drag')}({hb.tolist()}, {k}) returned {d.tolist()}; "
                              "expected 6 finite numbers >= 0 (D_wx, D_wy, D_wz, D_vx, D_vy, D_vz)")
         out[i] = d
     return out
