@@ -306,7 +306,8 @@ def run_world(swimmers, n=30, **options):
 
 
 @pytest.mark.parametrize("options", [dict(drag=box_drag_loops), dict(integrator=rkn_tableau),
-                                     dict(drag=box_drag_loops, integrator=rkn_tableau, dt=1 / 15)])
+                                     dict(drag=box_drag_loops, integrator=rkn_tableau, dt=1 / 15),
+                                     dict(drag=box_drag_loops, integrator=rkn_step, backend="torch")])
 def test_student_functions_reproduce_the_library_simulation(swimmers, options):
     lib, w_lib = run_world(swimmers, dt=options.get("dt", 1 / 60))
     mine, w = run_world(swimmers, **options)

@@ -132,8 +132,8 @@ def _drag_values(part):
                 if not math.isclose(got[i], want[i], rel_tol=1e-9, abs_tol=1e-15):
                     ratio = f" (yours is {got[i] / want[i]:.3g} times that)" if want[i] else ""
                     return False, (f"for a box with half_extents={np.round(h, 4).tolist()} and k=1, the resistance to "
-                                   f"{MEANING[i]} {COMPONENTS[i]} has size {got[i]:.6g}, but integrating -k (n.v(x)) n "
-                                   f"over the six faces gives {want[i]:.6g}{ratio}")
+                                   f"{MEANING[i]} {COMPONENTS[i]} has size {got[i]:.9g}, but integrating -k (n.v(x)) n "
+                                   f"over the six faces gives {want[i]:.9g}{ratio}")
         if part == "linear":
             return True, f"sliding drag matches the face integral on {len(UNIT)} boxes"
         return True, f"turning drag matches the face integral on {len(UNIT)} boxes"
