@@ -28,6 +28,18 @@ def _cmd_lab(args: argparse.Namespace) -> int:
     return subprocess.call(cmd)
 
 
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from coursekit import demos
+
+    if args.name == "swimmers":
+        summary = demos.swimmers(args.out or "swimmers-demo", population=args.population, generations=args.generations,
+                                 seconds=args.seconds, seed=args.seed)
+        print(f"best swimmer: fitness {summary['best_fitness']:.4f} m/s with {summary['best_parts']} parts")
+        print(f"wrote {', '.join(summary['files'])} to {args.out or 'swimmers-demo'}/")
+        return 0
+    return demos.pictures(args.out)
+
+
 def _cmd_grade(args: argparse.Namespace) -> int:
     from coursekit.grading.grader import main as grade_main
 
@@ -62,6 +74,15 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--dir", default=str(ROOT / "lessons"), help="lessons folder (default: the repository's lessons/)")
     s.add_argument("--no-browser", action="store_true", help="do not open a browser window")
     s.set_defaults(func=_cmd_lab)
+
+    s = sub.add_parser("demo", help="instructor demos: evolve swimmers, breed pictures")
+    s.add_argument("name", choices=["swimmers", "pictures"])
+    s.add_argument("--out", help="output folder (swimmers: default swimmers-demo/)")
+    s.add_argument("--population", type=int, help="population size (default by COURSEKIT_PROFILE)")
+    s.add_argument("--generations", type=int, help="generations (default by COURSEKIT_PROFILE)")
+    s.add_argument("--seconds", type=float, help="swimming seconds per evaluation")
+    s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    s.set_defaults(func=_cmd_demo)
 
     s = sub.add_parser("grade", help="grade exercise notebooks in isolated kernels (Gradescope JSON)")
     s.add_argument("notebooks", nargs="+", help="notebooks to grade")

@@ -75,3 +75,23 @@ def test_lab_serves_the_course_and_opens_the_lessons(tmp_path):
     finally:
         proc.terminate()
         proc.wait(timeout=30)
+
+
+def test_swimmers_demo_writes_what_a_lecture_shows(tmp_path):
+    import json
+    import os
+
+    from PIL import Image
+
+    from coursekit.creatures import Creature
+
+    env = {**os.environ, "COURSEKIT_PROFILE": "ci"}
+    out = tmp_path / "demo"
+    subprocess.run([sys.executable, "-m", "coursekit", "demo", "swimmers", "--out", str(out), "--seed", "3"],
+                   check=True, env=env, capture_output=True)
+    summary = json.loads((out / "summary.json").read_text())
+    assert {"best.json", "best.png", "best.gif", "fitness.png"} <= set(summary["files"])
+    best = Creature.from_json((out / "best.json").read_text())
+    assert best.expand().body.n_bodies == summary["best_parts"]
+    assert summary["best_fitness"] == max(summary["history_best"])
+    assert Image.open(out / "best.gif").n_frames > 1
