@@ -214,12 +214,8 @@ def _start(ctx, cid):
     return c[1], np.asarray(c[2]["ndarray"]), np.asarray(c[3]["ndarray"]), c[4]
 
 
-def _all_rkn(ctx):
-    return list(ctx.cases)
-
-
 def _rkn_shape(ctx):
-    for cid in _all_rkn(ctx):
+    for cid in ctx.cases:
         _, y, v, _ = _start(ctx, cid)
         y1, v1 = ctx.out(cid)[0]
         if len(y1) != len(y) or len(v1) != len(v):
