@@ -41,8 +41,11 @@ class World:
         creatures: BodyTrees / creatures, or a packed :class:`Model`.
         dt: physics step (s).
         backend: "numpy" or "torch"; device: torch device.
-        integrator: "rkn" (default) or "rk4".
-        drag: water on/off; drag_coefficient: ``k`` of :mod:`water`.
+        integrator: "rkn" (default), "rk4", or a function ``rkn_step(f, t, y, v, h) -> (y_next,
+            v_next)`` that then advances the state (see :mod:`integrate`; exercise 07).
+        drag: water on/off, or a function ``box_drag(half_extents, k) -> (6,)`` giving one box's
+            drag diagonal, used for every box instead of the library's (see :mod:`water`);
+            drag_coefficient: ``k`` of :mod:`water`.
         limits: joint-limit springs on/off; limit_frequency (rad/s, default ``STIFFNESS_PER_STEP / substep``)
             and limit_damping_ratio of :mod:`limits`.
         contacts: self-collision penalty forces on/off (see :mod:`contact`).
@@ -56,8 +59,8 @@ class World:
         dt: float = 1.0 / 60.0,
         backend: str = "numpy",
         device=None,
-        integrator: str = "rkn",
-        drag: bool = True,
+        integrator="rkn",
+        drag=True,
         drag_coefficient: float = DRAG_COEFFICIENT,
         limits: bool = True,
         limit_frequency: float | None = None,
@@ -70,8 +73,10 @@ class World:
     ):
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt: must be a positive number of seconds, got {dt!r}")
-        if integrator not in INTEGRATORS:
-            raise ValueError(f"integrator: got {integrator!r}; allowed: {', '.join(INTEGRATORS)}")
+        if not callable(integrator) and integrator not in INTEGRATORS:
+            raise ValueError(f"integrator: got {integrator!r}; allowed: {', '.join(INTEGRATORS)} or a function rkn_step(f, t, y, v, h)")
+        if not (isinstance(drag, (bool, np.bool_)) or callable(drag)):
+            raise TypeError(f"drag: must be True, False or a function box_drag(half_extents, k), got {type(drag).__name__}")
         for name, cap in (("max_speed", max_speed), ("max_angular_speed", max_angular_speed), ("max_joint_speed", max_joint_speed)):
             if not (cap > 0):
                 raise ValueError(f"{name}: must be > 0, got {cap}")
@@ -79,8 +84,9 @@ class World:
         self.xp = xp = m.xp
         self.dt = float(dt)
         self.integrator = integrator
-        self.damping = drag_matrix(m, drag_coefficient) if drag else None
-        rate = max_drag_rate(m, drag_coefficient) if drag else 0.0
+        box_drag = drag if callable(drag) else None
+        self.damping = drag_matrix(m, drag_coefficient, box_drag) if drag else None
+        rate = max_drag_rate(m, drag_coefficient, box_drag) if drag else 0.0
         self.substeps = max(1, math.ceil(self.dt * rate / STABLE_DRAG_STEP))
         self.h = self.dt / self.substeps
         self.limits = limits
@@ -159,12 +165,12 @@ class World:
         xp, m = self.xp, self.model
         jfrozen = bk.asarray(xp, self.diverged, dtype=xp.bool, device=m.device)[self._joint_creature]
         self.tau = xp.where(jfrozen, xp.zeros_like(self.tau), self.tau)
-        for _ in range(self.substeps):
+        for i in range(self.substeps):
             if self.contacts is not None:
                 f_world, self.contact_sensors = self.contacts.forces(self.state)
                 self.f_world = f_world if bool(xp.any(f_world != 0)) else None
             prev = self.state
-            new = step(xp, prev, self.h, self._accel, self.integrator)
+            new = step(xp, prev, self.h, self._accel, self.integrator, self.time + i * self.h)
             self.state = self._guard(prev, new)
         self.time += self.dt
 
