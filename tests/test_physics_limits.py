@@ -1,4 +1,4 @@
-"""Joint-limit springs never create energy or momentum (the exploit evolution found first).
+"""Joint-limit and contact springs never create energy or momentum (the exploit evolution found first).
 
 A 3-box, 41 g creature with two narrow prismatic joints (tests/data/limit_exploit_creature.json,
 bred by `coursekit demo swimmers` before the fix) "swam" 8.7 m/s -- with the water switched off
@@ -48,11 +48,11 @@ def test_the_exploit_creature_goes_nowhere_without_water():
 
 
 @settings(max_examples=12, deadline=None)
-@given(st.integers(0, 2**32 - 1))
-def test_passive_creatures_thrown_against_their_limits_never_gain_energy(seed):
+@given(st.integers(0, 2**32 - 1), st.booleans())
+def test_passive_creatures_thrown_against_their_limits_and_themselves_never_gain_energy(seed, contacts):
     rng = np.random.default_rng(seed)
     creatures = [Creature.random(rng, max_parts=12) for _ in range(6)]
-    world = World([c.expand().body for c in creatures], dt=1 / 60, drag=False, contacts=False)
+    world = World([c.expand().body for c in creatures], dt=1 / 60, drag=False, contacts=contacts)
     qpos, qvel = world.get_state()
     qvel = [np.r_[rng.normal(size=6) * 0.2, rng.normal(size=len(v) - 6) * 3.0] for v in qvel]  # fast: limits get hit
     world.set_state(qpos, qvel)
@@ -62,5 +62,6 @@ def test_passive_creatures_thrown_against_their_limits_never_gain_energy(seed):
         world.step()
         worst = np.maximum(worst, world.kinetic_energy() + world.potential_energy())
     assert not world.diverged.any()
-    # RK4/RKN truncation may wobble the energy by ~1e-6 relative; the instability grew it 250x
-    assert np.all(worst <= e0 * (1 + 1e-4) + 1e-12)
+    # RK4/RKN truncation may wobble the energy by ~1e-6 relative (more around contact onsets);
+    # the unstable limit dampers grew it 250x, contact forces held over each step up to 16 %
+    assert np.all(worst <= e0 * (1 + 1e-3) + 1e-12)

@@ -3,8 +3,9 @@
 :class:`World` owns a packed :class:`~coursekit.creatures.physics.model.Model` and its
 :class:`~coursekit.creatures.physics.integrate.State`. Each :meth:`World.step` advances every
 creature by ``dt`` with the chosen integrator (sub-stepped when the water would be too stiff, see
-:mod:`~coursekit.creatures.physics.water`). Joint forces from effectors and self-collision forces
-are held constant over a step; drag and limit springs are evaluated at every stage.
+:mod:`~coursekit.creatures.physics.water`). Joint forces from effectors are held constant over a
+step; self-collisions are detected at the step's start and their forces, like drag and the limit
+springs, are evaluated at every stage.
 
 Guards: after each step a creature whose state is not finite or whose root speed, root spin or
 any joint rate exceeds its cap is flagged ``diverged`` and frozen at its last good state with zero
@@ -107,7 +108,7 @@ class World:
         quat[:, 0] = 1.0
         self.state = State(z(C, 3), quat, z(M), z(C, 3), z(C, 3), z(M))
         self.tau = z(M)
-        self.f_world = None
+        self.active_contacts = None
         self._inertia_q = self._inertia = None
         self.contact_sensors = None
         self._joint_creature = bk.index(xp, m.joint_creature, device=m.device)
@@ -140,9 +141,11 @@ class World:
         if self.limits:
             tau = tau + limit_forces(xp, q, qd, self.lo, self.hi, self.limit_k, self.limit_b)
         f_ext = None
-        if self.f_world is not None:  # contact wrenches are held in world axes: rotate into each body
-            Rb, _ = forward_kinematics(m, R, pos, q)
-            f_ext = xp.concat([sp.mv(Rb.mT, self.f_world[:, :3]), sp.mv(Rb.mT, self.f_world[:, 3:])], axis=1)
+        if self.active_contacts is not None:  # the step's contacts, followed through this stage
+            Rb, pb = forward_kinematics(m, R, pos, q)
+            E, r = joint_transforms(m, q)
+            v, _ = body_velocities(m, sp.transform_matrix(xp, E, r), xp.concat([omega, vb], axis=1), qd)
+            f_ext = self.contacts.wrench(self.active_contacts, Rb, pb, v)
         if q is not self._inertia_q:  # RKN stages 2 and 3 share positions, hence inertias
             self._inertia_q, self._inertia = q, articulated_inertias(m, q)
         a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping, inertias=self._inertia)
@@ -167,8 +170,7 @@ class World:
         self.tau = xp.where(jfrozen, xp.zeros_like(self.tau), self.tau)
         for i in range(self.substeps):
             if self.contacts is not None:
-                f_world, self.contact_sensors = self.contacts.forces(self.state)
-                self.f_world = f_world if bool(xp.any(f_world != 0)) else None
+                self.active_contacts, self.contact_sensors = self.contacts.begin(self.state)
             prev = self.state
             new = step(xp, prev, self.h, self._accel, self.integrator, self.time + i * self.h)
             self.state = self._guard(prev, new)
