@@ -570,7 +570,7 @@ def render(genomes, size=(128, 128), *, window=(0.0, 0.0, 1.0, 1.0), time: float
         groups.setdefault(t.structure() if batch else i, []).append(i)
 
     def run(idx):
-        with torch.no_grad():
+        with torch.inference_mode():
             tree = _stack_trees([trees[i] for i in idx], device)
             v = _eval(tree, dataclasses.replace(ctx, memo={}))  # a fresh memo per group
             rgb = to_rgb(v, H, W)
