@@ -66,10 +66,6 @@ class _Ctx:
     def with_coords(self, x, y) -> "_Ctx":
         return _Ctx(_sane(x), _sane(y), self.H, self.W, self.px, self.py, self.time, self.res, self.memo)
 
-    @property
-    def separable(self) -> bool:
-        return self.x.shape[-2] == 1 and self.y.shape[-1] == 1
-
 
 class _Resources:
     """Noise lattice and pixel maps on one device (cached)."""
