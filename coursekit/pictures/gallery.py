@@ -279,6 +279,14 @@ class Gallery:
     def state(self) -> GalleryState:
         return self.evolution.state
 
+    def export(self, i: int, path, size=2048) -> Path:
+        """Save picture ``i`` at full resolution with its genome (see :func:`save_image`)."""
+        from .files import save_image
+
+        if not 0 <= i < self.evolution.size:
+            raise ValueError(f"i: {i} is not a picture index (0..{self.evolution.size - 1})")
+        return save_image(path, self.state.population[i], size, **self.render_options)
+
     def _ipython_display_(self):  # pragma: no cover - notebook display
         from IPython.display import display
         display(self.widget)
