@@ -132,3 +132,12 @@ def test_foreign_session_file_is_refused(tmp_path):
     p.write_text("{truncated")
     with pytest.raises(ValueError, match="not a gallery session"):
         Gallery.load(p, np.random.default_rng(0))
+
+
+def test_export_saves_a_picture_that_can_be_bred_again(gallery, tmp_path):
+    from coursekit.pictures import load_genome
+
+    path = gallery.export(3, tmp_path / "keep.png", size=24)
+    assert load_genome(path) == gallery.state.population[3]
+    with pytest.raises(ValueError, match="not a picture index"):
+        gallery.export(6, tmp_path / "nope.png")

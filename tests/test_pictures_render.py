@@ -176,3 +176,12 @@ def test_shared_subtrees_are_evaluated_once_with_the_same_result():
         b = render_reference(g, (12, 10), window=WINDOW)
         assert mismatch(a, b) == 0.0
     assert np.all(render(same, 8)[0] == 0.0)
+
+
+@pytest.mark.parametrize("window", [(-1e5, -1e5, 1e5, 1e5), (0.3, 0.3, 0.3 + 1e-7, 0.3 + 1e-7),
+                                    (1.0, 1.0, 0.0, 0.0), (-3e5, 7.0, -2.9e5, 9.0)])
+def test_extreme_windows_and_times_stay_finite(window):
+    rng = np.random.default_rng(17)
+    genomes = [Genome.random(rng, n_strings=2, head_length=4) for _ in range(60)]
+    img = render(genomes, (12, 16), window=window, time=1e7)
+    assert np.isfinite(img).all() and img.min() >= 0.0 and img.max() <= 1.0

@@ -66,10 +66,6 @@ class _Ctx:
     def with_coords(self, x, y) -> "_Ctx":
         return _Ctx(_sane(x), _sane(y), self.H, self.W, self.px, self.py, self.time, self.res, self.memo)
 
-    @property
-    def separable(self) -> bool:
-        return self.x.shape[-2] == 1 and self.y.shape[-1] == 1
-
 
 class _Resources:
     """Noise lattice and pixel maps on one device (cached)."""
@@ -228,21 +224,26 @@ def _bw_noise(ctx, p):
     return _noise(ctx, ctx.x * p[0] + p[1], ctx.y * p[0] + p[2])
 
 
+def _stacked_noise(ctx, freqs, shifts, ox, oy):
+    """Noise for several (frequency, shift) pairs in one call, stacked along a new dim 0."""
+    us = torch.cat([(ctx.x * f + ox + sx).expand(ox.shape[0], -1, -1, -1) for f, (sx, _) in zip(freqs, shifts)])
+    vs = torch.cat([(ctx.y * f + oy + sy).expand(oy.shape[0], -1, -1, -1) for f, (_, sy) in zip(freqs, shifts)])
+    n = _noise(ctx, us, vs)
+    return n.reshape(len(freqs), -1, *n.shape[1:])
+
+
 def _color_noise(ctx, p):
-    return torch.cat([_noise(ctx, ctx.x * p[0] + p[1] + sx, ctx.y * p[0] + p[2] + sy)
-                      for sx, sy in T.CHANNEL_SHIFT], dim=1)
+    n = _stacked_noise(ctx, [p[0]] * 3, T.CHANNEL_SHIFT, p[1], p[2])  # (3, B, 1, Hs, Ws)
+    return n[:, :, 0].transpose(0, 1)
 
 
 def _turbulence(ctx, p):
     octaves = torch.floor(p[1]).clamp(1, 8)
-    total, norm = 0.0, 0.0
-    for o in range(int(octaves.max())):
-        on = (octaves > o).to(p[0].dtype) * 0.5 ** o
-        f = p[0] * 2.0 ** o
-        n = _noise(ctx, ctx.x * f + p[2] + o * T.OCTAVE_SHIFT[0], ctx.y * f + p[3] + o * T.OCTAVE_SHIFT[1])
-        total = total + on * torch.abs(2.0 * n - 1.0)
-        norm = norm + on
-    return total / norm
+    count = int(octaves.max())
+    shifts = [(o * T.OCTAVE_SHIFT[0], o * T.OCTAVE_SHIFT[1]) for o in range(count)]
+    n = _stacked_noise(ctx, [p[0] * 2.0 ** o for o in range(count)], shifts, p[2], p[3])
+    weight = torch.stack([(octaves > o).to(p[0].dtype) * 0.5 ** o for o in range(count)])  # (O, B, 1, 1, 1)
+    return (weight * torch.abs(2.0 * n - 1.0)).sum(dim=0) / weight.sum(dim=0)
 
 
 def _pixmap(ctx, p):
@@ -565,7 +566,7 @@ def render(genomes, size=(128, 128), *, window=(0.0, 0.0, 1.0, 1.0), time: float
         groups.setdefault(t.structure() if batch else i, []).append(i)
 
     def run(idx):
-        with torch.no_grad():
+        with torch.inference_mode():
             tree = _stack_trees([trees[i] for i in idx], device)
             v = _eval(tree, dataclasses.replace(ctx, memo={}))  # a fresh memo per group
             rgb = to_rgb(v, H, W)

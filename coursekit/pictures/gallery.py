@@ -42,6 +42,7 @@ class GalleryState:
     generation: int = 0
 
     def to_dict(self) -> dict:
+        """JSON-ready dict (``"format": "coursekit.gallery/1"``)."""
         return {"format": GALLERY_FORMAT, "generation": self.generation, "selected": list(self.selected),
                 "population": [g.to_dict() for g in self.population],
                 "history": [{"population": [g.to_dict() for g in pop], "selected": list(sel)}
@@ -49,6 +50,7 @@ class GalleryState:
 
     @classmethod
     def from_dict(cls, d) -> "GalleryState":
+        """Inverse of :meth:`to_dict`; ValueError for foreign or malformed sessions."""
         if not isinstance(d, dict) or d.get("format") != GALLERY_FORMAT:
             got = d.get("format") if isinstance(d, dict) else type(d).__name__
             raise ValueError(f"gallery: format {got!r} is not {GALLERY_FORMAT!r}")
@@ -276,6 +278,14 @@ class Gallery:
     @property
     def state(self) -> GalleryState:
         return self.evolution.state
+
+    def export(self, i: int, path, size=2048) -> Path:
+        """Save picture ``i`` at full resolution with its genome (see :func:`save_image`)."""
+        from .files import save_image
+
+        if not 0 <= i < self.evolution.size:
+            raise ValueError(f"i: {i} is not a picture index (0..{self.evolution.size - 1})")
+        return save_image(path, self.state.population[i], size, **self.render_options)
 
     def _ipython_display_(self):  # pragma: no cover - notebook display
         from IPython.display import display

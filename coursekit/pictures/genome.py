@@ -59,6 +59,7 @@ class Chromosome:
 
     @property
     def arity(self) -> int:
+        """Number of arguments of this chromosome's primitive."""
         return P.arity(self.symbol)
 
     @classmethod
@@ -118,14 +119,17 @@ class ChromosomeString:
 
     @property
     def symbols(self) -> list[str]:
+        """The primitive names of the string, head then tail."""
         return [c.symbol for c in self.chromosomes]
 
     @property
     def head(self) -> tuple[Chromosome, ...]:
+        """The first ``head_length`` chromosomes (any primitive)."""
         return self.chromosomes[: self.head_length]
 
     @property
     def tail(self) -> tuple[Chromosome, ...]:
+        """The last ``tail_length`` chromosomes (ZeroArgChrom only)."""
         return self.chromosomes[self.head_length:]
 
     def __len__(self) -> int:
@@ -203,6 +207,7 @@ class Node:
         return self.chromosome.params
 
     def sexpr(self) -> str:
+        """This subtree as an s-expression."""
         if not self.children:
             return self.chromosome.label()
         head = " ".join([self.symbol] + [f"{v:.4g}" for v in self.params])
@@ -213,11 +218,13 @@ class Node:
         return (self.symbol,) + tuple(c.structure() for c in self.children)
 
     def walk(self):
+        """All nodes of the subtree, depth first."""
         yield self
         for c in self.children:
             yield from c.walk()
 
     def size(self) -> int:
+        """Number of nodes of the subtree."""
         return sum(1 for _ in self.walk())
 
 
@@ -331,6 +338,7 @@ class Genome:
 
     # ---- files --------------------------------------------------------------------------
     def to_dict(self) -> dict:
+        """The JSON-ready dict of :meth:`to_json`."""
         def chrom(c):
             return [c.symbol, list(c.params)]
         return {"format": FORMAT,
@@ -349,6 +357,7 @@ class Genome:
 
     @classmethod
     def from_dict(cls, d) -> "Genome":
+        """Inverse of :meth:`to_dict`; ValueError naming the broken field otherwise."""
         if not isinstance(d, dict):
             raise ValueError(f"genome: expected a JSON object, got {type(d).__name__}")
         if d.get("format") != FORMAT:
