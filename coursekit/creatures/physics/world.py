@@ -25,7 +25,7 @@ from .aba import aba, articulated_inertias, body_velocities, forward_kinematics,
 from .contact import Contacts
 from .dynamics import _flatten, split_layout, join_velocity_layout
 from .integrate import INTEGRATORS, State, step
-from .limits import STIFFNESS_PER_STEP, limit_energy, limit_forces, limit_gains
+from .limits import LIMIT_DAMPING_RATIO, STIFFNESS_PER_STEP, limit_energy, limit_forces, limit_gains
 from .model import Model
 from .water import DRAG_COEFFICIENT, STABLE_DRAG_STEP, drag_matrix, max_drag_rate
 
@@ -65,7 +65,7 @@ class World:
         drag_coefficient: float = DRAG_COEFFICIENT,
         limits: bool = True,
         limit_frequency: float | None = None,
-        limit_damping_ratio: float = 1.0,
+        limit_damping_ratio: float = LIMIT_DAMPING_RATIO,
         contacts: bool = True,
         contact_stiffness: float | None = None,
         max_speed: float = MAX_SPEED,
