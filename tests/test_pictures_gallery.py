@@ -33,6 +33,21 @@ def test_widgets_mirror_the_state(gallery):
     assert "1 selected" in gallery.status.value
 
 
+def test_clicking_a_picture_selects_it(gallery):
+    """A browser click on a thumbnail reaches the gallery as an ipyevents DOM-event message."""
+    def browser_click(i):
+        gallery._clicks[i]._handle_mouse_msg(None, {"event": "click", "type": "click"}, [])
+
+    browser_click(3)
+    browser_click(0)
+    assert gallery.state.selected == [3, 0]  # click order is kept: it is the parents' order
+    assert gallery.toggles[3].value and "2 selected" in gallery.status.value
+    assert "2e7d32" in gallery.images[3].layout.border and "transparent" in gallery.images[1].layout.border
+    browser_click(3)
+    assert gallery.state.selected == [0]
+    assert "transparent" in gallery.images[3].layout.border
+
+
 def test_each_operator_button_breeds_from_the_selection(gallery, tmp_path):
     for name in O.MUTATIONS:
         parent = gallery.state.population[1]

@@ -3,8 +3,9 @@
 The paper's Qt GUI (Figure 10) lets the user pick pictures and choose one of the four
 mutations or three recombinations. :class:`GalleryState` is that evolution as a plain Python
 object - population, selection, history - with no widgets; :class:`Gallery` mirrors it in
-ipywidgets: a grid of thumbnails with a toggle under each (``ipywidgets.Image`` has no click
-events), one button per operator, "next generation", "undo" and "new random". Every change is
+ipywidgets: a grid of thumbnails you click to select (clicks on the pictures arrive through
+``ipyevents``, since ``ipywidgets.Image`` has no click events; a toggle under each picture does
+the same), one button per operator, "next generation", "undo" and "new random". Every change is
 autosaved atomically to a JSON file (``coursekit.gallery/1``) when a path is given.
 
 Operators are parameters: pass your own ``transposition(genome, rng)`` (or any of the seven)
@@ -242,9 +243,15 @@ class Gallery:
         self.render_options = dict(render_options or {})
         self._syncing = False
 
-        self.images, self.toggles = [], []
+        from ipyevents import Event
+
+        self.images, self.toggles, self._clicks = [], [], []
         for i in range(self.evolution.size):
-            self.images.append(W.Image(format="png", layout=W.Layout(width=f"{size}px", height=f"{size}px")))
+            im = W.Image(format="png", layout=W.Layout(width=f"{size}px", height=f"{size}px", border="3px solid transparent"))
+            click = Event(source=im, watched_events=["click"], prevent_default_action=True)
+            click.on_dom_event(lambda event, i=i: self.click(i))
+            self.images.append(im)
+            self._clicks.append(click)
             t = W.ToggleButton(description=f"#{i}", layout=W.Layout(width=f"{size}px"))
             t.observe(lambda change, i=i: self._on_toggle(i, change), names="value")
             self.toggles.append(t)
@@ -291,6 +298,10 @@ class Gallery:
         from IPython.display import display
         display(self.widget)
 
+    def click(self, i: int) -> None:
+        """What a click on picture ``i`` does: select it, or unselect it if it was selected."""
+        self.toggles[i].value = not self.toggles[i].value
+
     def _on_toggle(self, i, change):
         if not self._syncing:
             self._sync(self.evolution.select(i, bool(change["new"])), images=False)
@@ -320,6 +331,7 @@ class Gallery:
                     im.value = png_bytes(pic)
             for i, t in enumerate(self.toggles):
                 t.value = i in s.selected
+                self.images[i].layout.border = "3px solid #2e7d32" if i in s.selected else "3px solid transparent"
                 t.button_style = "success" if i in s.selected else ""
                 t.icon = "check" if i in s.selected else ""
             self.status.value = (f"<b>generation {s.generation}</b> &middot; {len(s.selected)} selected "
