@@ -3,7 +3,8 @@
 - ``swimmers``: evolve a population of swimmers (paper section 2) in the batched simulator and
   write what a lecture wants to show: the best creature's genome, a picture of it, a GIF of it
   swimming, and the fitness plot of the run.
-- ``pictures``: breed genetic pictures (paper section 3) in JupyterLab's click-to-select gallery.
+- ``pictures``: breed genetic pictures (paper section 3) in the click-to-select gallery: the CLI
+  opens ``demos/picture_breeding.ipynb`` in JupyterLab.
 """
 
 from __future__ import annotations

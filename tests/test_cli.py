@@ -30,8 +30,11 @@ def test_profiles(monkeypatch):
         profile.current()
 
 
-def test_lab_serves_the_course_and_opens_the_lessons(tmp_path):
-    """`coursekit lab` (the README's first command) really serves JupyterLab on lessons/."""
+@pytest.mark.parametrize("command, opens", [(["lab"], "/lab/tree/lessons"),
+                                            (["demo", "pictures"], "/lab/tree/demos/picture_breeding.ipynb")])
+def test_lab_serves_the_course_and_opens_the_lessons(tmp_path, command, opens):
+    """`coursekit lab` (the README's first command) really serves JupyterLab on lessons/; the
+    pictures demo opens its notebook the same way."""
     import json
     import socket
     import time
@@ -43,7 +46,7 @@ def test_lab_serves_the_course_and_opens_the_lessons(tmp_path):
         port = s.getsockname()[1]
     env = {**__import__("os").environ, "JUPYTER_RUNTIME_DIR": str(tmp_path), "JUPYTER_CONFIG_DIR": str(tmp_path)}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "coursekit", "lab", "--no-browser", f"--ServerApp.port={port}", "--ServerApp.token=t", "--ServerApp.ip=127.0.0.1"],
+        [sys.executable, "-m", "coursekit", *command, "--no-browser", f"--ServerApp.port={port}", "--ServerApp.token=t", "--ServerApp.ip=127.0.0.1"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         env=env,
@@ -71,7 +74,7 @@ def test_lab_serves_the_course_and_opens_the_lessons(tmp_path):
             location = ""
         except urllib.error.HTTPError as e:
             location = e.headers["Location"]
-        assert "/lab/tree/lessons" in location
+        assert location.split("?")[0].endswith(opens)
     finally:
         proc.terminate()
         proc.wait(timeout=30)
