@@ -33,7 +33,7 @@ def swimmers(out="swimmers-demo", *, population: int | None = None, generations:
 
     from coursekit.creatures import evolve_swimmers, simulate
     from coursekit.creatures.render import animate, render
-    from coursekit.ga.checkpoint import atomic_write_bytes
+    from coursekit.atomic import atomic_write
 
     population = population or sized(classroom=60, ci=6)
     generations = sized(classroom=10, ci=1) if generations is None else generations
@@ -44,7 +44,7 @@ def swimmers(out="swimmers-demo", *, population: int | None = None, generations:
     result = evolve_swimmers(generations=generations, rng=rng, population_size=population, seconds=seconds,
                              progress=progress, random_options=dict(max_parts=16))
     best = result.best
-    atomic_write_bytes(out / "best.json", best.to_json().encode())
+    atomic_write(out / "best.json", best.to_json())
     render(best, out / "best.png")
     replay = simulate([best], seconds, record_every=3)
     animate(best, replay.trajectory[0], out / "best.gif", fps=20)
@@ -60,5 +60,5 @@ def swimmers(out="swimmers-demo", *, population: int | None = None, generations:
         "history_best": [float(x) for x in result.history.best],
         "files": sorted(p.name for p in out.iterdir()),
     }
-    atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=2).encode())
+    atomic_write(out / "summary.json", json.dumps(summary, indent=2))
     return summary

@@ -21,7 +21,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from coursekit import ga
-from coursekit.ga import checkpoint as ckpt_mod
+from coursekit import atomic
 from coursekit.ga.problems import TargetMatch, onemax, random_bits
 
 matplotlib.use("Agg")
@@ -262,7 +262,7 @@ def test_checkpoint_write_is_atomic(tmp_path, monkeypatch):
 
     for name in ("replace", "fsync"):
         with monkeypatch.context() as m:
-            m.setattr(ckpt_mod.os, name, boom)
+            m.setattr(atomic.os, name, boom)
             with pytest.raises(OSError, match="disk full"):
                 ga.resume(ckpt, FITNESS, VARY, generations=3, progress=False)
         assert ckpt.read_bytes() == before  # the old checkpoint is intact ...

@@ -31,12 +31,12 @@ Files are JSON with ``"format": "coursekit.creature/1"``, written atomically.
 
 from __future__ import annotations
 
+from coursekit.atomic import atomic_write
+
 import copy
 import itertools
 import json
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -412,18 +412,7 @@ class Creature:
 
     def save(self, path) -> None:
         """Write the JSON atomically (temporary file in the same folder, then ``os.replace``)."""
-        path = Path(path)
-        fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent or ".")
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
-                f.write(self.to_json())
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
+        atomic_write(path, self.to_json())
 
     @classmethod
     def load(cls, path) -> "Creature":

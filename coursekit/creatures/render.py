@@ -9,12 +9,13 @@ matplotlib's ``viridis``), with every joint's axis as a short red line through i
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+from coursekit.atomic import atomic_path  # noqa: E402
 
 from .body import PRISMATIC, BodyTree  # noqa: E402
 from .phenotype import Phenotype, part_poses  # noqa: E402
@@ -109,19 +110,6 @@ class _Scene:
             self.pl.reset_camera()  # keep the direction, fit the distance to the bounds
 
 
-def _atomic(path: Path, suffix: str, write) -> Path:
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=path.stem + ".", suffix=suffix, dir=path.parent or ".")
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
-
-
 def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, background: str = "white",
            azimuth: float = 30.0, elevation: float = 25.0):
     """Render a creature off-screen.
@@ -150,7 +138,9 @@ def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, 
         scene.look(0.5 * (lo + hi), max(float(np.linalg.norm(hi - lo)), 0.1), azimuth, elevation)
         if path is None:
             return np.asarray(scene.pl.screenshot(return_img=True))[..., :3].copy()
-        return _atomic(path, ".png", scene.pl.screenshot)
+        with atomic_path(path, ".png") as tmp:
+            scene.pl.screenshot(str(tmp))
+        return Path(path)
     finally:
         scene.pl.close()
 
@@ -196,15 +186,14 @@ def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes
         scene.pl.add_mesh(grid, style="wireframe", color="#7fa7c9", line_width=1)
         radius = max(float(np.linalg.norm(np.ptp(scene.pose(*poses[0]), axis=0))), 0.1) * 1.6
 
-        def write(tmp):
-            scene.pl.open_gif(tmp, fps=fps)
+        with atomic_path(path, ".gif") as tmp:
+            scene.pl.open_gif(str(tmp), fps=fps)
             for R, t in poses:
                 c = scene.pose(R, t)
                 scene.look(0.5 * (c.min(0) + c.max(0)), radius, azimuth, elevation, fit=False)
                 scene.pl.write_frame()
             scene.pl.mwriter.close()  # flush the GIF before it is moved into place
             scene.pl.mwriter = None
-
-        return _atomic(path, ".gif", write)
+        return Path(path)
     finally:
         scene.pl.close()

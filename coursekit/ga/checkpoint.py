@@ -20,14 +20,14 @@ checkpoints you (or your course) wrote.
 
 from __future__ import annotations
 
+from coursekit.atomic import atomic_write
+
 import hashlib
-import os
 import pickle
 import struct
-import tempfile
 from pathlib import Path
 
-__all__ = ["FORMAT", "save_checkpoint", "load_checkpoint", "atomic_write_bytes"]
+__all__ = ["FORMAT", "save_checkpoint", "load_checkpoint"]
 
 FORMAT = "coursekit.ga.checkpoint/1"
 _MAGIC = (FORMAT + "\n").encode()
@@ -35,24 +35,6 @@ _FAMILY = b"coursekit.ga.checkpoint/"
 _HEADER = struct.Struct("<Q32s")
 
 REQUIRED = ("format", "generation", "population", "fitness", "history", "rng_state")
-
-
-def atomic_write_bytes(path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically: a temporary sibling file, fsync, ``os.replace``."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
 
 
 def save_checkpoint(path, state: dict) -> None:
@@ -68,7 +50,7 @@ def save_checkpoint(path, state: dict) -> None:
     if missing:
         raise ValueError(f"state: checkpoint is missing {missing}")
     payload = pickle.dumps(state, protocol=5)
-    atomic_write_bytes(path, _MAGIC + _HEADER.pack(len(payload), hashlib.sha256(payload).digest()) + payload)
+    atomic_write(path, _MAGIC + _HEADER.pack(len(payload), hashlib.sha256(payload).digest()) + payload)
 
 
 def load_checkpoint(path) -> dict:

@@ -10,11 +10,11 @@ exercise file differs byte for byte, is missing, or has no solution.
 
 from __future__ import annotations
 
+from coursekit.atomic import atomic_write
+
 import copy
-import os
 import re
 import sys
-import tempfile
 from pathlib import Path
 
 import nbformat
@@ -81,17 +81,6 @@ def expected(solutions: Path) -> dict:
     return out
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def build(solutions, exercises) -> list[Path]:
     """Write ``exercises/*.ipynb`` from ``solutions/*.ipynb``; return the files that changed."""
     solutions, exercises = Path(solutions), Path(exercises)
@@ -100,7 +89,7 @@ def build(solutions, exercises) -> list[Path]:
     for name, text in expected(solutions).items():
         target = exercises / name
         if not target.exists() or target.read_text(encoding="utf-8") != text:
-            _write_atomic(target, text)
+            atomic_write(target, text)
             changed.append(target)
     return changed
 

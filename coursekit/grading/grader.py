@@ -23,6 +23,8 @@ autograder convention) for the privilege separation.
 
 from __future__ import annotations
 
+from coursekit.atomic import atomic_write
+
 import ctypes
 import json
 import os
@@ -402,17 +404,7 @@ def summary(results: list) -> str:
 
 def write_json_atomic(path, obj) -> None:
     """Write JSON to ``path`` via a temporary file in the same folder and ``os.replace``."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            json.dump(obj, f, indent=1)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_write(path, json.dumps(obj, indent=1))
 
 
 def main(args) -> int:

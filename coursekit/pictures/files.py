@@ -10,9 +10,9 @@ Files are written atomically: a temporary file in the same folder, then ``os.rep
 
 from __future__ import annotations
 
+from coursekit.atomic import atomic_path
+
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -59,25 +59,15 @@ def save_image(path, genome: Genome, size=(1024, 1024), *, window=(0.0, 0.0, 1.0
     spec.attribute("ImageDescription", text)
     spec.attribute(RENDER_KEY, json.dumps({"window": [float(v) for v in window], "time": float(time)}))
     spec.attribute("Software", "coursekit.pictures")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent or ".")
-    os.close(fd)
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual mode
-        out = oiio.ImageOutput.create(tmp)
-        if out is None or not out.open(tmp, spec):
+    with atomic_path(path, path.suffix) as tmp:
+        out = oiio.ImageOutput.create(str(tmp))
+        if out is None or not out.open(str(tmp), spec):
             raise OSError(f"path: cannot write {str(path)!r}: {oiio.geterror() or (out and out.geterror())}")
         ok = out.write_image(np.ascontiguousarray(img))
         err = out.geterror()
         out.close()
         if not ok:
             raise OSError(f"path: writing {str(path)!r} failed: {err}")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
     return path
 
 

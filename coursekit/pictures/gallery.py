@@ -14,10 +14,10 @@ in ``mutations=`` / ``recombinations=`` and the gallery breeds with it.
 
 from __future__ import annotations
 
+from coursekit.atomic import atomic_write
+
 import io
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Mapping
@@ -67,18 +67,6 @@ class GalleryState:
         return state
 
 
-def _atomic_write_text(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 class Evolution:
     """The gallery's logic without widgets: every action returns a message for the user."""
 
@@ -103,7 +91,7 @@ class Evolution:
     def save(self) -> None:
         """Write the session to the autosave file (atomically), if one was given."""
         if self.autosave is not None:
-            _atomic_write_text(self.autosave, json.dumps(self.state.to_dict()))
+            atomic_write(self.autosave, json.dumps(self.state.to_dict()))
 
     def select(self, i: int, on: bool | None = None) -> str:
         """Toggle (or set) the selection of picture ``i``."""

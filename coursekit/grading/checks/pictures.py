@@ -734,7 +734,7 @@ register(Check(
 
 def _copies(parent, donor, child):
     """``[(key, target, sources)]`` of the copies in child (parent plus chromosomes of donor), or a message."""
-    rp, rd = _rows(parent), _rows(donor)
+    rd = _rows(donor)
     out = []
     for k, pos in _diff(parent, child):
         if len(pos) > 1:
