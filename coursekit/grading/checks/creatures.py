@@ -60,8 +60,8 @@ def _random(rng, **kw):
 
 def _deterministic(cid):
     def prop(ctx):
-        a, b = ctx.out(cid)[:2]
-        if json.loads(a) == json.loads(b):
+        outs = [json.loads(o) for o in ctx.out(cid)]  # all calls of the case share one seed
+        if all(o == outs[0] for o in outs[1:]):
             return True, "same seed, same result"
         return False, ("two calls with the same seed gave different results; draw every random number from the rng "
                        "argument (no np.random.* or random.*)")
@@ -381,7 +381,7 @@ def _crossover_cases(rng):
     s = _seeds(rng, 80)
     cases = []
     a, b = _parent_pair(rng, 4, 6)
-    cases.append({"id": "basic", "args": [_obj(a), _obj(b), RNG], "seeds": [s[0], s[0]], "check_inputs": True})
+    cases.append({"id": "basic", "args": [_obj(a), _obj(b), RNG], "seeds": [s[0]] * 4, "check_inputs": True})
     a, b = _parent_pair(rng, 6, 8)
     cases.append({"id": "many", "args": [_obj(a), _obj(b), RNG], "seeds": s[1:41]})
     for k in range(6):
