@@ -55,6 +55,10 @@ REVOLUTE = 1
 PRISMATIC = 2
 JOINT_TYPES = {FREE: "free", REVOLUTE: "revolute", PRISMATIC: "prismatic"}
 
+#: Effector strength per square metre of cross-section (Sims 1994: strength grows with area while
+#: mass grows with volume, so big creatures are not simply stronger).
+STRENGTH_PER_AREA = 0.2
+
 #: The thinnest a part may be (half extent, metres): paper-thin flippers are stiff for any
 #: explicit integrator and an exploit in the literature (see reference/creatures.md).
 MIN_HALF_EXTENT = 0.025
@@ -163,6 +167,20 @@ class BodyTree:
                 raise ValueError(f"BodyTree.strength[{i}]: must be > 0, got {self.strength[i]}")
         if not (self.density > 0):
             raise ValueError(f"BodyTree.density: must be > 0, got {self.density}")
+
+
+def effector_strength(half_extents: np.ndarray, parent: np.ndarray) -> np.ndarray:
+    """(B,) largest force or torque of every joint's effector (0 for the root).
+
+    :data:`STRENGTH_PER_AREA` times the smaller of the two joined parts' largest cross-sectional
+    areas (Sims 1994: "proportional to the maximum cross-sectional area of the two parts").
+    """
+    h = np.asarray(half_extents, dtype=np.float64)
+    parent = np.asarray(parent)
+    area = 4.0 * np.max(np.stack([h[:, 1] * h[:, 2], h[:, 0] * h[:, 2], h[:, 0] * h[:, 1]], axis=1), axis=1)
+    strength = np.zeros(len(h))
+    strength[1:] = STRENGTH_PER_AREA * np.minimum(area[1:], area[parent[1:]])
+    return strength
 
 
 def rotation_about(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:

@@ -25,7 +25,7 @@ gives the mirror-image motion. The gain is ``|force|`` for unmirrored instances
 whether symmetric parts move alike (mirror images) or opposite.
 
 Sizes: an instance's half extents are ``size * scale`` clamped to ``[MIN_HALF_EXTENT,
-MAX_HALF_EXTENT]``; prismatic limits scale too. Strength is ``STRENGTH_PER_AREA`` times the
+MAX_HALF_EXTENT]``; prismatic limits scale too. Strength is ``body.STRENGTH_PER_AREA`` times the
 smaller of the two joined parts' largest cross-sections (Sims: strength ∝ area).
 
 Part cap: expansion stops creating parts once :data:`MAX_PARTS` (default 64) exist; later links
@@ -38,12 +38,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .body import MIN_HALF_EXTENT, PRISMATIC, REVOLUTE, BodyTree, rotation_about
+from .body import MIN_HALF_EXTENT, PRISMATIC, REVOLUTE, BodyTree, effector_strength, rotation_about
 from .brain import Brain, build_brain
 from .genotype import MAX_HALF_EXTENT, Creature
 
 MAX_PARTS = 64
-STRENGTH_PER_AREA = 0.2  #: N·m (or N) per m² of cross-section, as physics.samples uses
 
 
 @dataclass
@@ -157,8 +156,7 @@ def _body_tree(nodes, insts, halves, truncated) -> BodyTree:
     rot = np.tile(np.eye(3), (B, 1, 1))
     limits = np.zeros((B, 2))
     gain = np.zeros(B)
-    strength = np.zeros(B)
-    area = 4.0 * np.max(np.stack([half[:, 1] * half[:, 2], half[:, 0] * half[:, 2], half[:, 0] * half[:, 1]], 1), axis=1)
+    strength = effector_strength(half, parent)
     for b in range(1, B):
         inst = insts[b]
         node = nodes[inst.node]
@@ -178,7 +176,6 @@ def _body_tree(nodes, insts, halves, truncated) -> BodyTree:
         jpc[b] = F * (np.asarray(node.joint_pos, dtype=np.float64) * half[b])
         rot[b] = inst.rot
         gain[b] = abs(node.force) if det > 0 else node.force
-        strength[b] = STRENGTH_PER_AREA * min(area[b], area[inst.parent])
     return BodyTree(parent, half, jtype, axis, jpp, jpc, rot, limits, gain, strength,
                     node_id=np.array([i.node for i in insts], dtype=np.int64), meta={"truncated": truncated})
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from coursekit.creatures.body import FREE, PRISMATIC, REVOLUTE, BodyTree, rotation_about
+from coursekit.creatures.body import FREE, PRISMATIC, REVOLUTE, BodyTree, effector_strength, rotation_about
 
 
 def _random_rotation(rng: np.random.Generator, max_angle: float) -> np.ndarray:
@@ -70,7 +70,6 @@ def random_body_tree(
     rot = np.tile(np.eye(3), (B, 1, 1))
     limits = np.zeros((B, 2))
     gain = np.zeros(B)
-    strength = np.zeros(B)
     parent[1:] = _depth_first([int(rng.integers(0, i)) for i in range(1, B)])
     for i in range(1, B):
         p = parent[i]
@@ -95,9 +94,7 @@ def random_body_tree(
             jtype[i] = REVOLUTE
             limits[i] = [-rng.uniform(0.4, 1.5), rng.uniform(0.4, 1.5)]
         gain[i] = rng.choice([-1.0, 1.0]) * rng.uniform(0.5, 1.5)
-        area = max(np.prod(np.delete(half[i], j)) for j in range(3)) * 4
-        strength[i] = 0.2 * area
-    return BodyTree(parent, half, jtype, axis, jpp, jpc, rot, limits, gain, strength)
+    return BodyTree(parent, half, jtype, axis, jpp, jpc, rot, limits, gain, effector_strength(half, parent))
 
 
 def random_state(rng: np.random.Generator, tree: BodyTree, *, speed: float = 1.0, inside: float = 0.9):
