@@ -30,6 +30,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import threading
+from collections import OrderedDict
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Sequence
@@ -62,9 +64,13 @@ class _Ctx:
     time: float
     res: "_Resources"
     memo: dict = field(default_factory=dict)  # shared subtree values, shared by derived contexts
+    key: tuple | None = None  # (H, W, window) of the unwarped context: its terminals are cached
 
     def with_coords(self, x, y) -> "_Ctx":
         return _Ctx(_sane(x), _sane(y), self.H, self.W, self.px, self.py, self.time, self.res, self.memo)
+
+
+_CACHE_BYTES = 64 << 20  # unwarped terminal images kept across renders (per device)
 
 
 class _Resources:
@@ -75,11 +81,13 @@ class _Resources:
     def __init__(self, device):
         self.device = device
         self.table = torch.from_numpy(T.noise_table()).to(device)
-        self.flat = self.table.reshape(-1)
         wrapped = torch.cat([self.table, self.table[:1]], dim=0)
         self.wrapped = torch.cat([wrapped, wrapped[:, :1]], dim=1)[None, None].contiguous()
         self.box_matrices: dict = {}
         self.pixmaps: dict[int, torch.Tensor] = {}
+        self._sampled: OrderedDict = OrderedDict()
+        self._sampled_bytes = 0
+        self._lock = threading.Lock()
 
     @classmethod
     def on(cls, device) -> "_Resources":
@@ -100,6 +108,26 @@ class _Resources:
             self.box_matrices[key] = (b @ b @ b).float().to(self.device)
         return self.box_matrices[key]
 
+    def sampled(self, key, compute) -> torch.Tensor:
+        """``compute()``, cached under ``key`` (least recently used first out, at most
+        :data:`_CACHE_BYTES`); ``key=None`` computes without caching. Thread-safe."""
+        if key is None:
+            return compute()
+        with self._lock:
+            if key in self._sampled:
+                self._sampled.move_to_end(key)
+                return self._sampled[key]
+        value = compute()
+        size = value.numel() * value.element_size()
+        with self._lock:
+            if key not in self._sampled and size <= _CACHE_BYTES // 4:
+                self._sampled[key] = value
+                self._sampled_bytes += size
+                while self._sampled_bytes > _CACHE_BYTES:
+                    _, old = self._sampled.popitem(last=False)
+                    self._sampled_bytes -= old.numel() * old.element_size()
+        return value
+
     def pixmap(self, i: int) -> torch.Tensor:
         if i not in self.pixmaps:
             self.pixmaps[i] = torch.from_numpy(T.pixmap(i)).permute(2, 0, 1)[None].to(self.device)
@@ -117,8 +145,8 @@ def _fmod(v: torch.Tensor, m) -> torch.Tensor:
 
 
 def fold(v: torch.Tensor) -> torch.Tensor:
-    """Mirror-repeat into [0, 1] with period 2: 1 - |(v mod 2) - 1|."""
-    return 1.0 - torch.abs(_fmod(v, 2.0) - 1.0)
+    """Mirror-repeat into [0, 1] with period 2: |v - 2 round(v / 2)| (= 1 - |(v mod 2) - 1|)."""
+    return torch.sub(v, (v * 0.5).round_(), alpha=2.0).abs_()
 
 
 def to_rgb(v: torch.Tensor, H: int, W: int) -> torch.Tensor:
@@ -141,6 +169,15 @@ def _smooth(t):
     return t * t * (3.0 - 2.0 * t)
 
 
+_MATMUL_SPAN = 48  # lattice cells across a row above which gathering beats small matrices
+
+
+def _cell(u: torch.Tensor):
+    """Lattice cell index (wrapped into [0, L)) and smoothed fraction of coordinates u."""
+    i0 = torch.floor(u)
+    return _fmod(i0, float(T.LATTICE)).long(), _smooth(u - i0)
+
+
 def _axis_weights(u: torch.Tensor, limit: int):
     """Interpolation matrix (B, n, k) for lattice coordinates u (B, n) and its first index."""
     i0 = torch.floor(u)
@@ -158,30 +195,41 @@ def _axis_weights(u: torch.Tensor, limit: int):
 
 
 def _noise(ctx: _Ctx, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
-    """Value noise at lattice coordinates u (columns) and v (rows); returns (B, 1, Hs, Ws)."""
+    """Value noise at lattice coordinates u (columns) and v (rows); returns (B, 1, Hs, Ws).
+
+    Separable coordinates (u varies along columns only, v along rows only, as in an
+    unwarped context) interpolate rows first, then columns: with small interpolation
+    matrices (``Wy @ block @ Wx^T``) when the lattice span is small, else by gathering the
+    two neighbouring lattice rows and columns (cost independent of the frequency).
+    """
     u, v = _sane(u), _sane(v)
     res = ctx.res
-    B = max(u.shape[0], v.shape[0])
     if u.shape[-2] == 1 and v.shape[-1] == 1 and u.shape[-1] == ctx.W and v.shape[-2] == ctx.H:
-        # separable: noise = Wy @ table_block @ Wx^T with small interpolation matrices
+        B = max(u.shape[0], v.shape[0])
         uu = u.reshape(u.shape[0], ctx.W).expand(B, ctx.W)
         vv = v.reshape(v.shape[0], ctx.H).expand(B, ctx.H)
-        wx, lx, kx = _axis_weights(uu, 96)
-        wy, ly, ky = _axis_weights(vv, 96)
-        if wx is not None and wy is not None:
+        wx, lx, kx = _axis_weights(uu, _MATMUL_SPAN)
+        wy, ly, ky = _axis_weights(vv, _MATMUL_SPAN) if wx is not None else (None, None, 0)
+        if wy is not None:
             cols = torch.remainder(lx + torch.arange(kx, device=u.device), T.LATTICE)  # (B, kx)
             rows = torch.remainder(ly + torch.arange(ky, device=u.device), T.LATTICE)  # (B, ky)
             block = res.table[rows.unsqueeze(-1), cols.unsqueeze(1)]  # (B, ky, kx)
-            out = torch.bmm(torch.bmm(wy, block), wx.transpose(1, 2))
-            return out.unsqueeze(1)
+            return torch.bmm(torch.bmm(wy, block), wx.transpose(1, 2)).unsqueeze(1)
+        j0, sy = _cell(vv)
+        i0, sx = _cell(uu)
+        table = res.wrapped[0, 0]  # (L + 1, L + 1): index i0 + 1 needs no wrap
+        rows = torch.lerp(table[j0], table[j0 + 1], sy.unsqueeze(-1))  # (B, H, L + 1)
+        idx = i0.unsqueeze(1).expand(B, ctx.H, ctx.W)
+        out = torch.lerp(torch.gather(rows, 2, idx), torch.gather(rows, 2, idx + 1), sx.unsqueeze(1))
+        return out.unsqueeze(1)
     # general coordinates: bilinear lookup at i0 + smooth(frac) is exactly the smoothstep
     # interpolation; the table is padded with its first row and column to wrap around
     u, v = torch.broadcast_tensors(u, v)
-    i0, j0 = torch.floor(u), torch.floor(v)
-    pu = _fmod(i0, float(T.LATTICE)) + _smooth(u - i0)
-    pv = _fmod(j0, float(T.LATTICE)) + _smooth(v - j0)
-    half = T.LATTICE / 2.0
-    grid = torch.stack([pu[:, 0] / half - 1.0, pv[:, 0] / half - 1.0], dim=-1)
+    grid = torch.empty(u.shape[0], u.shape[2], u.shape[3], 2, dtype=u.dtype, device=u.device)
+    for t, g in ((u[:, 0], grid[..., 0]), (v[:, 0], grid[..., 1])):
+        i0 = torch.floor(t)
+        torch.add(_fmod(i0, float(T.LATTICE)), _smooth(t - i0), out=g)
+    grid.mul_(2.0 / T.LATTICE).sub_(1.0)
     return torch.nn.functional.grid_sample(res.wrapped.expand(grid.shape[0], -1, -1, -1), grid,
                                            mode="bilinear", align_corners=True)
 
@@ -224,16 +272,21 @@ def _bw_noise(ctx, p):
     return _noise(ctx, ctx.x * p[0] + p[1], ctx.y * p[0] + p[2])
 
 
-def _stacked_noise(ctx, freqs, shifts, ox, oy):
-    """Noise for several (frequency, shift) pairs in one call, stacked along a new dim 0."""
-    us = torch.cat([(ctx.x * f + ox + sx).expand(ox.shape[0], -1, -1, -1) for f, (sx, _) in zip(freqs, shifts)])
-    vs = torch.cat([(ctx.y * f + oy + sy).expand(oy.shape[0], -1, -1, -1) for f, (_, sy) in zip(freqs, shifts)])
-    n = _noise(ctx, us, vs)
-    return n.reshape(len(freqs), -1, *n.shape[1:])
+def _stacked_noise(ctx, freq, ox, oy, scales, shifts):
+    """Noise at frequencies ``freq * scales[o]`` and offsets ``(ox, oy) + shifts[o]``, all
+    evaluated in one call; returns (O, B, 1, Hs, Ws)."""
+    O = len(scales)
+    k = torch.tensor([[s, dx, dy] for s, (dx, dy) in zip(scales, shifts)], dtype=torch.float32,
+                     device=ctx.x.device).reshape(O, 3, 1, 1, 1, 1)
+    f = freq * k[:, 0]  # (O, B, 1, 1, 1)
+    u = (ctx.x * f + ox + k[:, 1]).flatten(0, 1)
+    v = (ctx.y * f + oy + k[:, 2]).flatten(0, 1)
+    n = _noise(ctx, u, v)
+    return n.reshape(O, -1, *n.shape[1:])
 
 
 def _color_noise(ctx, p):
-    n = _stacked_noise(ctx, [p[0]] * 3, T.CHANNEL_SHIFT, p[1], p[2])  # (3, B, 1, Hs, Ws)
+    n = _stacked_noise(ctx, p[0], p[1], p[2], (1.0, 1.0, 1.0), T.CHANNEL_SHIFT)  # (3, B, 1, Hs, Ws)
     return n[:, :, 0].transpose(0, 1)
 
 
@@ -241,16 +294,44 @@ def _turbulence(ctx, p):
     octaves = torch.floor(p[1]).clamp(1, 8)
     count = int(octaves.max())
     shifts = [(o * T.OCTAVE_SHIFT[0], o * T.OCTAVE_SHIFT[1]) for o in range(count)]
-    n = _stacked_noise(ctx, [p[0] * 2.0 ** o for o in range(count)], shifts, p[2], p[3])
+    n = _stacked_noise(ctx, p[0], p[2], p[3], [2.0 ** o for o in range(count)], shifts)
+    n = n.mul_(2.0).sub_(1.0).abs_()
     weight = torch.stack([(octaves > o).to(p[0].dtype) * 0.5 ** o for o in range(count)])  # (O, B, 1, 1, 1)
-    return (weight * torch.abs(2.0 * n - 1.0)).sum(dim=0) / weight.sum(dim=0)
+    return (weight * n).sum(dim=0) / weight.sum(dim=0)
+
+
+def _bilinear_axis(f: torch.Tensor, n: int):
+    """Source indices and weights of grid_sample's bilinear sampling (align_corners=False,
+    border padding) at unit coordinates f along an axis of n pixels."""
+    t = (f * n - 0.5).clamp_(0.0, n - 1.0)
+    i0 = torch.floor(t)
+    return i0.long(), (i0 + 1.0).clamp_(max=n - 1.0).long(), t - i0
+
+
+def _pixmap_separable(img: torch.Tensor, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+    """Bilinear sampling of img (1, 3, h, w) at fold(x) (W,) and fold(y) (H,): rows, then columns."""
+    r0, r1, wy = _bilinear_axis(fold(y), img.shape[2])
+    c0, c1, wx = _bilinear_axis(fold(x), img.shape[3])
+    rows = torch.lerp(img[:, :, r0], img[:, :, r1], wy[:, None])  # (1, 3, H, w)
+    return torch.lerp(rows[..., c0], rows[..., c1], wx)
 
 
 def _pixmap(ctx, p):
-    x, y = torch.broadcast_tensors(fold(ctx.x), fold(ctx.y))
-    B = p[0].shape[0]
-    grid = torch.stack([2.0 * x[:, 0] - 1.0, 2.0 * y[:, 0] - 1.0], dim=-1).expand(B, ctx.H, ctx.W, 2)
     idx = [T.pixmap_index(float(v)) for v in p[0].reshape(-1)]
+    B = len(idx)
+    if ctx.x.shape[:3] == (1, 1, 1) and ctx.y.shape[0] == 1 and ctx.y.shape[3] == 1:
+        # separable coordinates (an unwarped context): sample rows then columns, and keep the
+        # result for the whole render (and across renders of the same size and window)
+        key = None if ctx.key is None else ("pixmap", ctx.key)
+        pics = [ctx.res.sampled((key, i) if key else None,
+                                lambda i=i: _pixmap_separable(ctx.res.pixmap(i), ctx.x[0, 0, 0], ctx.y[0, 0, :, 0]))
+                for i in idx]
+        return pics[0] if B == 1 else torch.cat(pics)
+    x, y = torch.broadcast_tensors(fold(ctx.x), fold(ctx.y))
+    grid = torch.empty(x.shape[0], ctx.H, ctx.W, 2, dtype=x.dtype, device=x.device)
+    torch.mul(x[:, 0], 2.0, out=grid[..., 0])
+    torch.mul(y[:, 0], 2.0, out=grid[..., 1])
+    grid = grid.sub_(1.0).expand(B, ctx.H, ctx.W, 2)
     out = torch.empty(B, 3, ctx.H, ctx.W, dtype=x.dtype, device=x.device)
     for i in sorted(set(idx)):
         sel = [b for b in range(B) if idx[b] == i]
@@ -266,17 +347,20 @@ def _time(ctx, p):
 
 # ---- pointwise functions --------------------------------------------------------------------
 
+_HSV_N = {}  # device -> (1, 3, 1, 1) tensor (5, 3, 1): the R, G, B phase of hsv-to-rgb
+
+
 def _hsv_to_rgb(a):
-    if a.shape[1] == 1:
-        h, s, v = a, torch.ones_like(a), torch.ones_like(a)
-    else:
-        h, s, v = a[:, 0:1], a[:, 1:2].clamp(0, 1), a[:, 2:3].clamp(0, 1)
-    h = _fmod(_sane(h), 1.0)
-    out = []
-    for n in (5.0, 3.0, 1.0):
-        k = _fmod(n + 6.0 * h, 6.0)
-        out.append(v - v * s * torch.minimum(k, 4.0 - k).clamp(0.0, 1.0))
-    return torch.cat(out, dim=1)
+    h = _fmod(_sane(a[:, 0:1]), 1.0)
+    n = _HSV_N.get(a.device)
+    if n is None:
+        n = _HSV_N[a.device] = torch.tensor([5.0, 3.0, 1.0], device=a.device).reshape(1, 3, 1, 1)
+    k = _fmod(n + 6.0 * h, 6.0)  # (B, 3, Hs, Ws): all three channels at once
+    chroma = torch.minimum(k, 4.0 - k).clamp_(0.0, 1.0)
+    if a.shape[1] == 1:  # a grey value is the hue at full saturation and value
+        return chroma.neg_().add_(1.0)
+    s, v = a[:, 1:2].clamp(0, 1), a[:, 2:3].clamp(0, 1)
+    return v - v * s * chroma
 
 
 def _safe_div(a, b):
@@ -290,7 +374,7 @@ def _mod(a, b):
 
 
 def _quant(v):
-    return torch.floor(fold(_sane(v)) * 255.999).to(torch.int32)
+    return fold(_sane(v)).mul_(255.999).to(torch.int32)  # >= 0: truncation is floor
 
 
 def _bits(op):
@@ -371,12 +455,9 @@ def _diff(v, dim, step):
     n = v.shape[dim]
     if n == 1:
         return torch.zeros_like(v)
-    out = torch.empty_like(v)
-    if n > 2:
-        out.narrow(dim, 1, n - 2).copy_(v.narrow(dim, 2, n - 2) - v.narrow(dim, 0, n - 2))
-    out.narrow(dim, 0, 1).copy_(v.narrow(dim, 1, 1) - v.narrow(dim, 0, 1))
-    out.narrow(dim, n - 1, 1).copy_(v.narrow(dim, n - 1, 1) - v.narrow(dim, n - 2, 1))
-    return out / (2.0 * step)
+    pad = (1, 1, 0, 0) if dim == 3 else (0, 0, 1, 1)
+    p = torch.nn.functional.pad(v, pad, mode="replicate")
+    return (p.narrow(dim, 2, n) - p.narrow(dim, 0, n)).div_(2.0 * step)
 
 
 def _gradients(v, ctx):
@@ -494,10 +575,10 @@ def _eval_node(n: _BNode, ctx: _Ctx) -> torch.Tensor:
         return _eval(n.children[0], ctx.with_coords(ctx.x + p[0] * (d0 - 0.5), ctx.y + p[0] * (d1 - 0.5)))
     if s == "dissolve":
         a, b = _eval(n.children[0], ctx), _eval(n.children[1], ctx)
-        x, y = torch.broadcast_tensors(ctx.x, ctx.y)
-        ci = torch.remainder(torch.floor(_sane(x * T.DISSOLVE_CELLS + p[2])).long(), T.LATTICE)
-        cj = torch.remainder(torch.floor(_sane(y * T.DISSOLVE_CELLS + p[3])).long(), T.LATTICE)
-        cell = ctx.res.flat[cj * T.LATTICE + ci]
+        # cell indices per column and per row (per pixel only in a warped context)
+        ci = torch.remainder(torch.floor(_sane(ctx.x * T.DISSOLVE_CELLS + p[2])).long(), T.LATTICE)
+        cj = torch.remainder(torch.floor(_sane(ctx.y * T.DISSOLVE_CELLS + p[3])).long(), T.LATTICE)
+        cell = ctx.res.table[cj, ci]
         amount = _fmod(p[0] + p[1] * ctx.time, 1.0)
         return torch.where(cell < amount, b, a)
     raise ValueError(f"primitive {s!r} has no whole-image implementation")  # pragma: no cover
@@ -558,7 +639,8 @@ def render(genomes, size=(128, 128), *, window=(0.0, 0.0, 1.0, 1.0), time: float
     px, py = (x1 - x0) / W, (y1 - y0) / H
     xs = (x0 + (torch.arange(W, device=device, dtype=torch.float64) + 0.5) * px).float()
     ys = (y0 + (torch.arange(H, device=device, dtype=torch.float64) + 0.5) * py).float()
-    ctx = _Ctx(xs.reshape(1, 1, 1, W), ys.reshape(1, 1, H, 1), H, W, abs(px), abs(py), float(time), res)
+    ctx = _Ctx(xs.reshape(1, 1, 1, W), ys.reshape(1, 1, H, 1), H, W, abs(px), abs(py), float(time), res,
+               key=(H, W, x0, y0, x1, y1))
     out = torch.empty(len(genomes), H, W, 3, dtype=torch.float32, device=device)
     trees = [g.decode() for g in genomes]
     groups: dict = {}
