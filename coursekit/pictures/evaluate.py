@@ -23,6 +23,16 @@ Coordinate transforms (``swirl``, ``rotate``, ``warp-swirl``, ``warp-by``) re-ev
 first argument on transformed coordinates; neighbourhood operations (``blur``, ``band-pass``,
 ``bump``, ``grad-mag``, ``grad-dir``) act on the pixel grid with replicated borders and sizes
 in world units.
+
+**Speed.** Most of the time goes to a few primitives on whole images, so each picks the
+cheapest exact method for the coordinates it gets. Unwarped coordinates are *separable*
+(``x`` varies along columns, ``y`` along rows): noise then interpolates lattice rows, then
+columns (small matrices for a few lattice cells, gathers for many), pixel maps are sampled
+rows-then-columns and kept per (size, window) across renders (a gallery renders every
+generation at one size), and dissolve looks its cells up per row and column. Warped
+coordinates fall back to ``grid_sample``. Blurs multiply by banded matrices cut into row
+tiles, touching only the band. Node values are never modified in place (cached pictures
+and shared subtrees are handed to several parents); only fresh intermediates are.
 """
 
 from __future__ import annotations
@@ -42,7 +52,7 @@ import torch
 from . import textures as T
 from .genome import Genome, Node
 
-__all__ = ["render", "to_rgb", "default_device"]
+__all__ = ["render", "to_rgb", "default_device", "clear_cache"]
 
 _BIG = 1e6
 TWO_PI = 2.0 * math.pi
@@ -75,7 +85,7 @@ _CACHE_BYTES = 64 << 20  # unwarped terminal images kept across renders (per dev
 
 
 class _Resources:
-    """Noise lattice and pixel maps on one device (cached)."""
+    """Per device: noise lattice, pixel maps, blur matrices and sampled unwarped pixel maps."""
 
     _cache: dict = {}
 
@@ -140,6 +150,14 @@ class _Resources:
         if i not in self.pixmaps:
             self.pixmaps[i] = torch.from_numpy(T.pixmap(i)).permute(2, 0, 1)[None].to(self.device)
         return self.pixmaps[i]
+
+
+def clear_cache() -> None:
+    """Forget the cached unwarped pixel maps on every device (renders stay identical)."""
+    for res in _Resources._cache.values():
+        with res._lock:
+            res._sampled.clear()
+            res._sampled_bytes = 0
 
 
 def _sane(v: torch.Tensor) -> torch.Tensor:
@@ -542,21 +560,31 @@ class _BNode:
     uses: int = 1
 
 
-def _stack_trees(trees: Sequence[Node], device, shared: dict | None = None) -> _BNode:
-    shared = {} if shared is None else shared
-    first = trees[0]
-    kids = [_stack_trees([t.children[i] for t in trees], device, shared) for i in range(len(first.children))]
-    key = (first.symbol, tuple(t.params for t in trees), tuple(id(k) for k in kids))
-    if key in shared:
-        shared[key].uses += 1
-        return shared[key]
-    if first.params:
-        arr = torch.tensor([t.params for t in trees], dtype=torch.float32, device=device)
-        params = [arr[:, i].reshape(-1, 1, 1, 1) for i in range(arr.shape[1])]
-    else:
-        params = []
-    node = shared[key] = _BNode(first.symbol, params, kids)
-    return node
+def _stack_trees(trees: Sequence[Node], device) -> _BNode:
+    """One batch tree for same-shaped trees; all parameters go to the device in one tensor."""
+    columns: list = []  # one list of B values per parameter
+    pending: list = []  # (node, first column, count)
+    shared: dict = {}
+
+    def build(trees):
+        first = trees[0]
+        kids = [build([t.children[i] for t in trees]) for i in range(len(first.children))]
+        key = (first.symbol, tuple(t.params for t in trees), tuple(id(k) for k in kids))
+        if key in shared:
+            shared[key].uses += 1
+            return shared[key]
+        node = shared[key] = _BNode(first.symbol, [], kids)
+        if first.params:
+            pending.append((node, len(columns), len(first.params)))
+            columns.extend(zip(*(t.params for t in trees)))
+        return node
+
+    root = build(list(trees))
+    if columns:
+        values = torch.tensor(columns, dtype=torch.float32, device=device).reshape(len(columns), -1, 1, 1, 1)
+        for node, start, count in pending:
+            node.params = list(values[start:start + count].unbind(0))
+    return root
 
 
 def _eval(n: _BNode, ctx: _Ctx) -> torch.Tensor:
