@@ -10,6 +10,8 @@ coding nodes, fixed seed), images per second at 128^2 and 256^2 for:
 - tensorised (:func:`coursekit.pictures.render`: same-shaped genomes batched, genomes spread
   over the CPU cores), with its cache of unwarped pixel maps warm (as in a gallery, which
   renders every generation at one size and window) and cold (cache emptied before each run),
+- the same on a generation as Sims' interactive loop makes it (20 children of one parent, each
+  one mutation away: they share most subtrees, which the evaluator computes once),
 - tensorised on CUDA, and a population of 256 on CUDA, when a GPU is present.
 
 Wall-clock times drive the images/s column; the CPU column (process time, all threads) is
@@ -28,6 +30,7 @@ import numpy as np
 import torch
 
 from coursekit.pictures import Genome, render, render_reference
+from coursekit.pictures import operators as O
 from coursekit.pictures.evaluate import clear_cache
 
 
@@ -40,6 +43,13 @@ def population(n: int, seed: int = 1991, nodes=(35, 45)) -> list[Genome]:
         if nodes[0] <= g.size() <= nodes[1]:
             out.append(g)
     return out
+
+
+def children(parent: Genome, n: int, seed: int = 5) -> list[Genome]:
+    """``n`` children of ``parent``, each made by one random mutation operator (fixed seed)."""
+    rng = np.random.default_rng(seed)
+    ops = [O.substitution, O.transposition, O.root_transposition, O.head_tail_rotation]
+    return [ops[rng.integers(len(ops))](parent, rng) for _ in range(n)]
 
 
 def best_of(fn, repeats: int, before=None) -> tuple[float, float]:
@@ -86,6 +96,9 @@ def main(argv=None):
                  (size, "whole-image, one genome per call", len(pop), t_loop),
                  (size, "tensorised render (CPU)", len(pop), t_tensor),
                  (size, "tensorised render (CPU), cold cache", len(pop), t_cold)]
+        kids = children(pop[0], len(pop))
+        rows.append((size, "tensorised, 20 children of one parent", len(kids),
+                     per_image(best_of(lambda: render(kids, size), args.repeats), len(kids))))
         if cuda:
             def on_gpu(genomes):
                 render(genomes, size, device="cuda", as_tensor=True)

@@ -10,9 +10,11 @@ some sizes, windows or frequencies cannot drift.
 import numpy as np
 import pytest
 import torch
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from coursekit.pictures import evaluate as E
+from coursekit.pictures import operators as O
 from coursekit.pictures.evaluate import render
 from coursekit.pictures.genome import Chromosome, ChromosomeString, Genome
 from coursekit.pictures.reference import render_reference
@@ -111,3 +113,20 @@ def test_protected_divide_follows_the_reference_at_tiny_and_signed_zero_divisors
         g = one(C("divide"), C("const", (0.0004,)), C("const", (b,)), h=1)
         assert np.allclose(render(g, 2)[0], render_reference(g, 2), atol=1e-6), b
 
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_children_of_one_parent_render_together_as_one_by_one(seed):
+    # children share most subtrees with each other (one node, evaluated once) and same-shaped
+    # ones batch with uniform parts broadcast; the pictures must not depend on any of that
+    rng = np.random.default_rng(seed)
+    parent = Genome.random(rng, n_strings=int(rng.integers(1, 4)), head_length=int(rng.integers(2, 6)))
+    ops = [O.substitution, O.transposition, O.root_transposition, O.head_tail_rotation]
+    family = [parent, parent] + [ops[rng.integers(len(ops))](parent, rng) for _ in range(8)]
+    family += [O.random_interpolation(parent, family[-1], rng)[0] for _ in range(2)]
+    window = (-0.3, 0.2, 1.7, 1.1)
+    together = render(family, (12, 10), window=window, time=0.4)
+    apart = np.concatenate([render(g, (12, 10), window=window, time=0.4, batch=False, workers=1)
+                            for g in family])
+    assert np.abs(together - apart).max() < 1e-5

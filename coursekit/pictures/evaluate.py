@@ -37,14 +37,14 @@ and shared subtrees are handed to several parents); only fresh intermediates are
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import threading
 from collections import OrderedDict
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
-from typing import Sequence
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import torch
@@ -52,7 +52,7 @@ import torch
 from . import textures as T
 from .genome import Genome, Node
 
-__all__ = ["render", "to_rgb", "default_device", "clear_cache"]
+__all__ = ["clear_cache", "default_device", "render", "to_rgb"]
 
 _BIG = 1e6
 TWO_PI = 2.0 * math.pi
@@ -72,11 +72,11 @@ class _Ctx:
     px: float  # world width of a pixel
     py: float
     time: float
-    res: "_Resources"
-    memo: dict = field(default_factory=dict)  # shared subtree values, shared by derived contexts
+    res: _Resources
+    memo: _Memo  # shared subtree values, shared by derived contexts
     key: tuple | None = None  # (H, W, window) of the unwarped context: its terminals are cached
 
-    def with_coords(self, x, y) -> "_Ctx":
+    def with_coords(self, x, y) -> _Ctx:
         return _Ctx(_sane(x), _sane(y), self.H, self.W, self.px, self.py, self.time, self.res, self.memo)
 
 
@@ -87,7 +87,7 @@ _CACHE_BYTES = 64 << 20  # unwarped terminal images kept across renders (per dev
 class _Resources:
     """Per device: noise lattice, pixel maps, blur matrices and sampled unwarped pixel maps."""
 
-    _cache: dict = {}
+    _cache: ClassVar[dict] = {}
 
     def __init__(self, device):
         self.device = device
@@ -101,7 +101,7 @@ class _Resources:
         self._lock = threading.Lock()
 
     @classmethod
-    def on(cls, device) -> "_Resources":
+    def on(cls, device) -> _Resources:
         key = str(device)
         if key not in cls._cache:
             cls._cache[key] = cls(device)
@@ -360,7 +360,11 @@ def _pixmap(ctx, p):
     grid = torch.empty(x.shape[0], ctx.H, ctx.W, 2, dtype=x.dtype, device=x.device)
     torch.mul(x[:, 0], 2.0, out=grid[..., 0])
     torch.mul(y[:, 0], 2.0, out=grid[..., 1])
-    grid = grid.sub_(1.0).expand(B, ctx.H, ctx.W, 2)
+    grid.sub_(1.0)
+    if B == 1:  # one picture (a uniform node may see per-genome coordinates)
+        return torch.nn.functional.grid_sample(ctx.res.pixmap(idx[0]).expand(grid.shape[0], -1, -1, -1), grid,
+                                               mode="bilinear", padding_mode="border", align_corners=False)
+    grid = grid.expand(B, ctx.H, ctx.W, 2)
     out = torch.empty(B, 3, ctx.H, ctx.W, dtype=x.dtype, device=x.device)
     for i in sorted(set(idx)):
         sel = [b for b in range(B) if idx[b] == i]
@@ -468,11 +472,11 @@ def _blur_by(v, sigma: torch.Tensor, ctx):
     """Three box passes per axis; radius per batch element from sigma (world units)."""
     if v.shape[-1] == 1 and v.shape[-2] == 1:
         return v
-    B = sigma.shape[0]
+    B = max(sigma.shape[0], v.shape[0])  # a uniform blur may see per-genome inputs
     v = v.expand(B, *v.shape[1:])
     outs = []
     for b in range(B):
-        s = float(sigma[b])
+        s = float(sigma[b if sigma.shape[0] > 1 else 0])
         rx = T.box_radius(abs(s) / ctx.px, 4 * ctx.W)
         ry = T.box_radius(abs(s) / ctx.py, 4 * ctx.H)
         o = v[b:b + 1]
@@ -550,50 +554,80 @@ _NEIGHBOURHOOD = {"bump": _bump, "grad-mag": _grad_mag, "grad-dir": _grad_dir}
 class _BNode:
     """A node of a batch of same-shaped trees: one symbol, parameters stacked over the batch.
 
-    Identical subtrees (same symbols and parameters, e.g. clones made by transposition) are
-    one shared node, evaluated once per coordinate context (``uses`` counts its parents).
+    A *uniform* node (the same parameters in every tree of the batch, and uniform children)
+    has batch size 1 and is broadcast. Identical subtrees (same symbols and parameters: clones
+    made by transposition, or the parts children of one parent share) are one shared node,
+    evaluated once per coordinate context (``uses`` counts its parents).
     """
 
     symbol: str
-    params: list  # of (B, 1, 1, 1) tensors
+    params: list  # of (B, 1, 1, 1) tensors, B = 1 when uniform
     children: list
+    uniform: bool
     uses: int = 1
 
 
-def _stack_trees(trees: Sequence[Node], device) -> _BNode:
-    """One batch tree for same-shaped trees; all parameters go to the device in one tensor."""
-    columns: list = []  # one list of B values per parameter
+def _stack_trees(trees: Sequence[Node], device, shared: dict) -> _BNode:
+    """One batch tree for same-shaped trees; the parameters go to the device in two tensors
+    (uniform ones and batched ones).
+
+    ``shared`` maps (symbol, parameters, children) to nodes already built, in this tree or
+    in other genomes' trees of the same render: such subtrees become one node.
+    """
+    columns: dict = {True: [], False: []}  # uniform: one value per parameter; else B values
     pending: list = []  # (node, first column, count)
-    shared: dict = {}
 
     def build(trees):
         first = trees[0]
         kids = [build([t.children[i] for t in trees]) for i in range(len(first.children))]
-        key = (first.symbol, tuple(t.params for t in trees), tuple(id(k) for k in kids))
+        params = [t.params for t in trees]
+        uniform = all(k.uniform for k in kids) and all(p == params[0] for p in params)
+        if uniform:
+            params = params[:1]
+        key = (first.symbol, tuple(params), tuple(id(k) for k in kids))
         if key in shared:
             shared[key].uses += 1
             return shared[key]
-        node = shared[key] = _BNode(first.symbol, [], kids)
+        node = shared[key] = _BNode(first.symbol, [], kids, uniform)
         if first.params:
-            pending.append((node, len(columns), len(first.params)))
-            columns.extend(zip(*(t.params for t in trees)))
+            pending.append((node, len(columns[uniform]), len(first.params)))
+            columns[uniform].extend(zip(*params))
         return node
 
     root = build(list(trees))
-    if columns:
-        values = torch.tensor(columns, dtype=torch.float32, device=device).reshape(len(columns), -1, 1, 1, 1)
-        for node, start, count in pending:
-            node.params = list(values[start:start + count].unbind(0))
+    values = {u: torch.tensor(c, dtype=torch.float32, device=device).reshape(len(c), -1, 1, 1, 1)
+              for u, c in columns.items() if c}
+    for node, start, count in pending:
+        node.params = list(values[node.uniform][start:start + count].unbind(0))
     return root
 
 
+class _Memo:
+    """Values of shared subtrees for one render, per (node, coordinate context); an entry is
+    dropped once all ``uses`` parents have read it. Thread-safe (a race only recomputes)."""
+
+    def __init__(self):
+        self.values: dict = {}
+        self.lock = threading.Lock()
+
+    def get(self, n: _BNode, ctx: _Ctx) -> torch.Tensor:
+        key = (id(n), id(ctx))
+        with self.lock:
+            hit = self.values.get(key)
+            if hit is not None:
+                hit[2] -= 1
+                if hit[2] <= 0:
+                    del self.values[key]
+                return hit[0]
+        value = _eval_node(n, ctx)
+        with self.lock:
+            if key not in self.values:
+                self.values[key] = [value, ctx, n.uses - 1]  # ctx kept alive: its id stays unique
+        return value
+
+
 def _eval(n: _BNode, ctx: _Ctx) -> torch.Tensor:
-    if n.uses == 1:
-        return _eval_node(n, ctx)
-    key = (id(n), id(ctx))
-    if key not in ctx.memo:
-        ctx.memo[key] = (_eval_node(n, ctx), ctx)  # keep ctx alive so its id is not reused
-    return ctx.memo[key][0]
+    return _eval_node(n, ctx) if n.uses == 1 else ctx.memo.get(n, ctx)
 
 
 def _eval_node(n: _BNode, ctx: _Ctx) -> torch.Tensor:
@@ -690,17 +724,21 @@ def render(genomes, size=(128, 128), *, window=(0.0, 0.0, 1.0, 1.0), time: float
     xs = (x0 + (torch.arange(W, device=device, dtype=torch.float64) + 0.5) * px).float()
     ys = (y0 + (torch.arange(H, device=device, dtype=torch.float64) + 0.5) * py).float()
     ctx = _Ctx(xs.reshape(1, 1, 1, W), ys.reshape(1, 1, H, 1), H, W, abs(px), abs(py), float(time), res,
-               key=(H, W, x0, y0, x1, y1))
+               _Memo(), key=(H, W, x0, y0, x1, y1))
     out = torch.empty(len(genomes), H, W, 3, dtype=torch.float32, device=device)
     trees = [g.decode() for g in genomes]
     groups: dict = {}
     for i, t in enumerate(trees):
         groups.setdefault(t.structure() if batch else i, []).append(i)
 
+    # subtrees repeated anywhere in the population (children of one parent share most of
+    # theirs) are built as one node and evaluated once per coordinate context
+    shared: dict = {}
+    batch_trees = {tuple(idx): _stack_trees([trees[i] for i in idx], device, shared) for idx in groups.values()}
+
     def run(idx):
         with torch.inference_mode():
-            tree = _stack_trees([trees[i] for i in idx], device)
-            v = _eval(tree, dataclasses.replace(ctx, memo={}))  # a fresh memo per group
+            v = _eval(batch_trees[tuple(idx)], ctx)
             rgb = to_rgb(v, H, W)
             for k, i in enumerate(idx):  # copy_ into a view: ~5x faster than out[idx] = ...
                 out[i].copy_(rgb[k if rgb.shape[0] > 1 else 0].permute(1, 2, 0))
