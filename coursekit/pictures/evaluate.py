@@ -31,8 +31,11 @@ columns (small matrices for a few lattice cells, gathers for many), pixel maps a
 rows-then-columns and kept per (size, window) across renders (a gallery renders every
 generation at one size), and dissolve looks its cells up per row and column. Warped
 coordinates fall back to ``grid_sample``. Blurs multiply by banded matrices cut into row
-tiles, touching only the band. Node values are never modified in place (cached pictures
-and shared subtrees are handed to several parents); only fresh intermediates are.
+tiles, touching only the band. A subtree repeated anywhere in the population (a clone, or
+the parts that children of one parent share) is one node, evaluated once per coordinate
+context, and the parts of a batch with the same parameters in every tree run once and
+broadcast. Node values are never modified in place (cached pictures and shared subtrees are
+handed to several parents); only fresh intermediates are.
 """
 
 from __future__ import annotations
