@@ -97,8 +97,10 @@ def main(argv=None):
                  (size, "tensorised render (CPU)", len(pop), t_tensor),
                  (size, "tensorised render (CPU), cold cache", len(pop), t_cold)]
         kids = children(pop[0], len(pop))
-        rows.append((size, "tensorised, 20 children of one parent", len(kids),
-                     per_image(best_of(lambda: render(kids, size), args.repeats), len(kids))))
+        rows += [(size, "children of one parent, one per call", len(kids),
+                  per_image(best_of(lambda: [render(g, size, workers=1) for g in kids], args.repeats), len(kids))),
+                 (size, "children of one parent, tensorised", len(kids),
+                  per_image(best_of(lambda: render(kids, size), args.repeats), len(kids)))]
         if cuda:
             def on_gpu(genomes):
                 render(genomes, size, device="cuda", as_tensor=True)
