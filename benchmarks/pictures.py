@@ -8,7 +8,10 @@ coding nodes, fixed seed), images per second at 128^2 and 256^2 for:
 - whole-image, one genome per call (the numpy-style loop: every primitive a whole-image
   array operation, genomes one after the other, one thread),
 - tensorised (:func:`coursekit.pictures.render`: same-shaped genomes batched, genomes spread
-  over the CPU cores),
+  over the CPU cores), with its cache of unwarped pixel maps warm (as in a gallery, which
+  renders every generation at one size and window) and cold (cache emptied before each run),
+- the same on a generation as Sims' interactive loop makes it (20 children of one parent, each
+  one mutation away: they share most subtrees, which the evaluator computes once),
 - tensorised on CUDA, and a population of 256 on CUDA, when a GPU is present.
 
 Wall-clock times drive the images/s column; the CPU column (process time, all threads) is
@@ -27,6 +30,8 @@ import numpy as np
 import torch
 
 from coursekit.pictures import Genome, render, render_reference
+from coursekit.pictures import operators as O
+from coursekit.pictures.evaluate import clear_cache
 
 
 def population(n: int, seed: int = 1991, nodes=(35, 45)) -> list[Genome]:
@@ -40,10 +45,20 @@ def population(n: int, seed: int = 1991, nodes=(35, 45)) -> list[Genome]:
     return out
 
 
-def best_of(fn, repeats: int) -> tuple[float, float]:
-    """Best wall-clock and best process CPU time (all threads) over ``repeats`` runs."""
+def children(parent: Genome, n: int, seed: int = 5) -> list[Genome]:
+    """``n`` children of ``parent``, each made by one random mutation operator (fixed seed)."""
+    rng = np.random.default_rng(seed)
+    ops = [O.substitution, O.transposition, O.root_transposition, O.head_tail_rotation]
+    return [ops[rng.integers(len(ops))](parent, rng) for _ in range(n)]
+
+
+def best_of(fn, repeats: int, before=None) -> tuple[float, float]:
+    """Best wall-clock and best process CPU time (all threads) over ``repeats`` runs
+    (``before()``, untimed, runs before each)."""
     wall = cpu = float("inf")
     for _ in range(repeats):
+        if before is not None:
+            before()
         t, c = time.perf_counter(), time.process_time()
         fn()
         wall, cpu = min(wall, time.perf_counter() - t), min(cpu, time.process_time() - c)
@@ -76,9 +91,16 @@ def main(argv=None):
         t_ref = per_image(best_of(lambda: [render_reference(g, size) for g in sample], 1), len(sample))
         t_loop = per_image(best_of(lambda: [render(g, size, workers=1) for g in pop], args.repeats), len(pop))
         t_tensor = per_image(best_of(lambda: render(pop, size), args.repeats), len(pop))
+        t_cold = per_image(best_of(lambda: render(pop, size), args.repeats, before=clear_cache), len(pop))
         rows += [(size, "per-pixel Python (reference)", len(sample), t_ref),
                  (size, "whole-image, one genome per call", len(pop), t_loop),
-                 (size, "tensorised render (CPU)", len(pop), t_tensor)]
+                 (size, "tensorised render (CPU)", len(pop), t_tensor),
+                 (size, "tensorised render (CPU), cold cache", len(pop), t_cold)]
+        kids = children(pop[0], len(pop))
+        rows += [(size, "children of one parent, one per call", len(kids),
+                  per_image(best_of(lambda: [render(g, size, workers=1) for g in kids], args.repeats), len(kids))),
+                 (size, "children of one parent, tensorised", len(kids),
+                  per_image(best_of(lambda: render(kids, size), args.repeats), len(kids)))]
         if cuda:
             def on_gpu(genomes):
                 render(genomes, size, device="cuda", as_tensor=True)

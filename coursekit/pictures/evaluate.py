@@ -23,16 +23,31 @@ Coordinate transforms (``swirl``, ``rotate``, ``warp-swirl``, ``warp-by``) re-ev
 first argument on transformed coordinates; neighbourhood operations (``blur``, ``band-pass``,
 ``bump``, ``grad-mag``, ``grad-dir``) act on the pixel grid with replicated borders and sizes
 in world units.
+
+**Speed.** Most of the time goes to a few primitives on whole images, so each picks the
+cheapest exact method for the coordinates it gets. Unwarped coordinates are *separable*
+(``x`` varies along columns, ``y`` along rows): noise then interpolates lattice rows, then
+columns (small matrices for a few lattice cells, gathers for many), pixel maps are sampled
+rows-then-columns and kept per (size, window) across renders (a gallery renders every
+generation at one size), and dissolve looks its cells up per row and column. Warped
+coordinates fall back to ``grid_sample``. Blurs multiply by banded matrices cut into row
+tiles, touching only the band. A subtree repeated anywhere in the population (a clone, or
+the parts that children of one parent share) is one node, evaluated once per coordinate
+context, and the parts of a batch with the same parameters in every tree run once and
+broadcast. Node values are never modified in place (cached pictures and shared subtrees are
+handed to several parents); only fresh intermediates are.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
+import threading
+from collections import OrderedDict
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
-from typing import Sequence
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import torch
@@ -40,7 +55,7 @@ import torch
 from . import textures as T
 from .genome import Genome, Node
 
-__all__ = ["render", "to_rgb", "default_device"]
+__all__ = ["clear_cache", "default_device", "render", "to_rgb"]
 
 _BIG = 1e6
 TWO_PI = 2.0 * math.pi
@@ -60,36 +75,45 @@ class _Ctx:
     px: float  # world width of a pixel
     py: float
     time: float
-    res: "_Resources"
-    memo: dict = field(default_factory=dict)  # shared subtree values, shared by derived contexts
+    res: _Resources
+    memo: _Memo  # shared subtree values, shared by derived contexts
+    key: tuple | None = None  # (H, W, window) of the unwarped context: its terminals are cached
 
-    def with_coords(self, x, y) -> "_Ctx":
+    def with_coords(self, x, y) -> _Ctx:
         return _Ctx(_sane(x), _sane(y), self.H, self.W, self.px, self.py, self.time, self.res, self.memo)
 
 
-class _Resources:
-    """Noise lattice and pixel maps on one device (cached)."""
+_TILE = 32  # output rows per tile of a banded blur matrix (measured best at 256^2)
+_CACHE_BYTES = 64 << 20  # unwarped terminal images kept across renders (per device)
 
-    _cache: dict = {}
+
+class _Resources:
+    """Per device: noise lattice, pixel maps, blur matrices and sampled unwarped pixel maps."""
+
+    _cache: ClassVar[dict] = {}
 
     def __init__(self, device):
         self.device = device
         self.table = torch.from_numpy(T.noise_table()).to(device)
-        self.flat = self.table.reshape(-1)
         wrapped = torch.cat([self.table, self.table[:1]], dim=0)
         self.wrapped = torch.cat([wrapped, wrapped[:, :1]], dim=1)[None, None].contiguous()
         self.box_matrices: dict = {}
         self.pixmaps: dict[int, torch.Tensor] = {}
+        self._sampled: OrderedDict = OrderedDict()
+        self._sampled_bytes = 0
+        self._lock = threading.Lock()
 
     @classmethod
-    def on(cls, device) -> "_Resources":
+    def on(cls, device) -> _Resources:
         key = str(device)
         if key not in cls._cache:
             cls._cache[key] = cls(device)
         return cls._cache[key]
 
-    def box_matrix(self, n: int, r: int) -> torch.Tensor:
-        """(n, n) matrix of three replicate-border box passes of radius r."""
+    def box_matrix(self, n: int, r: int) -> list:
+        """Three replicate-border box passes of radius r as a banded (n, n) matrix M, cut
+        into row tiles: ``[(lo, hi, M[t0:t1, lo:hi]), ...]`` where columns outside
+        ``lo:hi`` are zero in those rows (one tile, the whole matrix, when the band is wide)."""
         key = (n, r)
         if key not in self.box_matrices:
             b = torch.zeros(n, n, dtype=torch.float64)
@@ -97,13 +121,46 @@ class _Resources:
             cols = (torch.arange(n)[:, None] + torch.arange(-r, r + 1)[None, :]).clamp(0, n - 1).reshape(-1)
             b.index_put_((rows, cols), torch.full_like(rows, 1.0 / (2 * r + 1), dtype=torch.float64),
                          accumulate=True)
-            self.box_matrices[key] = (b @ b @ b).float().to(self.device)
+            m = (b @ b @ b).float().to(self.device)
+            spans = [(t0, min(n, t0 + _TILE), max(0, t0 - 3 * r), min(n, t0 + _TILE + 3 * r))
+                     for t0 in range(0, n, _TILE)]
+            if sum((t1 - t0) * (hi - lo) for t0, t1, lo, hi in spans) > 0.6 * n * n:
+                spans = [(0, n, 0, n)]  # wide band: one dense product is faster
+            self.box_matrices[key] = [(lo, hi, m[t0:t1, lo:hi].contiguous()) for t0, t1, lo, hi in spans]
         return self.box_matrices[key]
+
+    def sampled(self, key, compute) -> torch.Tensor:
+        """``compute()``, cached under ``key`` (least recently used first out, at most
+        :data:`_CACHE_BYTES`); ``key=None`` computes without caching. Thread-safe."""
+        if key is None:
+            return compute()
+        with self._lock:
+            if key in self._sampled:
+                self._sampled.move_to_end(key)
+                return self._sampled[key]
+        value = compute()
+        size = value.numel() * value.element_size()
+        with self._lock:
+            if key not in self._sampled and size <= _CACHE_BYTES // 4:
+                self._sampled[key] = value
+                self._sampled_bytes += size
+                while self._sampled_bytes > _CACHE_BYTES:
+                    _, old = self._sampled.popitem(last=False)
+                    self._sampled_bytes -= old.numel() * old.element_size()
+        return value
 
     def pixmap(self, i: int) -> torch.Tensor:
         if i not in self.pixmaps:
             self.pixmaps[i] = torch.from_numpy(T.pixmap(i)).permute(2, 0, 1)[None].to(self.device)
         return self.pixmaps[i]
+
+
+def clear_cache() -> None:
+    """Forget the cached unwarped pixel maps on every device (renders stay identical)."""
+    for res in _Resources._cache.values():
+        with res._lock:
+            res._sampled.clear()
+            res._sampled_bytes = 0
 
 
 def _sane(v: torch.Tensor) -> torch.Tensor:
@@ -113,12 +170,14 @@ def _sane(v: torch.Tensor) -> torch.Tensor:
 
 def _fmod(v: torch.Tensor, m) -> torch.Tensor:
     """Floored modulo v - m floor(v / m) (sign of m, like Python's %), cheaper than remainder."""
+    if isinstance(m, float):
+        return torch.sub(v, torch.floor(v / m), alpha=m)
     return v - m * torch.floor(v / m)
 
 
 def fold(v: torch.Tensor) -> torch.Tensor:
-    """Mirror-repeat into [0, 1] with period 2: 1 - |(v mod 2) - 1|."""
-    return 1.0 - torch.abs(_fmod(v, 2.0) - 1.0)
+    """Mirror-repeat into [0, 1] with period 2: |v - 2 round(v / 2)| (= 1 - |(v mod 2) - 1|)."""
+    return torch.sub(v, (v * 0.5).round_(), alpha=2.0).abs_()
 
 
 def to_rgb(v: torch.Tensor, H: int, W: int) -> torch.Tensor:
@@ -141,6 +200,15 @@ def _smooth(t):
     return t * t * (3.0 - 2.0 * t)
 
 
+_MATMUL_SPAN = 48  # lattice cells across a row above which gathering beats small matrices
+
+
+def _cell(u: torch.Tensor):
+    """Lattice cell index (wrapped into [0, L)) and smoothed fraction of coordinates u."""
+    i0 = torch.floor(u)
+    return _fmod(i0, float(T.LATTICE)).long(), _smooth(u - i0)
+
+
 def _axis_weights(u: torch.Tensor, limit: int):
     """Interpolation matrix (B, n, k) for lattice coordinates u (B, n) and its first index."""
     i0 = torch.floor(u)
@@ -158,30 +226,42 @@ def _axis_weights(u: torch.Tensor, limit: int):
 
 
 def _noise(ctx: _Ctx, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
-    """Value noise at lattice coordinates u (columns) and v (rows); returns (B, 1, Hs, Ws)."""
+    """Value noise at lattice coordinates u (columns) and v (rows); returns (B, 1, Hs, Ws).
+
+    Separable coordinates (u varies along columns only, v along rows only, as in an
+    unwarped context) interpolate rows first, then columns: with small interpolation
+    matrices (``Wy @ block @ Wx^T``) when the lattice span is small, else by gathering the
+    two neighbouring lattice rows and columns (cost independent of the frequency).
+    """
     u, v = _sane(u), _sane(v)
     res = ctx.res
-    B = max(u.shape[0], v.shape[0])
     if u.shape[-2] == 1 and v.shape[-1] == 1 and u.shape[-1] == ctx.W and v.shape[-2] == ctx.H:
-        # separable: noise = Wy @ table_block @ Wx^T with small interpolation matrices
+        B = max(u.shape[0], v.shape[0])
         uu = u.reshape(u.shape[0], ctx.W).expand(B, ctx.W)
         vv = v.reshape(v.shape[0], ctx.H).expand(B, ctx.H)
-        wx, lx, kx = _axis_weights(uu, 96)
-        wy, ly, ky = _axis_weights(vv, 96)
-        if wx is not None and wy is not None:
+        wx, lx, kx = _axis_weights(uu, _MATMUL_SPAN)
+        wy, ly, ky = _axis_weights(vv, _MATMUL_SPAN) if wx is not None else (None, None, 0)
+        if wy is not None:
             cols = torch.remainder(lx + torch.arange(kx, device=u.device), T.LATTICE)  # (B, kx)
             rows = torch.remainder(ly + torch.arange(ky, device=u.device), T.LATTICE)  # (B, ky)
             block = res.table[rows.unsqueeze(-1), cols.unsqueeze(1)]  # (B, ky, kx)
-            out = torch.bmm(torch.bmm(wy, block), wx.transpose(1, 2))
-            return out.unsqueeze(1)
+            return torch.bmm(torch.bmm(wy, block), wx.transpose(1, 2)).unsqueeze(1)
+        j0, sy = _cell(vv)
+        i0, sx = _cell(uu)
+        table = res.wrapped[0, 0]  # (L + 1, L + 1): index i0 + 1 needs no wrap
+        rows = torch.lerp(table[j0], table[j0 + 1], sy.unsqueeze(-1))  # (B, H, L + 1)
+        idx = i0.unsqueeze(1).expand(B, ctx.H, ctx.W)
+        out = torch.lerp(torch.gather(rows, 2, idx), torch.gather(rows, 2, idx + 1), sx.unsqueeze(1))
+        return out.unsqueeze(1)
     # general coordinates: bilinear lookup at i0 + smooth(frac) is exactly the smoothstep
     # interpolation; the table is padded with its first row and column to wrap around
     u, v = torch.broadcast_tensors(u, v)
-    i0, j0 = torch.floor(u), torch.floor(v)
-    pu = _fmod(i0, float(T.LATTICE)) + _smooth(u - i0)
-    pv = _fmod(j0, float(T.LATTICE)) + _smooth(v - j0)
-    half = T.LATTICE / 2.0
-    grid = torch.stack([pu[:, 0] / half - 1.0, pv[:, 0] / half - 1.0], dim=-1)
+    grid = torch.empty(u.shape[0], u.shape[2], u.shape[3], 2, dtype=u.dtype, device=u.device)
+    for t, g in ((u[:, 0], grid[..., 0]), (v[:, 0], grid[..., 1])):
+        t = _fmod(t, float(T.LATTICE))  # exact: same fraction, cell index wrapped
+        i0 = torch.floor(t)
+        torch.add(i0, _smooth(t - i0), out=g)
+    grid.mul_(2.0 / T.LATTICE).sub_(1.0)
     return torch.nn.functional.grid_sample(res.wrapped.expand(grid.shape[0], -1, -1, -1), grid,
                                            mode="bilinear", align_corners=True)
 
@@ -224,16 +304,21 @@ def _bw_noise(ctx, p):
     return _noise(ctx, ctx.x * p[0] + p[1], ctx.y * p[0] + p[2])
 
 
-def _stacked_noise(ctx, freqs, shifts, ox, oy):
-    """Noise for several (frequency, shift) pairs in one call, stacked along a new dim 0."""
-    us = torch.cat([(ctx.x * f + ox + sx).expand(ox.shape[0], -1, -1, -1) for f, (sx, _) in zip(freqs, shifts)])
-    vs = torch.cat([(ctx.y * f + oy + sy).expand(oy.shape[0], -1, -1, -1) for f, (_, sy) in zip(freqs, shifts)])
-    n = _noise(ctx, us, vs)
-    return n.reshape(len(freqs), -1, *n.shape[1:])
+def _stacked_noise(ctx, freq, ox, oy, scales, shifts):
+    """Noise at frequencies ``freq * scales[o]`` and offsets ``(ox, oy) + shifts[o]``, all
+    evaluated in one call; returns (O, B, 1, Hs, Ws)."""
+    O = len(scales)
+    k = torch.tensor([[s, dx, dy] for s, (dx, dy) in zip(scales, shifts)], dtype=torch.float32,
+                     device=ctx.x.device).reshape(O, 3, 1, 1, 1, 1)
+    f = freq * k[:, 0]  # (O, B, 1, 1, 1)
+    u = (ctx.x * f + ox + k[:, 1]).flatten(0, 1)
+    v = (ctx.y * f + oy + k[:, 2]).flatten(0, 1)
+    n = _noise(ctx, u, v)
+    return n.reshape(O, -1, *n.shape[1:])
 
 
 def _color_noise(ctx, p):
-    n = _stacked_noise(ctx, [p[0]] * 3, T.CHANNEL_SHIFT, p[1], p[2])  # (3, B, 1, Hs, Ws)
+    n = _stacked_noise(ctx, p[0], p[1], p[2], (1.0, 1.0, 1.0), T.CHANNEL_SHIFT)  # (3, B, 1, Hs, Ws)
     return n[:, :, 0].transpose(0, 1)
 
 
@@ -241,16 +326,48 @@ def _turbulence(ctx, p):
     octaves = torch.floor(p[1]).clamp(1, 8)
     count = int(octaves.max())
     shifts = [(o * T.OCTAVE_SHIFT[0], o * T.OCTAVE_SHIFT[1]) for o in range(count)]
-    n = _stacked_noise(ctx, [p[0] * 2.0 ** o for o in range(count)], shifts, p[2], p[3])
+    n = _stacked_noise(ctx, p[0], p[2], p[3], [2.0 ** o for o in range(count)], shifts)
+    n = n.mul_(2.0).sub_(1.0).abs_()
     weight = torch.stack([(octaves > o).to(p[0].dtype) * 0.5 ** o for o in range(count)])  # (O, B, 1, 1, 1)
-    return (weight * torch.abs(2.0 * n - 1.0)).sum(dim=0) / weight.sum(dim=0)
+    return (weight * n).sum(dim=0) / weight.sum(dim=0)
+
+
+def _bilinear_axis(f: torch.Tensor, n: int):
+    """Source indices and weights of grid_sample's bilinear sampling (align_corners=False,
+    border padding) at unit coordinates f along an axis of n pixels."""
+    t = (f * n - 0.5).clamp_(0.0, n - 1.0)
+    i0 = torch.floor(t)
+    return i0.long(), (i0 + 1.0).clamp_(max=n - 1.0).long(), t - i0
+
+
+def _pixmap_separable(img: torch.Tensor, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+    """Bilinear sampling of img (1, 3, h, w) at fold(x) (W,) and fold(y) (H,): rows, then columns."""
+    r0, r1, wy = _bilinear_axis(fold(y), img.shape[2])
+    c0, c1, wx = _bilinear_axis(fold(x), img.shape[3])
+    rows = torch.lerp(img[:, :, r0], img[:, :, r1], wy[:, None])  # (1, 3, H, w)
+    return torch.lerp(rows[..., c0], rows[..., c1], wx)
 
 
 def _pixmap(ctx, p):
-    x, y = torch.broadcast_tensors(fold(ctx.x), fold(ctx.y))
-    B = p[0].shape[0]
-    grid = torch.stack([2.0 * x[:, 0] - 1.0, 2.0 * y[:, 0] - 1.0], dim=-1).expand(B, ctx.H, ctx.W, 2)
     idx = [T.pixmap_index(float(v)) for v in p[0].reshape(-1)]
+    B = len(idx)
+    if ctx.x.shape[:3] == (1, 1, 1) and ctx.y.shape[0] == 1 and ctx.y.shape[3] == 1:
+        # separable coordinates (an unwarped context): sample rows then columns, and keep the
+        # result for the whole render (and across renders of the same size and window)
+        key = None if ctx.key is None else ("pixmap", ctx.key)
+        pics = [ctx.res.sampled((key, i) if key else None,
+                                lambda i=i: _pixmap_separable(ctx.res.pixmap(i), ctx.x[0, 0, 0], ctx.y[0, 0, :, 0]))
+                for i in idx]
+        return pics[0] if B == 1 else torch.cat(pics)
+    x, y = torch.broadcast_tensors(fold(ctx.x), fold(ctx.y))
+    grid = torch.empty(x.shape[0], ctx.H, ctx.W, 2, dtype=x.dtype, device=x.device)
+    torch.mul(x[:, 0], 2.0, out=grid[..., 0])
+    torch.mul(y[:, 0], 2.0, out=grid[..., 1])
+    grid.sub_(1.0)
+    if B == 1:  # one picture (a uniform node may see per-genome coordinates)
+        return torch.nn.functional.grid_sample(ctx.res.pixmap(idx[0]).expand(grid.shape[0], -1, -1, -1), grid,
+                                               mode="bilinear", padding_mode="border", align_corners=False)
+    grid = grid.expand(B, ctx.H, ctx.W, 2)
     out = torch.empty(B, 3, ctx.H, ctx.W, dtype=x.dtype, device=x.device)
     for i in sorted(set(idx)):
         sel = [b for b in range(B) if idx[b] == i]
@@ -266,22 +383,34 @@ def _time(ctx, p):
 
 # ---- pointwise functions --------------------------------------------------------------------
 
+_HSV_N = {}  # device -> (1, 3, 1, 1) tensor (5, 3, 1): the R, G, B phase of hsv-to-rgb
+
+
 def _hsv_to_rgb(a):
-    if a.shape[1] == 1:
-        h, s, v = a, torch.ones_like(a), torch.ones_like(a)
-    else:
-        h, s, v = a[:, 0:1], a[:, 1:2].clamp(0, 1), a[:, 2:3].clamp(0, 1)
-    h = _fmod(_sane(h), 1.0)
-    out = []
-    for n in (5.0, 3.0, 1.0):
-        k = _fmod(n + 6.0 * h, 6.0)
-        out.append(v - v * s * torch.minimum(k, 4.0 - k).clamp(0.0, 1.0))
-    return torch.cat(out, dim=1)
+    h = _fmod(_sane(a[:, 0:1]), 1.0)
+    n = _HSV_N.get(a.device)
+    if n is None:
+        n = _HSV_N[a.device] = torch.tensor([5.0, 3.0, 1.0], device=a.device).reshape(1, 3, 1, 1)
+    k = _fmod(n + 6.0 * h, 6.0)  # (B, 3, Hs, Ws): all three channels at once
+    chroma = torch.minimum(k, 4.0 - k).clamp_(0.0, 1.0)
+    if a.shape[1] == 1:  # a grey value is the hue at full saturation and value
+        return chroma.neg_().add_(1.0)
+    s, v = a[:, 1:2].clamp(0, 1), a[:, 2:3].clamp(0, 1)
+    return v - v * s * chroma
+
+
+def _select(mask, a, b):
+    """``torch.where(mask, b, a)`` as bit operations: exact (inf and NaN included) and, unlike
+    ``where``, branch-free, so fast on speckled masks such as dissolve's cells."""
+    a, b = torch.broadcast_tensors(a.float(), b.float())
+    ai = a.view(torch.int32)
+    m = mask.to(torch.int32).neg_()  # all bits set where mask
+    return (ai ^ ((ai ^ b.view(torch.int32)) & m)).view(torch.float32)
 
 
 def _safe_div(a, b):
-    small = b.abs() < 1e-3
-    return a / torch.where(small, torch.where(b < 0, -1e-3, 1e-3), b)
+    # |b| raised to 1e-3 keeping its sign (-0 counts as +0): where(|b| < 1e-3, +-1e-3, b)
+    return a / torch.copysign((b + 0.0).abs().clamp_(min=1e-3), b + 0.0)
 
 
 def _mod(a, b):
@@ -290,7 +419,7 @@ def _mod(a, b):
 
 
 def _quant(v):
-    return torch.floor(fold(_sane(v)) * 255.999).to(torch.int32)
+    return fold(_sane(v)).mul_(255.999).to(torch.int32)  # >= 0: truncation is floor
 
 
 def _bits(op):
@@ -346,19 +475,21 @@ def _blur_by(v, sigma: torch.Tensor, ctx):
     """Three box passes per axis; radius per batch element from sigma (world units)."""
     if v.shape[-1] == 1 and v.shape[-2] == 1:
         return v
-    B = sigma.shape[0]
+    B = max(sigma.shape[0], v.shape[0])  # a uniform blur may see per-genome inputs
     v = v.expand(B, *v.shape[1:])
     outs = []
     for b in range(B):
-        s = float(sigma[b])
+        s = float(sigma[b if sigma.shape[0] > 1 else 0])
         rx = T.box_radius(abs(s) / ctx.px, 4 * ctx.W)
         ry = T.box_radius(abs(s) / ctx.py, 4 * ctx.H)
         o = v[b:b + 1]
         if max(ctx.H, ctx.W) <= 1024:  # one banded matrix per axis (fast for small images)
             if rx and o.shape[3] > 1:
-                o = o @ ctx.res.box_matrix(ctx.W, rx).T
+                parts = [o[..., lo:hi] @ m.T for lo, hi, m in ctx.res.box_matrix(ctx.W, rx)]
+                o = parts[0] if len(parts) == 1 else torch.cat(parts, dim=3)
             if ry and o.shape[2] > 1:
-                o = ctx.res.box_matrix(ctx.H, ry) @ o
+                parts = [m @ o[..., lo:hi, :] for lo, hi, m in ctx.res.box_matrix(ctx.H, ry)]
+                o = parts[0] if len(parts) == 1 else torch.cat(parts, dim=2)
         else:  # large images: cumulative sums, cost independent of the radius
             for _ in range(3):
                 o = _box(_box(o, rx, 3), ry, 2)
@@ -371,12 +502,9 @@ def _diff(v, dim, step):
     n = v.shape[dim]
     if n == 1:
         return torch.zeros_like(v)
-    out = torch.empty_like(v)
-    if n > 2:
-        out.narrow(dim, 1, n - 2).copy_(v.narrow(dim, 2, n - 2) - v.narrow(dim, 0, n - 2))
-    out.narrow(dim, 0, 1).copy_(v.narrow(dim, 1, 1) - v.narrow(dim, 0, 1))
-    out.narrow(dim, n - 1, 1).copy_(v.narrow(dim, n - 1, 1) - v.narrow(dim, n - 2, 1))
-    return out / (2.0 * step)
+    pad = (1, 1, 0, 0) if dim == 3 else (0, 0, 1, 1)
+    p = torch.nn.functional.pad(v, pad, mode="replicate")
+    return (p.narrow(dim, 2, n) - p.narrow(dim, 0, n)).div_(2.0 * step)
 
 
 def _gradients(v, ctx):
@@ -429,40 +557,80 @@ _NEIGHBOURHOOD = {"bump": _bump, "grad-mag": _grad_mag, "grad-dir": _grad_dir}
 class _BNode:
     """A node of a batch of same-shaped trees: one symbol, parameters stacked over the batch.
 
-    Identical subtrees (same symbols and parameters, e.g. clones made by transposition) are
-    one shared node, evaluated once per coordinate context (``uses`` counts its parents).
+    A *uniform* node (the same parameters in every tree of the batch, and uniform children)
+    has batch size 1 and is broadcast. Identical subtrees (same symbols and parameters: clones
+    made by transposition, or the parts children of one parent share) are one shared node,
+    evaluated once per coordinate context (``uses`` counts its parents).
     """
 
     symbol: str
-    params: list  # of (B, 1, 1, 1) tensors
+    params: list  # of (B, 1, 1, 1) tensors, B = 1 when uniform
     children: list
+    uniform: bool
     uses: int = 1
 
 
-def _stack_trees(trees: Sequence[Node], device, shared: dict | None = None) -> _BNode:
-    shared = {} if shared is None else shared
-    first = trees[0]
-    kids = [_stack_trees([t.children[i] for t in trees], device, shared) for i in range(len(first.children))]
-    key = (first.symbol, tuple(t.params for t in trees), tuple(id(k) for k in kids))
-    if key in shared:
-        shared[key].uses += 1
-        return shared[key]
-    if first.params:
-        arr = torch.tensor([t.params for t in trees], dtype=torch.float32, device=device)
-        params = [arr[:, i].reshape(-1, 1, 1, 1) for i in range(arr.shape[1])]
-    else:
-        params = []
-    node = shared[key] = _BNode(first.symbol, params, kids)
-    return node
+def _stack_trees(trees: Sequence[Node], device, shared: dict) -> _BNode:
+    """One batch tree for same-shaped trees; the parameters go to the device in two tensors
+    (uniform ones and batched ones).
+
+    ``shared`` maps (symbol, parameters, children) to nodes already built, in this tree or
+    in other genomes' trees of the same render: such subtrees become one node.
+    """
+    columns: dict = {True: [], False: []}  # uniform: one value per parameter; else B values
+    pending: list = []  # (node, first column, count)
+
+    def build(trees):
+        first = trees[0]
+        kids = [build([t.children[i] for t in trees]) for i in range(len(first.children))]
+        params = [t.params for t in trees]
+        uniform = all(k.uniform for k in kids) and all(p == params[0] for p in params)
+        if uniform:
+            params = params[:1]
+        key = (first.symbol, tuple(params), tuple(id(k) for k in kids))
+        if key in shared:
+            shared[key].uses += 1
+            return shared[key]
+        node = shared[key] = _BNode(first.symbol, [], kids, uniform)
+        if first.params:
+            pending.append((node, len(columns[uniform]), len(first.params)))
+            columns[uniform].extend(zip(*params))
+        return node
+
+    root = build(list(trees))
+    values = {u: torch.tensor(c, dtype=torch.float32, device=device).reshape(len(c), -1, 1, 1, 1)
+              for u, c in columns.items() if c}
+    for node, start, count in pending:
+        node.params = list(values[node.uniform][start:start + count].unbind(0))
+    return root
+
+
+class _Memo:
+    """Values of shared subtrees for one render, per (node, coordinate context); an entry is
+    dropped once all ``uses`` parents have read it. Thread-safe (a race only recomputes)."""
+
+    def __init__(self):
+        self.values: dict = {}
+        self.lock = threading.Lock()
+
+    def get(self, n: _BNode, ctx: _Ctx) -> torch.Tensor:
+        key = (id(n), id(ctx))
+        with self.lock:
+            hit = self.values.get(key)
+            if hit is not None:
+                hit[2] -= 1
+                if hit[2] <= 0:
+                    del self.values[key]
+                return hit[0]
+        value = _eval_node(n, ctx)
+        with self.lock:
+            if key not in self.values:
+                self.values[key] = [value, ctx, n.uses - 1]  # ctx kept alive: its id stays unique
+        return value
 
 
 def _eval(n: _BNode, ctx: _Ctx) -> torch.Tensor:
-    if n.uses == 1:
-        return _eval_node(n, ctx)
-    key = (id(n), id(ctx))
-    if key not in ctx.memo:
-        ctx.memo[key] = (_eval_node(n, ctx), ctx)  # keep ctx alive so its id is not reused
-    return ctx.memo[key][0]
+    return _eval_node(n, ctx) if n.uses == 1 else ctx.memo.get(n, ctx)
 
 
 def _eval_node(n: _BNode, ctx: _Ctx) -> torch.Tensor:
@@ -494,12 +662,12 @@ def _eval_node(n: _BNode, ctx: _Ctx) -> torch.Tensor:
         return _eval(n.children[0], ctx.with_coords(ctx.x + p[0] * (d0 - 0.5), ctx.y + p[0] * (d1 - 0.5)))
     if s == "dissolve":
         a, b = _eval(n.children[0], ctx), _eval(n.children[1], ctx)
-        x, y = torch.broadcast_tensors(ctx.x, ctx.y)
-        ci = torch.remainder(torch.floor(_sane(x * T.DISSOLVE_CELLS + p[2])).long(), T.LATTICE)
-        cj = torch.remainder(torch.floor(_sane(y * T.DISSOLVE_CELLS + p[3])).long(), T.LATTICE)
-        cell = ctx.res.flat[cj * T.LATTICE + ci]
+        # cell indices per column and per row (per pixel only in a warped context)
+        ci = torch.remainder(torch.floor(_sane(ctx.x * T.DISSOLVE_CELLS + p[2])).long(), T.LATTICE)
+        cj = torch.remainder(torch.floor(_sane(ctx.y * T.DISSOLVE_CELLS + p[3])).long(), T.LATTICE)
+        cell = ctx.res.table[cj, ci]
         amount = _fmod(p[0] + p[1] * ctx.time, 1.0)
-        return torch.where(cell < amount, b, a)
+        return _select(cell < amount, a, b)
     raise ValueError(f"primitive {s!r} has no whole-image implementation")  # pragma: no cover
 
 
@@ -558,22 +726,28 @@ def render(genomes, size=(128, 128), *, window=(0.0, 0.0, 1.0, 1.0), time: float
     px, py = (x1 - x0) / W, (y1 - y0) / H
     xs = (x0 + (torch.arange(W, device=device, dtype=torch.float64) + 0.5) * px).float()
     ys = (y0 + (torch.arange(H, device=device, dtype=torch.float64) + 0.5) * py).float()
-    ctx = _Ctx(xs.reshape(1, 1, 1, W), ys.reshape(1, 1, H, 1), H, W, abs(px), abs(py), float(time), res)
+    ctx = _Ctx(xs.reshape(1, 1, 1, W), ys.reshape(1, 1, H, 1), H, W, abs(px), abs(py), float(time), res,
+               _Memo(), key=(H, W, x0, y0, x1, y1))
     out = torch.empty(len(genomes), H, W, 3, dtype=torch.float32, device=device)
     trees = [g.decode() for g in genomes]
     groups: dict = {}
     for i, t in enumerate(trees):
         groups.setdefault(t.structure() if batch else i, []).append(i)
 
+    # subtrees repeated anywhere in the population (children of one parent share most of
+    # theirs) are built as one node and evaluated once per coordinate context
+    shared: dict = {}
+    batch_trees = {tuple(idx): _stack_trees([trees[i] for i in idx], device, shared) for idx in groups.values()}
+
     def run(idx):
         with torch.inference_mode():
-            tree = _stack_trees([trees[i] for i in idx], device)
-            v = _eval(tree, dataclasses.replace(ctx, memo={}))  # a fresh memo per group
+            v = _eval(batch_trees[tuple(idx)], ctx)
             rgb = to_rgb(v, H, W)
             for k, i in enumerate(idx):  # copy_ into a view: ~5x faster than out[idx] = ...
                 out[i].copy_(rgb[k if rgb.shape[0] > 1 else 0].permute(1, 2, 0))
 
-    jobs = list(groups.values())
+    # biggest trees first, so the last jobs the threads pick up are short ones
+    jobs = sorted(groups.values(), key=lambda idx: -trees[idx[0]].size() * len(idx))
     if device.type != "cpu" or (len(jobs) == 1 and H * W > 512 * 512):
         # GPU, or one big image (a file export): torch's own intra-op threads
         for idx in jobs:
