@@ -9,11 +9,30 @@ so the world pose of the root never enters the dynamics.
 
 Joint motion subspaces are constant in the child frame (revolute: ``(a, c x a)`` for axis ``a``
 through the anchor ``c``; prismatic: ``(0, a)``), so the joint bias ``cJ`` is zero.
+
+Leaves (about half the bodies of a random creature) are not swept level by level: their
+articulated inertia is their rigid one, so ``U``, ``d`` and ``Ia = I - U U'/d`` are constants of
+the model, and what a leaf passes to its parent, ``Xup' Ia Xup``, is a trigonometric (revolute)
+or quadratic (prismatic) polynomial of degree two in ``q`` with constant matrix coefficients
+(:func:`leaf_inertia_basis`). All leaves are handled by one stacked operation per sweep; the
+level loops run over the inner bodies only (the model stores leaves after them).
 """
 
 from __future__ import annotations
 
+import numpy as np
+
 from . import spatial as sp
+
+
+def _transforms(xp, revolute, q, E0, E1, E2, r0, r1, r2, r3):
+    zero = xp.zeros_like(q)
+    angle = xp.where(revolute, q, zero)
+    s, c1 = xp.sin(angle), 1.0 - xp.cos(angle)
+    E = E0 + s[:, None, None] * E1 + c1[:, None, None] * E2
+    slide = xp.where(revolute, zero, q)
+    r = r0 + s[:, None] * r1 + c1[:, None] * r2 + slide[:, None] * r3
+    return E, r
 
 
 def joint_transforms(model, q):
@@ -24,14 +43,51 @@ def joint_transforms(model, q):
     ``E = J' + sin q (-K J') + (1 - cos q) K^2 J'`` (``K = [axis]x``, ``J`` = joint_rot); for
     prismatic joints ``E = J'`` and ``r`` moves along ``J axis``.
     """
-    xp = model.xp
+    m = model
+    return _transforms(m.xp, m.revolute, q, m.E0, m.E1, m.E2, m.r0, m.r1, m.r2, m.r3)
+
+
+def joint_basis(xp, revolute, q):
+    """(n, 5) polynomial basis in ``q``: revolute ``(1, cos q, sin q, cos 2q, sin 2q)``, prismatic
+    ``(1, q, q^2, 0, 0)``."""
     zero = xp.zeros_like(q)
-    angle = xp.where(model.revolute, q, zero)
-    s, c1 = xp.sin(angle), 1.0 - xp.cos(angle)
-    E = model.E0 + s[:, None, None] * model.E1 + c1[:, None, None] * model.E2
-    slide = xp.where(model.revolute, zero, q)
-    r = model.r0 + s[:, None] * model.r1 + c1[:, None] * model.r2 + slide[:, None] * model.r3
-    return E, r
+    angle = xp.where(revolute, q, zero)
+    c, s = xp.cos(angle), xp.sin(angle)
+    slide = xp.where(revolute, zero, q)
+    return xp.stack(
+        [
+            xp.ones_like(q),
+            xp.where(revolute, c, slide),
+            xp.where(revolute, s, slide * slide),
+            xp.where(revolute, c * c - s * s, zero),
+            xp.where(revolute, 2.0 * s * c, zero),
+        ],
+        axis=-1,
+    )
+
+
+def leaf_inertia_basis(revolute: np.ndarray, Ia: np.ndarray, consts: dict) -> np.ndarray:
+    """Constant (n, 5, 36) ``P`` with ``Xup(q)' Ia Xup(q) = sum_k joint_basis(q)_k P_k`` (numpy).
+
+    ``Xup(q) = X_c Rot(q) X_p`` (constant transforms on either side of the joint's rotation or
+    slide) has entries in ``span(1, cos q, sin q)`` (revolute) or ``span(1, q)`` (prismatic), so
+    the congruence is of degree two. Fitted exactly from five samples per joint (the pseudo-inverse
+    drops the two unused prismatic columns).
+
+    Args:
+        revolute: (n,) joint kinds; Ia: (n, 6, 6) constant child-frame inertias; consts: the
+            model's Rodrigues constants ``E0, E1, E2, r0, r1, r2, r3`` of these joints.
+    """
+    n = len(revolute)
+    ks = np.arange(5.0)
+    qs = np.where(revolute[:, None], 2 * np.pi * ks / 5, ks - 2.0)  # (n, 5) sample points
+    samples = np.empty((n, 5, 36))
+    for k in range(5):
+        E, r = _transforms(np, revolute, qs[:, k], *(consts[name] for name in ("E0", "E1", "E2", "r0", "r1", "r2", "r3")))
+        X = sp.transform_matrix(np, E, r)
+        samples[:, k] = (X.mT @ Ia @ X).reshape(n, 36)
+    B = joint_basis(np, revolute[:, None], qs)  # (n, 5 samples, 5 functions)
+    return np.linalg.pinv(B) @ samples
 
 
 def joint_rotations(model, q):
@@ -42,47 +98,57 @@ def joint_rotations(model, q):
     return model.joint_rot + s[:, None, None] * model.Rq1 + c1[:, None, None] * model.Rq2
 
 
+def _outward_velocities(model, X, v0, vJ):
+    xp = model.xp
+    C, L = model.n_creatures, model.leaf_start
+    v = xp.zeros((model.n_bodies, 6), dtype=v0.dtype, device=model.device)
+    v[:C] = v0
+    for s, e, par, _ in model.levels:
+        j = slice(s - C, e - C)
+        v[s:e] = sp.mv(X[j], v[par]) + vJ[j]
+    j = slice(L - C, None)
+    v[L:] = sp.mv(X[j], v[model.leaf_parent]) + vJ[j]
+    return v
+
+
 def body_velocities(model, X, v0, qd):
     """Outward sweep: spatial velocities ``v`` (N, 6) and bias accelerations ``c`` (N, 6).
 
     ``X`` is the (M, 6, 6) stack of joint transforms ``Xup`` (:func:`spatial.transform_matrix`).
     """
     xp = model.xp
-    C, N = model.n_creatures, model.n_bodies
     vJ = model.S * qd[:, None]
-    v = xp.zeros((N, 6), dtype=v0.dtype, device=model.device)
-    v[:C] = v0
-    for s, e, par, _ in model.levels:
-        j = slice(s - C, e - C)
-        v[s:e] = sp.mv(X[j], v[par]) + vJ[j]
-    c = xp.concat([xp.zeros_like(v0), sp.cross_motion(xp, v[C:], vJ)], axis=0)
-    return v, c
+    v = _outward_velocities(model, X, v0, vJ)
+    return v, xp.concat([xp.zeros_like(v0), sp.cross_motion(xp, v[model.n_creatures :], vJ)], axis=0)
 
 
 def articulated_inertias(model, q):
     """The velocity-independent half of the inward sweep: ``(Xup, IA, U, d)`` at ``q``.
 
-    ``IA`` (N, 6, 6) are the articulated inertias (roots' included), ``U = IA S`` and
-    ``d = S' U`` per joint. Each child passes ``Xup' (IA - U U' / d) Xup`` to its parent. They
-    depend on the positions only, so the Nyström stages 2 and 3, which share positions, share
-    them.
+    ``Xup`` (M, 6, 6) are the joint transforms; ``IA`` (L, 6, 6) the articulated inertias of the
+    roots and inner bodies (a leaf's is its rigid inertia), ``U = IA S`` and ``d = S' U`` (M,)
+    per joint. Each child passes ``Xup' (IA - U U' / d) Xup`` to its parent. They depend on the
+    positions only, so the Nyström stages 2 and 3, which share positions, share them.
     """
     xp = model.xp
-    C = model.n_creatures
+    C, L = model.n_creatures, model.leaf_start
     E, r = joint_transforms(model, q)
     Xup = sp.transform_matrix(xp, E, r)
-    IA = model.inertia_matrix + 0.0  # a fresh (N, 6, 6) copy of the rigid-body inertias
+    IA = model.inner_inertia + 0.0  # a fresh (L, 6, 6) copy of the rigid-body inertias
+    if model.n_leaves:
+        b = joint_basis(xp, model.leaf_revolute, q[L - C :])
+        model.leaf_segments.add_into(IA, (b[:, None, :] @ model.leaf_P)[:, 0])
     S = model.S
-    U = xp.zeros_like(S)
-    d = xp.zeros_like(S[:, 0])
+    U, d = model.U_leaf + 0.0, model.d_leaf + 0.0  # leaf rows are constant; inner rows follow
     for s, e, _, seg in reversed(model.levels):
         j = slice(s - C, e - C)
-        Uj = sp.mv(IA[s:e], S[j])
+        IAj = IA[s:e]
+        Uj = sp.mv(IAj, S[j])
         dj = xp.sum(S[j] * Uj, axis=-1)
         U[j], d[j] = Uj, dj
         X = Xup[j]
-        w = sp.mv(X.mT, Uj)  # Xup' U
-        seg.add_into(IA, X.mT @ (IA[s:e] @ X) - w[:, :, None] * (w / dj[:, None])[:, None, :])
+        w = sp.mtv(X, Uj)  # Xup' U
+        seg.add_into(IA, X.mT @ (IAj @ X) - sp.outer(xp, w, w / dj[:, None]))
     return Xup, IA, U, d
 
 
@@ -103,9 +169,12 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
         accelerations (M,) and body velocities (N, 6).
     """
     xp = model.xp
-    C, N = model.n_creatures, model.n_bodies
+    C, L = model.n_creatures, model.leaf_start
     Xup, IA, U, d = articulated_inertias(model, q) if inertias is None else inertias
-    v, c = body_velocities(model, Xup, v0, qd)
+    S = model.S
+    vJ = S * qd[:, None]
+    v = _outward_velocities(model, Xup, v0, vJ)
+    c = sp.cross_motion(xp, v[C:], vJ)  # (M, 6) bias accelerations of the joints' children
 
     I = model.inertia_diag
     pA = sp.cross_force(xp, v, I * v)
@@ -113,39 +182,47 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
         pA = pA + damping * v
     if f_ext is not None:
         pA = pA - f_ext
-    S = model.S
+    # u = tau - S'pA, and each child passes Xup'(pA + Ia c + U u / d), Ia = IA - U U' / d, i.e.
+    # pa = pA + IA c + U (u - U'c) / d
+    Uc = xp.sum(U * c, axis=-1)
     u = xp.zeros_like(tau)
+    jl = slice(L - C, None)  # the leaves first, all at once (IA = I is diagonal)
+    u[jl] = tau[jl] - xp.sum(S[jl] * pA[L:], axis=-1)
+    pa = pA[L:] + I[L:] * c[jl] + U[jl] * ((u[jl] - Uc[jl]) / d[jl])[:, None]
+    model.leaf_segments.add_into(pA, sp.mtv(Xup[jl], pa))
+    IAc = sp.mv(IA[C:], c[: L - C])
     for s, e, _, seg in reversed(model.levels):
         j = slice(s - C, e - C)
         uj = tau[j] - xp.sum(S[j] * pA[s:e], axis=-1)
         u[j] = uj
-        # pa = pA + Ia c + U u / d with Ia = IA - U U' / d
-        pa = pA[s:e] + sp.mv(IA[s:e], c[s:e]) + U[j] * ((uj - xp.sum(U[j] * c[s:e], axis=-1)) / d[j])[:, None]
-        seg.add_into(pA, sp.mv(Xup[j].mT, pa))
+        pa = pA[s:e] + IAc[j] + U[j] * ((uj - Uc[j]) / d[j])[:, None]
+        seg.add_into(pA, sp.mtv(Xup[j], pa))
 
     a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
-    a = xp.zeros((N, 6), dtype=v.dtype, device=model.device)
+    a = xp.zeros((L, 6), dtype=v.dtype, device=model.device)
     a[:C] = a0
     qdd = xp.zeros_like(tau)
     for s, e, par, _ in model.levels:
         j = slice(s - C, e - C)
-        ai = sp.mv(Xup[j], a[par]) + c[s:e]
+        ai = sp.mv(Xup[j], a[par]) + c[j]
         qddj = (u[j] - xp.sum(U[j] * ai, axis=-1)) / d[j]
         qdd[j] = qddj
         a[s:e] = ai + S[j] * qddj[:, None]
+    ai = sp.mv(Xup[jl], a[model.leaf_parent]) + c[jl]
+    qdd[jl] = (u[jl] - xp.sum(U[jl] * ai, axis=-1)) / d[jl]
     return a0, qdd, v
 
 
 def forward_kinematics(model, R0, p0, q):
     """World rotation (N, 3, 3) and position (N, 3) of every body."""
     xp = model.xp
-    C, N = model.n_creatures, model.n_bodies
+    C, N, L = model.n_creatures, model.n_bodies, model.leaf_start
     _, t = joint_transforms(model, q)
     Rq = joint_rotations(model, q)
     R = xp.zeros((N, 3, 3), dtype=R0.dtype, device=model.device)
     p = xp.zeros((N, 3), dtype=R0.dtype, device=model.device)
     R[:C], p[:C] = R0, p0
-    for s, e, par, _ in model.levels:
+    for s, e, par, _ in model.levels + [(L, N, model.leaf_parent, None)]:
         j = slice(s - C, e - C)
         Rp = R[par]
         R[s:e] = Rp @ Rq[j]

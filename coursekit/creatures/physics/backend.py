@@ -81,12 +81,16 @@ class Segments:
             )
 
     def add_into(self, target, values) -> None:
-        """``target[parent[k]] += values[k]`` for every child ``k`` (in place)."""
+        """``target[parent[k]] += values[k]`` for every child ``k`` (in place); ``values`` may be
+        flattened per row."""
+        if values.shape[0] == 0:
+            return
+        shape = tuple(target.shape[1:])
         if self.torch:
-            target.index_put_((self.parent,), values, accumulate=True)
+            target.index_put_((self.parent,), values.reshape((-1,) + shape), accumulate=True)
         else:
             n = values.shape[0]
-            target[self.start : self.stop] += (self.matrix @ values.reshape(n, -1)).reshape((-1,) + values.shape[1:])
+            target[self.start : self.stop] += (self.matrix @ values.reshape(n, -1)).reshape((-1,) + shape)
 
 
 def scatter_add(xp, target, idx, values) -> None:

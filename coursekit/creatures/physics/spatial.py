@@ -21,7 +21,23 @@ def cross3(xp, a, b):
 
 def mv(A, x):
     """Stacked matrix-vector product ``A @ x`` for (..., n, m) and (..., m)."""
+    if isinstance(A, np.ndarray):
+        return np.matvec(A, x)
     return (A @ x[..., None])[..., 0]
+
+
+def mtv(A, x):
+    """Stacked transposed product ``A' @ x`` for (..., m, n) and (..., m), without a transpose."""
+    if isinstance(A, np.ndarray):
+        return np.vecmat(x, A)
+    return (x[..., None, :] @ A)[..., 0, :]
+
+
+def outer(xp, a, b):
+    """Stacked outer products ``a b'`` of (..., n) and (..., m)."""
+    if xp is np:
+        return np.einsum("...i,...j->...ij", a, b)
+    return a[..., :, None] * b[..., None, :]
 
 
 def cross_motion(xp, v, m):
