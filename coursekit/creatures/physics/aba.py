@@ -14,7 +14,7 @@ Leaves (about half the bodies of a random creature) are not swept level by level
 articulated inertia is their rigid one, so ``U``, ``d`` and ``Ia = I - U U'/d`` are constants of
 the model, and what a leaf passes to its parent, ``Xup' Ia Xup``, is a trigonometric (revolute)
 or quadratic (prismatic) polynomial of degree two in ``q`` with constant matrix coefficients
-(:func:`leaf_inertia_basis`). All leaves are handled by one stacked operation per sweep; the
+(:func:`fit_joint_basis`). All leaves are handled by one stacked operation per sweep; the
 level loops run over the inner bodies only (the model stores leaves after them).
 """
 
@@ -49,7 +49,7 @@ def joint_transforms(model, q):
 
 def joint_basis(xp, revolute, q):
     """(n, 5) polynomial basis in ``q``: revolute ``(1, cos q, sin q, cos 2q, sin 2q)``, prismatic
-    ``(1, q, q^2, 0, 0)``."""
+    ``(1, q, q^2, 0, 0)``. The first three span the entries of ``Xup(q)``."""
     zero = xp.zeros_like(q)
     angle = xp.where(revolute, q, zero)
     c, s = xp.cos(angle), xp.sin(angle)
@@ -66,27 +66,29 @@ def joint_basis(xp, revolute, q):
     )
 
 
-def leaf_inertia_basis(revolute: np.ndarray, Ia: np.ndarray, consts: dict) -> np.ndarray:
-    """Constant (n, 5, 36) ``P`` with ``Xup(q)' Ia Xup(q) = sum_k joint_basis(q)_k P_k`` (numpy).
+def fit_joint_basis(revolute: np.ndarray, consts: dict, Ia: np.ndarray | None = None) -> np.ndarray:
+    """Constant coefficients of ``Xup(q)`` (``Ia`` None) or of ``Xup(q)' Ia Xup(q)`` in
+    :func:`joint_basis` (numpy): (n, 3, 36) or (n, 5, 36).
 
     ``Xup(q) = X_c Rot(q) X_p`` (constant transforms on either side of the joint's rotation or
-    slide) has entries in ``span(1, cos q, sin q)`` (revolute) or ``span(1, q)`` (prismatic), so
-    the congruence is of degree two. Fitted exactly from five samples per joint (the pseudo-inverse
-    drops the two unused prismatic columns).
+    slide) has entries in ``span(1, cos q, sin q)`` (revolute) or ``span(1, q)`` (prismatic), so it
+    is of degree one in the basis and the congruence of degree two. Both are fitted exactly from
+    ``2 degree + 1`` samples per joint (equally spaced angles; slides ``-degree..degree``).
 
     Args:
-        revolute: (n,) joint kinds; Ia: (n, 6, 6) constant child-frame inertias; consts: the
-            model's Rodrigues constants ``E0, E1, E2, r0, r1, r2, r3`` of these joints.
+        revolute: (n,) joint kinds; consts: the model's Rodrigues constants ``E0, E1, E2, r0, r1,
+            r2, r3`` of these joints; Ia: optional (n, 6, 6) constant child-frame inertias.
     """
     n = len(revolute)
-    ks = np.arange(5.0)
-    qs = np.where(revolute[:, None], 2 * np.pi * ks / 5, ks - 2.0)  # (n, 5) sample points
-    samples = np.empty((n, 5, 36))
-    for k in range(5):
-        E, r = _transforms(np, revolute, qs[:, k], *(consts[name] for name in ("E0", "E1", "E2", "r0", "r1", "r2", "r3")))
+    k = 3 if Ia is None else 5
+    ks = np.arange(float(k))
+    qs = np.where(revolute[:, None], 2 * np.pi * ks / k, ks - (k - 1) / 2)  # (n, k) sample points
+    samples = np.empty((n, k, 36))
+    for i in range(k):
+        E, r = _transforms(np, revolute, qs[:, i], *(consts[name] for name in ("E0", "E1", "E2", "r0", "r1", "r2", "r3")))
         X = sp.transform_matrix(np, E, r)
-        samples[:, k] = (X.mT @ Ia @ X).reshape(n, 36)
-    B = joint_basis(np, revolute[:, None], qs)  # (n, 5 samples, 5 functions)
+        samples[:, i] = (X if Ia is None else X.mT @ Ia @ X).reshape(n, 36)
+    B = joint_basis(np, revolute[:, None], qs)[..., :k]  # (n, k samples, k functions)
     return np.linalg.pinv(B) @ samples
 
 
@@ -132,12 +134,10 @@ def articulated_inertias(model, q):
     """
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
-    E, r = joint_transforms(model, q)
-    Xup = sp.transform_matrix(xp, E, r)
+    b = joint_basis(xp, model.revolute, q)[:, None, :]
+    Xup = (b[..., :3] @ model.X_basis).reshape(-1, 6, 6)
     IA = model.inner_inertia + 0.0  # a fresh (L, 6, 6) copy of the rigid-body inertias
-    if model.n_leaves:
-        b = joint_basis(xp, model.leaf_revolute, q[L - C :])
-        model.leaf_segments.add_into(IA, (b[:, None, :] @ model.leaf_P)[:, 0])
+    model.leaf_segments.add_into(IA, b[L - C :] @ model.leaf_P)
     S = model.S
     U, d = model.U_leaf + 0.0, model.d_leaf + 0.0  # leaf rows are constant; inner rows follow
     for s, e, _, seg in reversed(model.levels):

@@ -17,7 +17,7 @@ import numpy as np
 from coursekit.creatures.body import PRISMATIC, REVOLUTE, BodyTree
 
 from . import backend as bk
-from .aba import leaf_inertia_basis
+from .aba import fit_joint_basis
 
 
 def as_trees(creatures) -> list[BodyTree]:
@@ -148,7 +148,7 @@ class Model:
         self.Rq1, self.Rq2 = f(J @ K), f(J @ K2)
         # leaves never change their articulated inertia: U = I S, d = S'U and Ia = I - U U'/d are
         # constants, and what a leaf passes to its parent, Xup' Ia Xup, is a fixed combination of
-        # five constant matrices (aba.leaf_inertia_basis)
+        # five constant matrices (aba.fit_joint_basis)
         Il, Sl = self.inertia_diag_np[L:], S[L - C :]
         Ul = Il * Sl
         dl = np.sum(Sl * Ul, axis=1)
@@ -157,8 +157,8 @@ class Model:
         self.U_leaf, self.d_leaf = f(U0), f(d0)
         Ia = np.einsum("ni,ij->nij", Il, np.eye(6)) - Ul[:, :, None] * Ul[:, None, :] / dl[:, None, None]
         leaf = {name: value[L - C :] for name, value in consts.items()}
-        self.leaf_P = f(leaf_inertia_basis(rev[L - C :], Ia, leaf))
-        self.leaf_revolute = bk.asarray(xp, rev[L - C :], dtype=xp.bool, device=device)
+        self.leaf_P = f(fit_joint_basis(rev[L - C :], leaf, Ia))
+        self.X_basis = f(fit_joint_basis(rev, consts))  # Xup(q) in the same basis
         self.inner_inertia = f(np.einsum("ni,ij->nij", self.inertia_diag_np[:L], np.eye(6)))
         self.half_extents = f(self.half_extents_np)
         self.mass = f(mass)
