@@ -125,12 +125,14 @@ def body_velocities(model, X, v0, qd):
 
 
 def articulated_inertias(model, q):
-    """The velocity-independent half of the inward sweep: ``(Xup, IA, U, d)`` at ``q``.
+    """The velocity-independent half of the ABA: ``(Xup, IA, U, d, W, Z)`` at ``q``.
 
     ``Xup`` (M, 6, 6) are the joint transforms; ``IA`` (L, 6, 6) the articulated inertias of the
     roots and inner bodies (a leaf's is its rigid inertia), ``U = IA S`` and ``d = S' U`` (M,)
-    per joint. Each child passes ``Xup' (IA - U U' / d) Xup`` to its parent. They depend on the
-    positions only, so the Nyström stages 2 and 3, which share positions, share them.
+    per joint, ``W = Xup' U / d`` (M, 6) and, for the inner joints, ``Z = Xup - S W'``
+    (L - C, 6, 6). Each child passes ``Xup' (IA - U U' / d) Xup = Xup' IA Z`` to its parent.
+    They depend on the positions only, so the Nyström stages 2 and 3, which share positions,
+    share them.
     """
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
@@ -140,20 +142,33 @@ def articulated_inertias(model, q):
     model.leaf_segments.add_into(IA, b[L - C :] @ model.leaf_P)
     S = model.S
     U, d = model.U_leaf + 0.0, model.d_leaf + 0.0  # leaf rows are constant; inner rows follow
+    W = xp.zeros_like(U)
+    jl = slice(L - C, None)
+    W[jl] = sp.mtv(Xup[jl], U[jl]) / d[jl][:, None]
+    Z = xp.zeros((L - C, 6, 6), dtype=Xup.dtype, device=model.device)
     for s, e, _, seg in reversed(model.levels):
         j = slice(s - C, e - C)
         IAj = IA[s:e]
         Uj = sp.mv(IAj, S[j])
-        dj = xp.sum(S[j] * Uj, axis=-1)
+        dj = xp.vecdot(S[j], Uj)
         U[j], d[j] = Uj, dj
         X = Xup[j]
-        w = sp.mtv(X, Uj)  # Xup' U
-        seg.add_into(IA, X.mT @ (IAj @ X) - sp.outer(xp, w, w / dj[:, None]))
-    return Xup, IA, U, d
+        Wj = sp.mtv(X, Uj) / dj[:, None]
+        W[j] = Wj
+        Zj = X - sp.outer(xp, S[j], Wj)
+        Z[j] = Zj
+        seg.add_into(IA, X.mT @ (IAj @ Zj))
+    return Xup, IA, U, d, W, Z
 
 
 def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
     """Forward dynamics of the whole batch.
+
+    The bias sweep uses ``u = tau - S'pA`` and ``pa = pA + Ia c + U u / d`` (``Ia = IA - U U'/d``),
+    so a child passes ``Xup' pa = Z' pA + Xup' (IA c + U (tau - U'c) / d)`` to its parent; the
+    acceleration sweep ``a = Xup a_parent + c + S qdd`` with ``qdd = (u - U'(Xup a_parent + c))/d``
+    is ``a = Z a_parent + c + S (u - U'c) / d`` (``Z``, ``W`` of :func:`articulated_inertias`).
+    Leaves need no sweep: their ``pA`` is complete at once and their ``a`` is never needed.
 
     Args:
         model: packed :class:`~coursekit.creatures.physics.model.Model`.
@@ -170,46 +185,39 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
     """
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
-    Xup, IA, U, d = articulated_inertias(model, q) if inertias is None else inertias
+    Xup, IA, U, d, W, Z = articulated_inertias(model, q) if inertias is None else inertias
     S = model.S
     vJ = S * qd[:, None]
     v = _outward_velocities(model, Xup, v0, vJ)
     c = sp.cross_motion(xp, v[C:], vJ)  # (M, 6) bias accelerations of the joints' children
 
     I = model.inertia_diag
-    pA = sp.cross_force(xp, v, I * v)
+    pA = sp.rigid_bias_force(xp, v, I)
     if damping is not None:
         pA = pA + damping * v
     if f_ext is not None:
         pA = pA - f_ext
-    # u = tau - S'pA, and each child passes Xup'(pA + Ia c + U u / d), Ia = IA - U U' / d, i.e.
-    # pa = pA + IA c + U (u - U'c) / d
-    Uc = xp.sum(U * c, axis=-1)
-    u = xp.zeros_like(tau)
-    jl = slice(L - C, None)  # the leaves first, all at once (IA = I is diagonal)
-    u[jl] = tau[jl] - xp.sum(S[jl] * pA[L:], axis=-1)
-    pa = pA[L:] + I[L:] * c[jl] + U[jl] * ((u[jl] - Uc[jl]) / d[jl])[:, None]
+    Uc = xp.vecdot(U, c)
+    jl, ji = slice(L - C, None), slice(0, L - C)
+    # leaves, all at once (their IA is the diagonal I)
+    ul = tau[jl] - xp.vecdot(S[jl], pA[L:])
+    pa = pA[L:] + I[L:] * c[jl] + U[jl] * ((ul - Uc[jl]) / d[jl])[:, None]
     model.leaf_segments.add_into(pA, sp.mtv(Xup[jl], pa))
-    IAc = sp.mv(IA[C:], c[: L - C])
+    # inner bodies, level by level
+    h = sp.mtv(Xup[ji], sp.mv(IA[C:], c[ji]) + U[ji] * ((tau[ji] - Uc[ji]) / d[ji])[:, None])
     for s, e, _, seg in reversed(model.levels):
         j = slice(s - C, e - C)
-        uj = tau[j] - xp.sum(S[j] * pA[s:e], axis=-1)
-        u[j] = uj
-        pa = pA[s:e] + IAc[j] + U[j] * ((uj - Uc[j]) / d[j])[:, None]
-        seg.add_into(pA, sp.mtv(Xup[j], pa))
+        seg.add_into(pA, sp.mtv(Z[j], pA[s:e]) + h[j])
+    ud = (tau - xp.vecdot(S, pA[C:]) - Uc) / d  # (u - U'c) / d
 
     a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
     a = xp.zeros((L, 6), dtype=v.dtype, device=model.device)
     a[:C] = a0
-    qdd = xp.zeros_like(tau)
+    k = c[ji] + S[ji] * ud[ji][:, None]
     for s, e, par, _ in model.levels:
         j = slice(s - C, e - C)
-        ai = sp.mv(Xup[j], a[par]) + c[j]
-        qddj = (u[j] - xp.sum(U[j] * ai, axis=-1)) / d[j]
-        qdd[j] = qddj
-        a[s:e] = ai + S[j] * qddj[:, None]
-    ai = sp.mv(Xup[jl], a[model.leaf_parent]) + c[jl]
-    qdd[jl] = (u[jl] - xp.sum(U[jl] * ai, axis=-1)) / d[jl]
+        a[s:e] = sp.mv(Z[j], a[par]) + k[j]
+    qdd = ud - xp.vecdot(W, a[model.joint_parent])
     return a0, qdd, v
 
 

@@ -93,7 +93,7 @@ class Contacts:
         xp, m = self.xp, self.model
         a, b = self.a, self.b
         d = p[b] - p[a]
-        near = xp.sum(d * d, axis=1) < (self.radius[a] + self.radius[b]) ** 2
+        near = xp.vecdot(d, d) < (self.radius[a] + self.radius[b]) ** 2
         sel = xp.nonzero(near)[0]
         a, b, d = a[sel], b[sel], d[sel]
         hA, hB = m.half_extents[a], m.half_extents[b]
@@ -127,8 +127,8 @@ class Contacts:
         axes = [Ah[:, :, k] for k in range(3)] + [Bh[:, :, k] for k in range(3)]
         axes += [sp.cross3(xp, Ah[:, :, i], Bh[:, :, j]) for i in range(3) for j in range(3)]
         n = xp.stack(axes, axis=1)[rows, best]
-        n = n / xp.sqrt(xp.sum(n * n, axis=1, keepdims=True))
-        s = xp.where(xp.sum(n * d[hit], axis=1) < 0, -xp.ones_like(depth[hit]), xp.ones_like(depth[hit]))
+        n = n / xp.sqrt(xp.vecdot(n, n))[:, None]
+        s = xp.where(xp.vecdot(n, d[hit]) < 0, -xp.ones_like(depth[hit]), xp.ones_like(depth[hit]))
         n = n * s[:, None]
         A, B, hA, hB = A[hit], B[hit], hA[hit], hB[hit]
         a, b = a[hit], b[hit]
@@ -166,7 +166,7 @@ class Contacts:
 
         va = point_velocity(a)
         vb = point_velocity(b)
-        vn = xp.sum((vb - va) * n, axis=1)
+        vn = xp.vecdot(vb - va, n)
         depth = xp.minimum(depth, self.depth_cap[pair_idx])
         mag = xp.clip(self.k[pair_idx] * depth - self.c[pair_idx] * vn, 0.0, None)
         F = mag[:, None] * n

@@ -93,6 +93,7 @@ class Model:
         for (ps, pe), (s, e) in zip(bounds[:-2], bounds[1:-1]):
             self.levels.append((s, e, bk.index(xp, par[s:e], device=device), bk.Segments(xp, par[s:e], (ps, pe), device=device)))
         self.leaf_parent = bk.index(xp, par[L:], device=device)
+        self.joint_parent = bk.index(xp, par[C:], device=device)
         self.leaf_segments = bk.Segments(xp, par[L:], (0, L), device=device)
         # joints: sorted body C + j; user layout: creature-concatenated BodyTree order (bodies 1..)
         packed_joint = np.concatenate([np.arange(f + 1, f + n) for f, n in zip(first, sizes)])

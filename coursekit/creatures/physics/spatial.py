@@ -54,6 +54,13 @@ def cross_force(xp, v, f):
     return xp.concat([cross3(xp, w, n) + cross3(xp, u, fl), cross3(xp, w, fl)], axis=-1)
 
 
+def rigid_bias_force(xp, v, I):
+    """``v x* (I v)`` for body-frame diagonal inertias ``I = (Ixx, Iyy, Izz, m, m, m)`` at the centre
+    of mass: ``(w x (I_w w), m (w x u))`` (the ``u x m u`` term vanishes)."""
+    w, u = v[..., :3], v[..., 3:]
+    return xp.concat([cross3(xp, w, I[..., :3] * w), I[..., 3:] * cross3(xp, w, u)], axis=-1)
+
+
 def transform_motion(xp, E, r, m):
     """``X @ m`` for the transform ``X = (E, r)``."""
     mw, mu = m[..., :3], m[..., 3:]
@@ -104,14 +111,14 @@ def quat_mul(xp, a, b):
     """Hamilton product ``a * b`` of (..., 4) quaternions."""
     aw, av = a[..., :1], a[..., 1:]
     bw, bv = b[..., :1], b[..., 1:]
-    w = aw * bw - xp.sum(av * bv, axis=-1, keepdims=True)
+    w = aw * bw - xp.vecdot(av, bv)[..., None]
     v = aw * bv + bw * av + cross3(xp, av, bv)
     return xp.concat([w, v], axis=-1)
 
 
 def quat_exp(xp, theta):
     """Unit quaternion of the rotation vector ``theta`` (..., 3) (exponential map of SO(3))."""
-    phi2 = xp.sum(theta * theta, axis=-1, keepdims=True)
+    phi2 = xp.vecdot(theta, theta)[..., None]
     phi = xp.sqrt(phi2)
     small = phi < 1e-4
     safe = xp.where(small, xp.ones_like(phi), phi)
@@ -122,7 +129,7 @@ def quat_exp(xp, theta):
 
 def quat_canonical(xp, q):
     """Normalise quaternions and pick the sign with ``w >= 0``."""
-    q = q / xp.sqrt(xp.sum(q * q, axis=-1, keepdims=True))
+    q = q / xp.sqrt(xp.vecdot(q, q))[..., None]
     return xp.where(q[..., :1] < 0, -q, q)
 
 
@@ -157,7 +164,7 @@ def mat_to_quat(R: np.ndarray) -> np.ndarray:
 
 def _dexp_coefficients(xp, theta):
     """alpha = (1 - cos p)/p^2, beta = (p - sin p)/p^3 and their derivatives over p (divided by p)."""
-    p2 = xp.sum(theta * theta, axis=-1)
+    p2 = xp.vecdot(theta, theta)
     p = xp.sqrt(p2)
     small = p < 1e-3
     ps = xp.where(small, xp.ones_like(p), p)
@@ -183,7 +190,7 @@ def dexp(xp, theta, theta_dot):
 def dexp_dot(xp, theta, theta_dot):
     """Time derivative of ``dexp(theta)`` applied to ``theta_dot`` (the chart's curvature term)."""
     alpha, beta, dalpha, dbeta = _dexp_coefficients(xp, theta)
-    pdot = xp.sum(theta * theta_dot, axis=-1)  # p * dp/dt
+    pdot = xp.vecdot(theta, theta_dot)  # p * dp/dt
     t1 = cross3(xp, theta, theta_dot)
     term_a = -(dalpha * pdot)[..., None] * t1  # theta_dot x theta_dot = 0
     term_b = (dbeta * pdot)[..., None] * cross3(xp, theta, t1) + beta[..., None] * cross3(xp, theta_dot, t1)
@@ -192,7 +199,7 @@ def dexp_dot(xp, theta, theta_dot):
 
 def dexp_inv(xp, theta, omega):
     """Solve ``dexp(theta) @ x = omega`` for ``x`` (exactly, by the closed-form inverse)."""
-    p2 = xp.sum(theta * theta, axis=-1)
+    p2 = xp.vecdot(theta, theta)
     p = xp.sqrt(p2)
     small = p < 1e-3
     ps = xp.where(small, xp.ones_like(p), p)
