@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import backend as bk
 from . import spatial as sp
 
 
@@ -113,15 +114,23 @@ def _outward_velocities(model, X, v0, vJ):
     return v
 
 
+def _velocities_and_bias(model, X, v0, qd):
+    """``v`` (N, 6), ``vt = v'`` (6, N) (component-major copy for the cross products) and the
+    joints' bias accelerations ``c = v x vJ`` (M, 6)."""
+    xp = model.xp
+    vJt = model.S_t * qd  # (6, M)
+    v = _outward_velocities(model, X, v0, vJt.T)
+    vt = bk.contiguous(xp, v.T)
+    return v, vt, bk.contiguous(xp, sp.cross_motion(xp, vt[:, model.n_creatures :], vJt, axis=0).T)
+
+
 def body_velocities(model, X, v0, qd):
     """Outward sweep: spatial velocities ``v`` (N, 6) and bias accelerations ``c`` (N, 6).
 
     ``X`` is the (M, 6, 6) stack of joint transforms ``Xup`` (:func:`spatial.transform_matrix`).
     """
-    xp = model.xp
-    vJ = model.S * qd[:, None]
-    v = _outward_velocities(model, X, v0, vJ)
-    return v, xp.concat([xp.zeros_like(v0), sp.cross_motion(xp, v[model.n_creatures :], vJ)], axis=0)
+    v, _, c = _velocities_and_bias(model, X, v0, qd)
+    return v, model.xp.concat([model.xp.zeros_like(v0), c], axis=0)
 
 
 def articulated_inertias(model, q):
@@ -187,12 +196,9 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
     C, L = model.n_creatures, model.leaf_start
     Xup, IA, U, d, W, Z = articulated_inertias(model, q) if inertias is None else inertias
     S = model.S
-    vJ = S * qd[:, None]
-    v = _outward_velocities(model, Xup, v0, vJ)
-    c = sp.cross_motion(xp, v[C:], vJ)  # (M, 6) bias accelerations of the joints' children
-
+    v, vt, c = _velocities_and_bias(model, Xup, v0, qd)
     I = model.inertia_diag
-    pA = sp.rigid_bias_force(xp, v, I)
+    pA = bk.contiguous(xp, sp.rigid_bias_force(xp, vt, model.inertia_diag_t, axis=0).T)
     if damping is not None:
         pA = pA + damping * v
     if f_ext is not None:

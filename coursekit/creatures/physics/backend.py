@@ -46,6 +46,11 @@ def index(xp, a, *, device=None):
     return asarray(xp, np.asarray(a, dtype=np.int64), dtype=xp.int64, device=device)
 
 
+def contiguous(xp, a):
+    """``a`` laid out row-major (a copy when it is a transposed view)."""
+    return a.contiguous() if is_torch(xp) else np.ascontiguousarray(a)
+
+
 def to_numpy(a) -> np.ndarray:
     """Any backend array as a numpy array (copied from the device when needed)."""
     if hasattr(a, "detach"):

@@ -127,6 +127,8 @@ class Model:
         f = lambda a: bk.asarray(xp, a, device=device)  # noqa: E731
         self.inertia_diag = f(self.inertia_diag_np)
         self.S = f(S)
+        self.S_t = f(S.T)  # component-major copies for the cross products
+        self.inertia_diag_t = f(self.inertia_diag_np.T)
         self.revolute = bk.asarray(xp, rev, dtype=xp.bool, device=device)
         self.axis = f(axis)
         self.jpp = f(self.jpp_np)
