@@ -93,6 +93,15 @@ def fit_joint_basis(revolute: np.ndarray, consts: dict, Ia: np.ndarray | None = 
     return np.linalg.pinv(B) @ samples
 
 
+def joint_transform_matrices(model, q):
+    """(M, 6, 6) joint transforms ``Xup`` at ``q`` from the model's constant coefficients."""
+    return _transform_matrices(model, joint_basis(model.xp, model.revolute, q)[:, None, :])
+
+
+def _transform_matrices(model, b):
+    return (b[..., :3] @ model.X_basis).reshape(-1, 6, 6)
+
+
 def joint_rotations(model, q):
     """(M, 3, 3) child-to-parent rotations ``Rq = E.T`` at ``q``."""
     xp = model.xp
@@ -146,7 +155,7 @@ def articulated_inertias(model, q):
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
     b = joint_basis(xp, model.revolute, q)[:, None, :]
-    Xup = (b[..., :3] @ model.X_basis).reshape(-1, 6, 6)
+    Xup = _transform_matrices(model, b)
     IA = model.inner_inertia + 0.0  # a fresh (L, 6, 6) copy of the rigid-body inertias
     model.leaf_segments.add_into(IA, b[L - C :] @ model.leaf_P)
     S = model.S

@@ -25,7 +25,7 @@ import numpy as np
 
 from . import backend as bk
 from . import spatial as sp
-from .aba import body_velocities, forward_kinematics, joint_transforms
+from .aba import body_velocities, forward_kinematics, joint_transform_matrices
 from .limits import STIFFNESS_PER_STEP
 
 
@@ -75,9 +75,15 @@ class Contacts:
         self.c = bk.asarray(xp, 2.0 * m_red * w, device=m.device)
         h_min = m.half_extents_np.min(axis=1)
         self.depth_cap = bk.asarray(xp, DEPTH_CAP * np.minimum(h_min[a], h_min[b]), device=m.device)
-        self.radius = bk.asarray(xp, np.linalg.norm(m.half_extents_np, axis=1), device=m.device)
+        radius = np.linalg.norm(m.half_extents_np, axis=1)
+        self.reach2 = bk.asarray(xp, (radius[a] + radius[b]) ** 2, device=m.device)
+        self.half_extents = m.half_extents
+        self.half_t = bk.asarray(xp, m.half_extents_np.T, device=m.device)  # (3, N)
+        # rows of the edge-edge axes (i, j) = (k // 3, k % 3), i1 = i + 1, i2 = i + 2 (mod 3)
         I, J = np.repeat(np.arange(3), 3), np.tile(np.arange(3), 3)
-        self._edge_index = tuple(bk.index(xp, k, device=m.device) for k in (I, J, (I + 1) % 3, (I + 2) % 3, (J + 1) % 3, (J + 2) % 3))
+        I1, I2, J1, J2 = (I + 1) % 3, (I + 2) % 3, (J + 1) % 3, (J + 2) % 3
+        rows = (3 * I + J, 3 * I1 + J, 3 * I2 + J, 3 * I + J1, 3 * I + J2, I1, I2, J1, J2)
+        self._edge_rows = tuple(bk.index(xp, k, device=m.device) for k in rows)
 
     def detect(self, R, p):
         """Colliding pairs among the candidates.
@@ -90,52 +96,56 @@ class Contacts:
             normals from A to B (world), penetration depths and contact points (world) of the
             pairs in contact.
         """
-        xp, m = self.xp, self.model
+        xp = self.xp
+        N = p.shape[0]
+        # component-major (k, n) rows throughout: numpy gathers and multiplies contiguous rows fast
+        pt = bk.contiguous(xp, p.T)  # (3, N)
+        Rt = bk.contiguous(xp, xp.reshape(R, (N, 9)).T)  # Rt[3k + i] = R[:, k, i]: component k of axis i
         a, b = self.a, self.b
-        d = p[b] - p[a]
-        near = xp.vecdot(d, d) < (self.radius[a] + self.radius[b]) ** 2
-        sel = xp.nonzero(near)[0]
-        a, b, d = a[sel], b[sel], d[sel]
-        hA, hB = m.half_extents[a], m.half_extents[b]
-        A, B = R[a], R[b]  # columns: box axes in world
-        # the 15 axes in A's frame (Gottschalk et al. 1996): Rm[i, j] = A_i . B_j, t = d in A's frame
-        Rm = A.mT @ B
-        AbsR = xp.abs(Rm)
-        t = sp.mv(A.mT, d)
-        I, J, I1, I2, J1, J2 = self._edge_index
-        len_e = xp.sqrt(xp.clip(1.0 - Rm[:, I, J] ** 2, 0.0, None))  # |A_i x B_j|
+        d = xp.take(pt, b, axis=1) - xp.take(pt, a, axis=1)
+        sel = xp.nonzero(xp.sum(d * d, axis=0) < self.reach2)[0]  # bounding spheres overlap
+        a, b, d = a[sel], b[sel], xp.take(d, sel, axis=1)
+        n = a.shape[0]
+        A, B = xp.reshape(xp.take(Rt, a, axis=1), (3, 3, n)), xp.reshape(xp.take(Rt, b, axis=1), (3, 3, n))  # [component, axis]
+        # the 15 axes in A's frame (Gottschalk et al. 1996): Rm[3i + j] = A_i . B_j, t = d in A's frame
+        Rm = xp.reshape(xp.sum(A[:, :, None] * B[:, None], axis=0), (9, n))
+        Am = xp.abs(Rm)
+        t = xp.sum(A * d[:, None], axis=0)
+        hA, hB = xp.take(self.half_t, a, axis=1), xp.take(self.half_t, b, axis=1)
+        ij, i1j, i2j, ij1, ij2, I1, I2, J1, J2 = self._edge_rows
+        len_e = xp.sqrt(xp.clip(1.0 - Rm * Rm, 0.0, None))  # |A_i x B_j|
         valid = len_e > 1e-6  # parallel edges: the face axes already decide
-        safe = xp.where(valid, len_e, xp.ones_like(len_e))
         over_e = (
-            hA[:, I1] * AbsR[:, I2, J] + hA[:, I2] * AbsR[:, I1, J] + hB[:, J1] * AbsR[:, I, J2] + hB[:, J2] * AbsR[:, I, J1]
-            - xp.abs(t[:, I2] * Rm[:, I1, J] - t[:, I1] * Rm[:, I2, J])
-        ) / safe
-        dist_b = sp.mv(Rm.mT, t)
+            hA[I1] * Am[i2j] + hA[I2] * Am[i1j] + hB[J1] * Am[ij2] + hB[J2] * Am[ij1]
+            - xp.abs(t[I2] * Rm[i1j] - t[I1] * Rm[i2j])
+        ) / xp.where(valid, len_e, xp.ones_like(len_e))
+        A3, R3 = xp.reshape(Am, (3, 3, n)), xp.reshape(Rm, (3, 3, n))
         overlap = xp.concat(
             [
-                hA + sp.mv(AbsR, hB) - xp.abs(t),
-                sp.mv(AbsR.mT, hA) + hB - xp.abs(dist_b),
+                hA + xp.sum(A3 * hB[None], axis=1) - xp.abs(t),
+                xp.sum(A3 * hA[:, None], axis=0) + hB - xp.abs(xp.sum(R3 * t[:, None], axis=0)),
                 xp.where(valid, over_e, xp.full_like(over_e, float("inf"))),
             ],
-            axis=1,
+            axis=0,
         )
-        depth = xp.min(overlap, axis=1)
+        depth = xp.min(overlap, axis=0)
         hit = xp.nonzero(depth > 0)[0]
-        best = xp.argmin(overlap, axis=1)[hit]
-        rows = xp.arange(hit.shape[0], device=m.device) if bk.is_torch(xp) else np.arange(hit.shape[0])
-        Ah, Bh = A[hit], B[hit]
-        axes = [Ah[:, :, k] for k in range(3)] + [Bh[:, :, k] for k in range(3)]
-        axes += [sp.cross3(xp, Ah[:, :, i], Bh[:, :, j]) for i in range(3) for j in range(3)]
-        n = xp.stack(axes, axis=1)[rows, best]
-        n = n / xp.sqrt(xp.vecdot(n, n))[:, None]
-        s = xp.where(xp.vecdot(n, d[hit]) < 0, -xp.ones_like(depth[hit]), xp.ones_like(depth[hit]))
-        n = n * s[:, None]
-        A, B, hA, hB = A[hit], B[hit], hA[hit], hB[hit]
-        a, b = a[hit], b[hit]
+        best = xp.argmin(xp.take(overlap, hit, axis=1), axis=0)
+        a, b, d, depth = a[hit], b[hit], xp.take(d, hit, axis=1), depth[hit]
+        A, B, hA, hB = (xp.take(x, hit, axis=-1) for x in (A, B, hA, hB))
+        # the normal: A's axis best (< 3), B's axis best - 3 (< 6) or A_i x B_j (best = 6 + 3i + j)
+        zero = xp.zeros_like(best)
+        h = best.shape[0]
+        rows = xp.arange(h, device=self.model.device) if bk.is_torch(xp) else np.arange(h)
+        a_ax = xp.take(xp.reshape(A, (3, 3 * h)), h * xp.where(best < 3, best, xp.where(best < 6, zero, (best - 6) // 3)) + rows, axis=1)
+        b_ax = xp.take(xp.reshape(B, (3, 3 * h)), h * xp.where(best < 3, zero, xp.where(best < 6, best - 3, (best - 6) % 3)) + rows, axis=1)
+        nrm = xp.where(best < 3, a_ax, xp.where(best < 6, b_ax, sp.cross3(xp, a_ax, b_ax, axis=0)))
+        nrm = nrm / xp.sqrt(xp.sum(nrm * nrm, axis=0))
+        nrm = xp.where(xp.sum(nrm * d, axis=0) < 0, -nrm, nrm)
         # deepest vertices: of A along +n, of B along -n
-        vA = p[a] + sp.mv(A, hA * _sign(xp, sp.mv(A.mT, n)))
-        vB = p[b] - sp.mv(B, hB * _sign(xp, sp.mv(B.mT, n)))
-        return sel[hit], a, b, n, depth[hit], 0.5 * (vA + vB)
+        vA = xp.take(pt, a, axis=1) + xp.sum(A * (hA * _sign(xp, xp.sum(A * nrm[:, None], axis=0)))[None], axis=1)
+        vB = xp.take(pt, b, axis=1) - xp.sum(B * (hB * _sign(xp, xp.sum(B * nrm[:, None], axis=0)))[None], axis=1)
+        return sel[hit], a, b, bk.contiguous(xp, nrm.T), depth, bk.contiguous(xp, (0.5 * (vA + vB)).T)
 
     def forces(self, state):
         """Penalty wrenches and contact sensors for ``state``.
@@ -157,8 +167,8 @@ class Contacts:
         pair_idx, a, b, n, depth, x = self.detect(R, p)
         if a.shape[0] == 0:
             return f_world, sensors
-        E, r = joint_transforms(m, state.q)
-        v, _ = body_velocities(m, sp.transform_matrix(xp, E, r), xp.concat([state.omega, sp.mv(R0.mT, state.lin)], axis=1), state.qd)
+        X = joint_transform_matrices(m, state.q)
+        v, _ = body_velocities(m, X, xp.concat([state.omega, sp.mtv(R0, state.lin)], axis=1), state.qd)
 
         def point_velocity(i):
             rl = sp.mv(R[i].mT, x - p[i])
