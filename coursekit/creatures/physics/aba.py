@@ -40,12 +40,11 @@ def joint_transforms(model, q):
     """Joint transforms ``Xup = (E, r)`` at ``q``: ``E`` (M, 3, 3) rotates parent coordinates into
     child coordinates, ``r`` (M, 3) is the child's origin in parent coordinates.
 
-    Rodrigues' formula with the constant factors precomputed by the model: for revolute joints
-    ``E = J' + sin q (-K J') + (1 - cos q) K^2 J'`` (``K = [axis]x``, ``J`` = joint_rot); for
-    prismatic joints ``E = J'`` and ``r`` moves along ``J axis``.
+    Both are of degree one in :func:`joint_basis` (see :func:`fit_joint_basis`): one stacked
+    product with the model's constant coefficients.
     """
-    m = model
-    return _transforms(m.xp, m.revolute, q, m.E0, m.E1, m.E2, m.r0, m.r1, m.r2, m.r3)
+    Er = (joint_basis(model.xp, model.revolute, q)[:, None, :3] @ model.pose_basis)[:, 0]
+    return model.xp.reshape(Er[:, :9], (-1, 3, 3)), Er[:, 9:]
 
 
 def joint_basis(xp, revolute, q):
@@ -67,28 +66,25 @@ def joint_basis(xp, revolute, q):
     )
 
 
-def fit_joint_basis(revolute: np.ndarray, consts: dict, Ia: np.ndarray | None = None) -> np.ndarray:
-    """Constant coefficients of ``Xup(q)`` (``Ia`` None) or of ``Xup(q)' Ia Xup(q)`` in
-    :func:`joint_basis` (numpy): (n, 3, 36) or (n, 5, 36).
+def fit_joint_basis(revolute: np.ndarray, consts: dict, sample, k: int = 3) -> np.ndarray:
+    """Constant coefficients ``P`` (n, k, w) with ``sample(E(q), r(q)) = joint_basis(q)[:, :k] @ P``
+    for every ``q`` (numpy).
 
     ``Xup(q) = X_c Rot(q) X_p`` (constant transforms on either side of the joint's rotation or
-    slide) has entries in ``span(1, cos q, sin q)`` (revolute) or ``span(1, q)`` (prismatic), so it
-    is of degree one in the basis and the congruence of degree two. Both are fitted exactly from
-    ``2 degree + 1`` samples per joint (equally spaced angles; slides ``-degree..degree``).
+    slide) has entries in ``span(1, cos q, sin q)`` (revolute) or ``span(1, q)`` (prismatic): so
+    ``E``, ``r`` and ``Xup`` are of degree one (``k = 3``) in the basis and congruences
+    ``Xup' I Xup`` of degree two (``k = 5``). Fitted exactly from ``k`` samples per joint (equally
+    spaced angles; slides centred on 0), with Rodrigues' formula at the samples.
 
     Args:
-        revolute: (n,) joint kinds; consts: the model's Rodrigues constants ``E0, E1, E2, r0, r1,
-            r2, r3`` of these joints; Ia: optional (n, 6, 6) constant child-frame inertias.
+        revolute: (n,) joint kinds; consts: the Rodrigues constants ``E0, E1, E2`` (rotation
+            ``E = E0 + sin q E1 + (1 - cos q) E2``) and ``r0, r1, r2, r3`` (origin, plus
+            ``slide r3`` for prismatic joints) of these joints; sample: ``(E, r) -> (n, w)``.
     """
     n = len(revolute)
-    k = 3 if Ia is None else 5
     ks = np.arange(float(k))
     qs = np.where(revolute[:, None], 2 * np.pi * ks / k, ks - (k - 1) / 2)  # (n, k) sample points
-    samples = np.empty((n, k, 36))
-    for i in range(k):
-        E, r = _transforms(np, revolute, qs[:, i], *(consts[name] for name in ("E0", "E1", "E2", "r0", "r1", "r2", "r3")))
-        X = sp.transform_matrix(np, E, r)
-        samples[:, i] = (X if Ia is None else X.mT @ Ia @ X).reshape(n, 36)
+    samples = np.stack([sample(*_transforms(np, revolute, qs[:, i], *(consts[c] for c in ("E0", "E1", "E2", "r0", "r1", "r2", "r3")))) for i in range(k)], axis=1)
     B = joint_basis(np, revolute[:, None], qs)[..., :k]  # (n, k samples, k functions)
     return np.linalg.pinv(B) @ samples
 
@@ -100,14 +96,6 @@ def joint_transform_matrices(model, q):
 
 def _transform_matrices(model, b):
     return (b[..., :3] @ model.X_basis).reshape(-1, 6, 6)
-
-
-def joint_rotations(model, q):
-    """(M, 3, 3) child-to-parent rotations ``Rq = E.T`` at ``q``."""
-    xp = model.xp
-    angle = xp.where(model.revolute, q, xp.zeros_like(q))
-    s, c1 = xp.sin(angle), 1.0 - xp.cos(angle)
-    return model.joint_rot + s[:, None, None] * model.Rq1 + c1[:, None, None] * model.Rq2
 
 
 def _outward_velocities(model, X, v0, vJ):
@@ -240,14 +228,13 @@ def forward_kinematics(model, R0, p0, q):
     """World rotation (N, 3, 3) and position (N, 3) of every body."""
     xp = model.xp
     C, N, L = model.n_creatures, model.n_bodies, model.leaf_start
-    _, t = joint_transforms(model, q)
-    Rq = joint_rotations(model, q)
+    E, t = joint_transforms(model, q)
     R = xp.zeros((N, 3, 3), dtype=R0.dtype, device=model.device)
     p = xp.zeros((N, 3), dtype=R0.dtype, device=model.device)
     R[:C], p[:C] = R0, p0
     for s, e, par, _ in model.levels + [(L, N, model.leaf_parent, None)]:
         j = slice(s - C, e - C)
         Rp = R[par]
-        R[s:e] = Rp @ Rq[j]
+        R[s:e] = Rp @ E[j].mT
         p[s:e] = p[par] + sp.mv(Rp, t[j])
     return R, p

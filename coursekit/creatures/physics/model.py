@@ -17,6 +17,7 @@ import numpy as np
 from coursekit.creatures.body import PRISMATIC, REVOLUTE, BodyTree
 
 from . import backend as bk
+from . import spatial as sp
 from .aba import fit_joint_basis
 
 
@@ -130,10 +131,6 @@ class Model:
         self.S_t = f(S.T)  # component-major copies for the cross products
         self.inertia_diag_t = f(self.inertia_diag_np.T)
         self.revolute = bk.asarray(xp, rev, dtype=xp.bool, device=device)
-        self.axis = f(axis)
-        self.jpp = f(self.jpp_np)
-        self.jpc = f(jpc)
-        self.joint_rot = f(self.joint_rot_np)
         # Rodrigues with constant factors: Rot(a, q) = 1 + sin q K + (1 - cos q) K^2, K = [a]x, so
         # E(q) = Rot(a, -q) J' and r(q) = jpp + J (slide a - Rot(a, q) c) are sums of constants
         K = np.cross(axis[:, None, :], -np.eye(3)[None])  # K @ x == cross(axis, x)
@@ -146,12 +143,12 @@ class Model:
             "r0": self.jpp_np - Jc, "r1": -np.einsum("mij,mj->mi", J @ K, jpc),
             "r2": -np.einsum("mij,mj->mi", J @ K2, jpc), "r3": np.einsum("mij,mj->mi", J, axis),
         }  # fmt: skip
-        for name, value in consts.items():
-            setattr(self, name, f(value))
-        self.Rq1, self.Rq2 = f(J @ K), f(J @ K2)
+        # E, r and Xup are of degree one in aba.joint_basis(q): constant coefficients
+        self.pose_basis = f(fit_joint_basis(rev, consts, lambda E, r: np.concatenate([E.reshape(-1, 9), r], axis=1)))
+        self.X_basis = f(fit_joint_basis(rev, consts, lambda E, r: sp.transform_matrix(np, E, r).reshape(-1, 36)))
         # leaves never change their articulated inertia: U = I S, d = S'U and Ia = I - U U'/d are
         # constants, and what a leaf passes to its parent, Xup' Ia Xup, is a fixed combination of
-        # five constant matrices (aba.fit_joint_basis)
+        # five constant matrices (degree two in aba.joint_basis)
         Il, Sl = self.inertia_diag_np[L:], S[L - C :]
         Ul = Il * Sl
         dl = np.sum(Sl * Ul, axis=1)
@@ -160,8 +157,12 @@ class Model:
         self.U_leaf, self.d_leaf = f(U0), f(d0)
         Ia = np.einsum("ni,ij->nij", Il, np.eye(6)) - Ul[:, :, None] * Ul[:, None, :] / dl[:, None, None]
         leaf = {name: value[L - C :] for name, value in consts.items()}
-        self.leaf_P = f(fit_joint_basis(rev[L - C :], leaf, Ia))
-        self.X_basis = f(fit_joint_basis(rev, consts))  # Xup(q) in the same basis
+
+        def congruence(E, r):
+            X = sp.transform_matrix(np, E, r)
+            return (X.mT @ Ia @ X).reshape(-1, 36)
+
+        self.leaf_P = f(fit_joint_basis(rev[L - C :], leaf, congruence, k=5))
         self.inner_inertia = f(np.einsum("ni,ij->nij", self.inertia_diag_np[:L], np.eye(6)))
         self.half_extents = f(self.half_extents_np)
         self.mass = f(mass)
