@@ -170,9 +170,9 @@ class Contacts:
         X = joint_transform_matrices(m, state.q)
         v, _ = body_velocities(m, X, xp.concat([state.omega, sp.mtv(R0, state.lin)], axis=1), state.qd)
 
-        def point_velocity(i):
-            rl = sp.mv(R[i].mT, x - p[i])
-            return sp.mv(R[i], v[i, 3:] + sp.cross3(xp, v[i, :3], rl))
+        def point_velocity(i):  # world velocity of the contact point as a point of body i
+            Ri, vi = R[i], v[i]
+            return sp.mv(Ri, vi[:, 3:]) + sp.cross3(xp, sp.mv(Ri, vi[:, :3]), x - p[i])
 
         va = point_velocity(a)
         vb = point_velocity(b)
@@ -185,7 +185,7 @@ class Contacts:
             w = xp.concat([sp.cross3(xp, x - p[body], Fw), Fw], axis=1)
             bk.scatter_add(xp, f_world, body, w)
         for body, direction in ((b, -n), (a, n)):
-            dl = sp.mv(R[body].mT, direction)  # contact direction in the box frame
+            dl = sp.mtv(R[body], direction)  # contact direction in the box frame
             k = xp.argmax(xp.abs(dl), axis=1)
             rows = xp.arange(dl.shape[0], device=m.device) if bk.is_torch(xp) else np.arange(dl.shape[0])
             face = 2 * k + (dl[rows, k] > 0)  # faces -x,+x,-y,+y,-z,+z
