@@ -131,12 +131,13 @@ def body_velocities(model, X, v0, qd):
 
 
 def articulated_inertias(model, q):
-    """The velocity-independent half of the ABA: ``(Xup, IA, U, d, W, Z)`` at ``q``.
+    """The velocity-independent half of the ABA: ``(Xup, IA, U, d, W, Z, Y)`` at ``q``.
 
     ``Xup`` (M, 6, 6) are the joint transforms; ``IA`` (L, 6, 6) the articulated inertias of the
     roots and inner bodies (a leaf's is its rigid inertia), ``U = IA S`` and ``d = S' U`` (M,)
-    per joint, ``W = Xup' U / d`` (M, 6) and, for the inner joints, ``Z = Xup - S W'``
-    (L - C, 6, 6). Each child passes ``Xup' (IA - U U' / d) Xup = Xup' IA Z`` to its parent.
+    per joint, ``W = Xup' U / d`` (M, 6) and, for the inner joints, ``Z = Xup - S W'`` and
+    ``Y = Xup' IA`` (L - C, 6, 6). Each child passes ``Xup' (IA - U U' / d) Xup = Y Z`` to its
+    parent.
     They depend on the positions only, so the Nyström stages 2 and 3, which share positions,
     share them.
     """
@@ -152,6 +153,7 @@ def articulated_inertias(model, q):
     jl = slice(L - C, None)
     W[jl] = sp.mtv(Xup[jl], U[jl]) / d[jl][:, None]
     Z = xp.zeros((L - C, 6, 6), dtype=Xup.dtype, device=model.device)
+    Y = xp.zeros_like(Z)
     for s, e, _, seg in reversed(model.levels):
         j = slice(s - C, e - C)
         IAj = IA[s:e]
@@ -162,18 +164,19 @@ def articulated_inertias(model, q):
         Wj = sp.mtv(X, Uj) / dj[:, None]
         W[j] = Wj
         Zj = X - sp.outer(xp, S[j], Wj)
-        Z[j] = Zj
-        seg.add_into(IA, X.mT @ (IAj @ Zj))
-    return Xup, IA, U, d, W, Z
+        Yj = X.mT @ IAj
+        Z[j], Y[j] = Zj, Yj
+        seg.add_into(IA, Yj @ Zj)
+    return Xup, IA, U, d, W, Z, Y
 
 
 def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
     """Forward dynamics of the whole batch.
 
     The bias sweep uses ``u = tau - S'pA`` and ``pa = pA + Ia c + U u / d`` (``Ia = IA - U U'/d``),
-    so a child passes ``Xup' pa = Z' pA + Xup' (IA c + U (tau - U'c) / d)`` to its parent; the
+    so a child passes ``Xup' pa = Z' pA + Y c + W (tau - U'c)`` to its parent; the
     acceleration sweep ``a = Xup a_parent + c + S qdd`` with ``qdd = (u - U'(Xup a_parent + c))/d``
-    is ``a = Z a_parent + c + S (u - U'c) / d`` (``Z``, ``W`` of :func:`articulated_inertias`).
+    is ``a = Z a_parent + c + S (u - U'c) / d`` (``W``, ``Z``, ``Y`` of :func:`articulated_inertias`).
     Leaves need no sweep: their ``pA`` is complete at once and their ``a`` is never needed.
 
     Args:
@@ -191,7 +194,7 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
     """
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
-    Xup, IA, U, d, W, Z = articulated_inertias(model, q) if inertias is None else inertias
+    Xup, IA, U, d, W, Z, Y = articulated_inertias(model, q) if inertias is None else inertias
     S = model.S
     v, vt, c = _velocities_and_bias(model, Xup, v0, qd)
     I = model.inertia_diag
@@ -207,7 +210,7 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
     pa = pA[L:] + I[L:] * c[jl] + U[jl] * ((ul - Uc[jl]) / d[jl])[:, None]
     model.leaf_segments.add_into(pA, sp.mtv(Xup[jl], pa))
     # inner bodies, level by level
-    h = sp.mtv(Xup[ji], sp.mv(IA[C:], c[ji]) + U[ji] * ((tau[ji] - Uc[ji]) / d[ji])[:, None])
+    h = sp.mv(Y, c[ji]) + W[ji] * (tau[ji] - Uc[ji])[:, None]
     for s, e, _, seg in reversed(model.levels):
         j = slice(s - C, e - C)
         seg.add_into(pA, sp.mtv(Z[j], pA[s:e]) + h[j])
