@@ -36,15 +36,23 @@ def _transforms(xp, revolute, q, E0, E1, E2, r0, r1, r2, r3):
     return E, r
 
 
+def _pose_rows(model, q):
+    """(12, M) component-major ``Rq = E'`` (rows ``3 r + c``) and ``r`` (rows 9..11) at ``q``."""
+    b = bk.contiguous(model.xp, joint_basis(model.xp, model.revolute, q)[:, 1:3].T)  # (2, M)
+    P = model.pose_rows_basis  # (3, 12, M); the first basis function is 1
+    return P[0] + b[0] * P[1] + b[1] * P[2]
+
+
 def joint_transforms(model, q):
     """Joint transforms ``Xup = (E, r)`` at ``q``: ``E`` (M, 3, 3) rotates parent coordinates into
     child coordinates, ``r`` (M, 3) is the child's origin in parent coordinates.
 
-    Both are of degree one in :func:`joint_basis` (see :func:`fit_joint_basis`): one stacked
-    product with the model's constant coefficients.
+    Both are of degree one in :func:`joint_basis` (see :func:`fit_joint_basis`): a few stacked
+    operations with the model's constant coefficients.
     """
-    Er = (joint_basis(model.xp, model.revolute, q)[:, None, :3] @ model.pose_basis)[:, 0]
-    return model.xp.reshape(Er[:, :9], (-1, 3, 3)), Er[:, 9:]
+    xp = model.xp
+    G = _pose_rows(model, q)
+    return xp.reshape(bk.contiguous(xp, G[:9].T), (-1, 3, 3)).mT, G[9:].T
 
 
 def joint_basis(xp, revolute, q):
@@ -227,17 +235,30 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
     return a0, qdd, v
 
 
+def poses_rows(model, R0, p0, q):
+    """World rotations (3, 3, N) and positions (3, N) of every body, component-major.
+
+    Each level is a handful of operations on contiguous rows (``R = R_parent Rq``,
+    ``p = p_parent + R_parent r``), which numpy does much faster than stacks of 3x3 products.
+    """
+    xp = model.xp
+    C, N, L = model.n_creatures, model.n_bodies, model.leaf_start
+    G = _pose_rows(model, q)
+    Rq, t = xp.reshape(G[:9], (3, 3, -1)), G[9:]
+    R = xp.zeros((3, 3, N), dtype=R0.dtype, device=model.device)
+    p = xp.zeros((3, N), dtype=R0.dtype, device=model.device)
+    R[:, :, :C] = xp.permute_dims(R0, (1, 2, 0))
+    p[:, :C] = p0.T
+    for s, e, par, _ in model.levels + [(L, N, model.leaf_parent, None)]:
+        j = slice(s - C, e - C)
+        Rp = xp.take(R, par, axis=2)  # (3, 3, n)
+        R[:, :, s:e] = xp.sum(Rp[:, :, None] * Rq[None, :, :, j], axis=1)
+        p[:, s:e] = xp.take(p, par, axis=1) + xp.sum(Rp * t[None, :, j], axis=1)
+    return R, p
+
+
 def forward_kinematics(model, R0, p0, q):
     """World rotation (N, 3, 3) and position (N, 3) of every body."""
     xp = model.xp
-    C, N, L = model.n_creatures, model.n_bodies, model.leaf_start
-    E, t = joint_transforms(model, q)
-    R = xp.zeros((N, 3, 3), dtype=R0.dtype, device=model.device)
-    p = xp.zeros((N, 3), dtype=R0.dtype, device=model.device)
-    R[:C], p[:C] = R0, p0
-    for s, e, par, _ in model.levels + [(L, N, model.leaf_parent, None)]:
-        j = slice(s - C, e - C)
-        Rp = R[par]
-        R[s:e] = Rp @ E[j].mT
-        p[s:e] = p[par] + sp.mv(Rp, t[j])
-    return R, p
+    R, p = poses_rows(model, R0, p0, q)
+    return bk.contiguous(xp, xp.permute_dims(R, (2, 0, 1))), bk.contiguous(xp, p.T)

@@ -25,7 +25,7 @@ import numpy as np
 
 from . import backend as bk
 from . import spatial as sp
-from .aba import body_velocities, forward_kinematics, joint_transform_matrices
+from .aba import body_velocities, joint_transform_matrices, poses_rows
 from .limits import STIFFNESS_PER_STEP
 
 
@@ -98,9 +98,13 @@ class Contacts:
         """
         xp = self.xp
         N = p.shape[0]
-        # component-major (k, n) rows throughout: numpy gathers and multiplies contiguous rows fast
-        pt = bk.contiguous(xp, p.T)  # (3, N)
-        Rt = bk.contiguous(xp, xp.reshape(R, (N, 9)).T)  # Rt[3k + i] = R[:, k, i]: component k of axis i
+        return self._detect_rows(bk.contiguous(xp, xp.reshape(R, (N, 9)).T), bk.contiguous(xp, p.T))
+
+    def _detect_rows(self, Rt, pt):
+        """:meth:`detect` on component-major poses: ``Rt`` (9, N), ``Rt[3k + i]`` = component k of
+        box axis i (``R[:, k, i]``), and ``pt`` (3, N). Component-major (k, n) rows throughout:
+        numpy gathers and multiplies contiguous rows fast."""
+        xp = self.xp
         a, b = self.a, self.b
         d = xp.take(pt, b, axis=1) - xp.take(pt, a, axis=1)
         sel = xp.nonzero(xp.sum(d * d, axis=0) < self.reach2)[0]  # bounding spheres overlap
@@ -163,10 +167,11 @@ class Contacts:
         if self.n_pairs == 0:
             return f_world, sensors
         R0 = sp.quat_to_mat(xp, state.quat)
-        R, p = forward_kinematics(m, R0, state.pos, state.q)
-        pair_idx, a, b, n, depth, x = self.detect(R, p)
+        Rr, pr = poses_rows(m, R0, state.pos, state.q)
+        pair_idx, a, b, n, depth, x = self._detect_rows(xp.reshape(Rr, (9, N)), pr)
         if a.shape[0] == 0:
             return f_world, sensors
+        R, p = bk.contiguous(xp, xp.permute_dims(Rr, (2, 0, 1))), bk.contiguous(xp, pr.T)
         X = joint_transform_matrices(m, state.q)
         v, _ = body_velocities(m, X, xp.concat([state.omega, sp.mtv(R0, state.lin)], axis=1), state.qd)
 

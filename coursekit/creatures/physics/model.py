@@ -144,7 +144,8 @@ class Model:
             "r2": -np.einsum("mij,mj->mi", J @ K2, jpc), "r3": np.einsum("mij,mj->mi", J, axis),
         }  # fmt: skip
         # E, r and Xup are of degree one in aba.joint_basis(q): constant coefficients
-        self.pose_basis = f(fit_joint_basis(rev, consts, lambda E, r: np.concatenate([E.reshape(-1, 9), r], axis=1)))
+        pose = fit_joint_basis(rev, consts, lambda E, r: np.concatenate([E.mT.reshape(-1, 9), r], axis=1))
+        self.pose_rows_basis = f(np.transpose(pose, (1, 2, 0)))  # (3, 12, M): rows of E' and r
         self.X_basis = f(fit_joint_basis(rev, consts, lambda E, r: sp.transform_matrix(np, E, r).reshape(-1, 36)))
         # leaves never change their articulated inertia: U = I S, d = S'U and Ia = I - U U'/d are
         # constants, and what a leaf passes to its parent, Xup' Ia Xup, is a fixed combination of
