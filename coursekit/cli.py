@@ -11,21 +11,37 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 
 
+def _lab(open_path: Path, no_browser: bool, extra: list[str]) -> int:
+    """JupyterLab serving the whole course (lessons link to ../exercises), opened at ``open_path``."""
+    cmd = [sys.executable, "-m", "jupyterlab", f"--ServerApp.root_dir={ROOT}",
+           f"--LabApp.default_url=/lab/tree/{open_path.relative_to(ROOT).as_posix()}"]
+    if no_browser:
+        cmd.append("--no-browser")
+    if hasattr(os, "geteuid") and os.geteuid() == 0:  # containers and CI machines run as root
+        cmd.append("--allow-root")
+    print("coursekit: starting JupyterLab on", open_path)
+    return subprocess.call(cmd + list(extra))
+
+
 def _cmd_lab(args: argparse.Namespace) -> int:
     """Open JupyterLab on the lessons folder."""
     lessons = Path(args.dir).resolve()
     if not lessons.is_dir():
         print(f"coursekit lab: no lessons folder at {lessons}", file=sys.stderr)
         return 2
-    # Serve the whole course (lessons link to ../exercises) and open the lessons folder.
-    cmd = [sys.executable, "-m", "jupyterlab", f"--ServerApp.root_dir={lessons.parent}", f"--LabApp.default_url=/lab/tree/{lessons.name}"]
-    if args.no_browser:
-        cmd.append("--no-browser")
-    if hasattr(os, "geteuid") and os.geteuid() == 0:  # containers and CI machines run as root
-        cmd.append("--allow-root")
-    cmd += args.extra
-    print("coursekit: starting JupyterLab on", lessons)
-    return subprocess.call(cmd)
+    return _lab(lessons, args.no_browser, args.extra)
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from coursekit import demos
+
+    if args.name == "swimmers":
+        summary = demos.swimmers(args.out or "swimmers-demo", population=args.population, generations=args.generations,
+                                 seconds=args.seconds, seed=args.seed)
+        print(f"best swimmer: fitness {summary['best_fitness']:.4f} m/s with {summary['best_parts']} parts")
+        print(f"wrote {', '.join(summary['files'])} to {args.out or 'swimmers-demo'}/")
+        return 0
+    return _lab(ROOT / "demos" / "picture_breeding.ipynb", args.no_browser, args.extra)
 
 
 def _cmd_grade(args: argparse.Namespace) -> int:
@@ -63,6 +79,16 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-browser", action="store_true", help="do not open a browser window")
     s.set_defaults(func=_cmd_lab)
 
+    s = sub.add_parser("demo", help="instructor demos: evolve swimmers (files), breed pictures (JupyterLab)")
+    s.add_argument("name", choices=["swimmers", "pictures"])
+    s.add_argument("--out", help="output folder (swimmers: default swimmers-demo/)")
+    s.add_argument("--population", type=int, help="population size (default by COURSEKIT_PROFILE)")
+    s.add_argument("--generations", type=int, help="generations (default by COURSEKIT_PROFILE)")
+    s.add_argument("--seconds", type=float, help="swimming seconds per evaluation")
+    s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    s.add_argument("--no-browser", action="store_true", help="pictures: do not open a browser window")
+    s.set_defaults(func=_cmd_demo)
+
     s = sub.add_parser("grade", help="grade exercise notebooks in isolated kernels (Gradescope JSON)")
     s.add_argument("notebooks", nargs="+", help="notebooks to grade")
     s.add_argument("--json", dest="json_out", help="write Gradescope-format results here")
@@ -87,7 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args, unknown = parser.parse_known_args(argv)
-    if args.command == "lab":
+    if args.command == "lab" or (args.command == "demo" and args.name == "pictures"):
         args.extra = unknown  # everything else goes to JupyterLab (--port=..., --ServerApp.*)
     elif unknown:
         parser.error(f"unrecognized arguments: {' '.join(unknown)}")

@@ -30,8 +30,11 @@ def test_profiles(monkeypatch):
         profile.current()
 
 
-def test_lab_serves_the_course_and_opens_the_lessons(tmp_path):
-    """`coursekit lab` (the README's first command) really serves JupyterLab on lessons/."""
+@pytest.mark.parametrize("command, opens", [(["lab"], "/lab/tree/lessons"),
+                                            (["demo", "pictures"], "/lab/tree/demos/picture_breeding.ipynb")])
+def test_lab_serves_the_course_and_opens_the_lessons(tmp_path, command, opens):
+    """`coursekit lab` (the README's first command) really serves JupyterLab on lessons/; the
+    pictures demo opens its notebook the same way."""
     import json
     import socket
     import time
@@ -43,7 +46,7 @@ def test_lab_serves_the_course_and_opens_the_lessons(tmp_path):
         port = s.getsockname()[1]
     env = {**__import__("os").environ, "JUPYTER_RUNTIME_DIR": str(tmp_path), "JUPYTER_CONFIG_DIR": str(tmp_path)}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "coursekit", "lab", "--no-browser", f"--ServerApp.port={port}", "--ServerApp.token=t", "--ServerApp.ip=127.0.0.1"],
+        [sys.executable, "-m", "coursekit", *command, "--no-browser", f"--ServerApp.port={port}", "--ServerApp.token=t", "--ServerApp.ip=127.0.0.1"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         env=env,
@@ -71,7 +74,27 @@ def test_lab_serves_the_course_and_opens_the_lessons(tmp_path):
             location = ""
         except urllib.error.HTTPError as e:
             location = e.headers["Location"]
-        assert "/lab/tree/lessons" in location
+        assert location.split("?")[0].endswith(opens)
     finally:
         proc.terminate()
         proc.wait(timeout=30)
+
+
+def test_swimmers_demo_writes_what_a_lecture_shows(tmp_path):
+    import json
+    import os
+
+    from PIL import Image
+
+    from coursekit.creatures import Creature
+
+    env = {**os.environ, "COURSEKIT_PROFILE": "ci"}
+    out = tmp_path / "demo"
+    subprocess.run([sys.executable, "-m", "coursekit", "demo", "swimmers", "--out", str(out), "--seed", "3"],
+                   check=True, env=env, capture_output=True)
+    summary = json.loads((out / "summary.json").read_text())
+    assert {"best.json", "best.png", "best.gif", "fitness.png"} <= set(summary["files"])
+    best = Creature.from_json((out / "best.json").read_text())
+    assert best.expand().body.n_bodies == summary["best_parts"]
+    assert summary["best_fitness"] == max(summary["history_best"])
+    assert Image.open(out / "best.gif").n_frames > 1

@@ -6,7 +6,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from coursekit.creatures import Creature, operators, part_poses, to_mjcf
+from coursekit.creatures import Creature, operators, to_mjcf
+from coursekit.creatures.render import world_poses
 
 
 def evolved(seed):
@@ -33,16 +34,16 @@ def test_exported_creatures_match_mujoco(seed):
     np.testing.assert_allclose(model.body_inertia[1:], body.inertia, rtol=1e-10, atol=1e-15)
     np.testing.assert_array_equal(model.body_parentid[1:], body.parent + 1)  # world is MuJoCo body 0
 
-    # joint kinematics: MuJoCo's forward kinematics at random joint coordinates (within limits)
-    # puts every part where our own expansion says it is
+    # kinematics: MuJoCo's forward kinematics at a random root pose and random joint coordinates
+    # (within limits) puts every part where our own expansion says it is
     rng = np.random.default_rng(seed)
     lo, hi = body.limits[1:, 0], body.limits[1:, 1]
-    q = lo + (hi - lo) * rng.random(B - 1)
+    quat = rng.normal(size=4)
+    qpos = np.concatenate([rng.normal(size=3), quat / np.linalg.norm(quat), lo + (hi - lo) * rng.random(B - 1)])
     data = mujoco.MjData(model)
-    data.qpos[:7] = [0, 0, 0, 1, 0, 0, 0]
-    data.qpos[7:] = q
+    data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
-    R, t = part_poses(body, q)
+    R, t = world_poses(body, qpos)
     np.testing.assert_allclose(data.xpos[1:], t, atol=1e-9)
     np.testing.assert_allclose(data.xmat[1:].reshape(-1, 3, 3), R, atol=1e-9)
 

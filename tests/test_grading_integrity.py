@@ -14,6 +14,8 @@ import nbformat
 import pytest
 from nbclient import NotebookClient
 
+from coursekit.grading import checks
+
 ROOT = Path(__file__).resolve().parent.parent
 ADV = ROOT / "tests" / "adversarial"
 sys.path.insert(0, str(ADV))
@@ -23,6 +25,9 @@ sys.path.pop(0)
 
 pytestmark = pytest.mark.slow
 CHECK_OF = {name: f"ga.{name}" for name in HONEST}
+# exercise notebook stem -> (max points, number of checks); each is graded once as solution and as exercise
+EXERCISES = {"01_selection": (10.0, 5), "02_picture_mutations": (10.0, 5), "03_picture_recombination": (6.0, 3),
+             "05_creature_operators": (12.0, 3), "07_swimming_physics": (10.0, 2)}
 
 
 def grade(paths, out, *extra):
@@ -47,28 +52,36 @@ def assert_gradescope_shape(results):
 
 
 @pytest.fixture(scope="module")
-def solution_and_exercise(tmp_path_factory):
+def solutions_and_exercises(tmp_path_factory):
     out = tmp_path_factory.mktemp("grade") / "results.json"
-    return grade([ROOT / "solutions" / "01_selection.ipynb", ROOT / "exercises" / "01_selection.ipynb"], out,
-                 "--timeout", "20", "--cell-timeout", "120")
+    paths = [ROOT / kind / f"{stem}.ipynb" for stem in EXERCISES for kind in ("solutions", "exercises")]
+    stdout, results = grade(paths, out, "--timeout", "20", "--cell-timeout", "120")
+    by_path = {Path(nb["path"]).relative_to(ROOT).as_posix(): nb for nb in results["extra_data"]["notebooks"]}
+    return stdout, results, by_path
 
 
-def test_solution_gets_full_marks(solution_and_exercise):
-    stdout, results = solution_and_exercise
+@pytest.mark.parametrize("stem", list(EXERCISES))
+def test_solution_gets_full_marks(solutions_and_exercises, stem):
+    stdout, results, by_path = solutions_and_exercises
     assert_gradescope_shape(results)
-    sol = results["extra_data"]["notebooks"][0]
-    assert sol["score"] == sol["max_score"] == 10.0
-    assert "solutions/01_selection.ipynb: 10 / 10 points" in stdout
+    points, _ = EXERCISES[stem]
+    sol = by_path[f"solutions/{stem}.ipynb"]
+    assert sol["score"] == sol["max_score"] == points
+    assert f"solutions/{stem}.ipynb: {points:g} / {points:g} points" in stdout
 
 
-def test_untouched_exercise_gets_zero_with_not_attempted(solution_and_exercise):
-    _, results = solution_and_exercise
-    ex = results["extra_data"]["notebooks"][1]
-    assert ex["score"] == 0.0 and ex["max_score"] == 10.0
-    tests = per_check(results, "01_selection.ipynb")  # both notebooks share the file name
-    assert all(name in tests for name in CHECK_OF.values())
-    exercise_tests = [t for t in results["tests"] if t["score"] == 0.0]
-    assert len(exercise_tests) == 5 and all("not attempted yet" in t["output"] for t in exercise_tests)
+@pytest.mark.parametrize("stem", list(EXERCISES))
+def test_untouched_exercise_gets_zero_with_not_attempted(solutions_and_exercises, stem):
+    _, results, by_path = solutions_and_exercises
+    points, n_checks = EXERCISES[stem]
+    ex = by_path[f"exercises/{stem}.ipynb"]
+    assert ex["score"] == 0.0 and ex["max_score"] == points
+    tests = [t for t in results["tests"] if t["name"].startswith(f"{stem}.ipynb: ")]  # solution and exercise
+    assert len(tests) == 2 * n_checks
+    exercise_tests = [t for t in tests if t["score"] == 0.0]
+    assert len(exercise_tests) == n_checks and all("not attempted yet" in t["output"] for t in exercise_tests)
+    if stem == "01_selection":
+        assert set(per_check(results, f"{stem}.ipynb")) == set(CHECK_OF.values())
 
 
 @pytest.fixture(scope="module")
@@ -96,14 +109,15 @@ def test_results_file_is_the_graders_and_survives_the_notebooks(adversarial):
     assert results["score"] == sum(2.0 * (5 - len(nb["sabotaged"])) for nb in NOTEBOOKS.values())
 
 
-def test_exercise_notebook_fails_only_with_not_implemented_error():
-    nb = nbformat.read(ROOT / "exercises" / "01_selection.ipynb", as_version=4)
+@pytest.mark.parametrize("stem", list(EXERCISES))
+def test_exercise_notebook_fails_only_with_not_implemented_error(stem):
+    nb = nbformat.read(ROOT / "exercises" / f"{stem}.ipynb", as_version=4)
     NotebookClient(nb, timeout=120, allow_errors=True, kernel_name="python3",
                    resources={"metadata": {"path": str(ROOT)}}).execute()
     errors = [o["ename"] for c in nb.cells if c.cell_type == "code" for o in c.outputs if o["output_type"] == "error"]
     assert errors and set(errors) == {"NotImplementedError"}
     checks = "".join(o.get("text", "") for c in nb.cells if c.source.startswith("check(") for o in c.outputs)
-    assert checks.count("not attempted yet") == 5
+    assert checks.count("not attempted yet") == EXERCISES[stem][1]
 
 
 def test_foreign_or_truncated_notebook_scores_zero_with_a_note(tmp_path):

@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 import numpy as np
 
 from coursekit.ga.history import History
@@ -52,3 +54,16 @@ def test_function_arguments_name_only_coursekit_attributes():
         assert "coursekit" in str(exc)
     else:
         raise AssertionError("a case naming os.system must be refused")
+
+
+@pytest.mark.parametrize("isolation", ["fork", "thread"])
+def test_a_function_that_edits_its_list_argument_never_edits_the_case(isolation, monkeypatch):
+    case = {"id": "c", "args": [[3, 1, 2], {"rng": True}], "kwargs": {}, "seeds": [1, 2, 3], "max_len": 10}
+
+    def consume(xs, rng):
+        return [xs.pop() for _ in range(len(xs))]
+
+    monkeypatch.setenv("COURSEKIT_CHECK_ISOLATION", isolation)
+    [rec] = run_cases(consume, [case], "indices", timeout=20)
+    assert rec["status"] == "ok" and rec["outputs"] == [[2, 1, 3]] * 3
+    assert case["args"][0] == [3, 1, 2]

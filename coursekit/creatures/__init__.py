@@ -18,6 +18,7 @@ from .genotype import FORMAT, ChildLink, Creature, Node, Recursion, Symmetry
 from .neural import FUNCTION_NAMES, SENSORS, Input, Neuron
 from .phenotype import MAX_PARTS, Phenotype, expand, part_poses
 from .simulate import SimulationResult, simulate
+from .render import animate, render  # noqa: E402  (the function shadows the submodule's name on purpose)
 from .evolution import evolve_swimmers
 
 
@@ -28,15 +29,8 @@ def to_mjcf(creature, **options) -> str:
     return _to_mjcf(creature, **options)
 
 
-def render(creature, path=None, **options):
-    """Render a creature or phenotype off-screen (see :func:`coursekit.creatures.render.render`)."""
-    from .render import render as _render
-
-    return _render(creature, path, **options)
-
-
 __all__ = [
-    "BodyTree", "Brain", "BrainBatch", "ChildLink", "Creature", "FORMAT", "FUNCTION_NAMES", "Input", "MAX_PARTS",
+    "BodyTree", "animate", "Brain", "BrainBatch", "ChildLink", "Creature", "FORMAT", "FUNCTION_NAMES", "Input", "MAX_PARTS",
     "Neuron", "Node", "Phenotype", "Recursion", "SENSORS", "SimulationResult", "Symmetry", "evolve_swimmers", "expand",
     "operators", "part_poses", "render", "simulate", "to_mjcf",
 ]

@@ -41,6 +41,87 @@ def box_corners(body: BodyTree, q=None) -> np.ndarray:
     return np.einsum("bij,bkj->bki", R, local) + t[:, None, :]
 
 
+def world_poses(body: BodyTree, qpos) -> tuple[np.ndarray, np.ndarray]:
+    """World rotations ``(B, 3, 3)`` and centres ``(B, 3)`` from a MuJoCo-layout ``qpos``
+    (root position, root quaternion w, x, y, z, then the joint coordinates)."""
+    qpos = np.asarray(qpos, dtype=np.float64)
+    if qpos.shape != (7 + body.n_joints,):
+        raise ValueError(f"qpos: expected shape ({7 + body.n_joints},) for this body, got {qpos.shape}")
+    w, x, y, z = qpos[3:7] / np.linalg.norm(qpos[3:7])
+    R0 = np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+    R, t = part_poses(body, qpos[7:])
+    return R0 @ R, t @ R0.T + qpos[:3]
+
+
+def _check_size(size):
+    if len(size) != 2 or not all(isinstance(s, (int, np.integer)) and 16 <= s <= 4096 for s in size):
+        raise ValueError(f"render.size: need (width, height) integers in [16, 4096], got {size!r}")
+
+
+class _Scene:
+    """One off-screen plotter with a creature's boxes and joint axes, re-posable for animation."""
+
+    def __init__(self, body: BodyTree, size, background, joint_axes):
+        import matplotlib
+        import pyvista as pv
+
+        self.body = body
+        self.pl = pv.Plotter(off_screen=True, window_size=list(size))
+        self.pl.set_background(background)
+        depth = body.depth
+        cmap = matplotlib.colormaps["viridis"]
+        top = max(int(depth.max()), 1)
+        self.unit = np.asarray(pv.Box(bounds=(-1, 1, -1, 1, -1, 1)).points)
+        self.boxes, self.axes = [], []
+        for b in range(body.n_bodies):
+            box = pv.Box(bounds=(-1, 1, -1, 1, -1, 1))
+            colour = cmap(0.15 + 0.75 * depth[b] / top)[:3]
+            self.pl.add_mesh(box, color=colour, show_edges=True, edge_color="black", line_width=1, smooth_shading=False)
+            self.boxes.append(box)
+        if joint_axes:
+            for b in range(1, body.n_bodies):
+                line = pv.Line((0, 0, 0), (1, 0, 0))
+                self.pl.add_mesh(line, color="blue" if body.joint_type[b] == PRISMATIC else "red", line_width=4)
+                self.axes.append((b, line))
+
+    def pose(self, R, t) -> np.ndarray:
+        """Move every part to its pose; returns the (B * 8, 3) box corners for framing."""
+        body = self.body
+        for b, box in enumerate(self.boxes):
+            box.points = (self.unit * body.half_extents[b]) @ R[b].T + t[b]
+        for b, line in self.axes:
+            L = 2.4 * float(body.half_extents[b].max())
+            anchor = R[b] @ body.joint_pos_child[b] + t[b]
+            a = R[b] @ body.joint_axis[b]
+            line.points = np.array([anchor - 0.5 * L * a, anchor + 0.5 * L * a])
+        local = _BOX_CORNERS[None, :, :] * body.half_extents[:, None, :]
+        return (np.einsum("bij,bkj->bki", R, local) + t[:, None, :]).reshape(-1, 3)
+
+    def look(self, centre, radius, azimuth, elevation, fit=True):
+        az, el = np.radians(azimuth), np.radians(elevation)
+        eye = centre + radius * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+        self.pl.camera_position = [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)]
+        if fit:
+            self.pl.reset_camera()  # keep the direction, fit the distance to the bounds
+
+
+def _atomic(path: Path, suffix: str, write) -> Path:
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=path.stem + ".", suffix=suffix, dir=path.parent or ".")
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
 def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, background: str = "white",
            azimuth: float = 30.0, elevation: float = 25.0):
     """Render a creature off-screen.
@@ -60,51 +141,70 @@ def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, 
     Example:
         >>> img = render(Creature.figure1_snake())  # doctest: +SKIP
     """
-    import matplotlib
+    body = _body_of(obj)
+    _check_size(size)
+    scene = _Scene(body, size, background, joint_axes and body.n_bodies > 1)
+    try:
+        corners = scene.pose(*part_poses(body, q))
+        lo, hi = corners.min(0), corners.max(0)
+        scene.look(0.5 * (lo + hi), max(float(np.linalg.norm(hi - lo)), 0.1), azimuth, elevation)
+        if path is None:
+            return np.asarray(scene.pl.screenshot(return_img=True))[..., :3].copy()
+        return _atomic(path, ".png", scene.pl.screenshot)
+    finally:
+        scene.pl.close()
+
+
+def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes: bool = False,
+            background: str = "white", azimuth: float = 30.0, elevation: float = 25.0) -> Path:
+    """Write a GIF of a creature swimming along a recorded trajectory.
+
+    The camera keeps its direction and distance and follows the centre of the body, over a grid
+    that stays put in the water, so forward motion shows.
+
+    Args:
+        obj: the creature (or Phenotype / BodyTree) that was simulated.
+        trajectory: (F, nq) MuJoCo-layout ``qpos`` frames, e.g. ``simulate(...,
+            record_every=k).trajectory[i]``.
+        path: the GIF to write (atomically).
+        fps: frames per second of the GIF.
+        size, joint_axes, background, azimuth, elevation: as for :func:`render`.
+
+    Returns:
+        The written path.
+    """
     import pyvista as pv
 
     body = _body_of(obj)
-    if len(size) != 2 or not all(isinstance(s, (int, np.integer)) and 16 <= s <= 4096 for s in size):
-        raise ValueError(f"render.size: need (width, height) integers in [16, 4096], got {size!r}")
-    corners = box_corners(body, q)
-    depth = body.depth
-    cmap = matplotlib.colormaps["viridis"]
-    top = max(int(depth.max()), 1)
-    R, t = part_poses(body, q)
-    pl = pv.Plotter(off_screen=True, window_size=list(size))
+    _check_size(size)
+    frames = np.asarray(trajectory, dtype=np.float64)
+    if frames.ndim != 2 or len(frames) < 1:
+        raise ValueError(f"trajectory: expected an (F, nq) array of qpos frames, got shape {frames.shape}")
+    if not (isinstance(fps, (int, np.integer)) and 1 <= fps <= 60):
+        raise ValueError(f"fps: must be an integer in [1, 60], got {fps!r}")
+    poses = [world_poses(body, f) for f in frames]
+    scene = _Scene(body, size, background, joint_axes and body.n_bodies > 1)
     try:
-        pl.set_background(background)
-        for b in range(body.n_bodies):
-            box = pv.Box(bounds=(-1, 1, -1, 1, -1, 1))
-            pts = np.asarray(box.points) * body.half_extents[b]
-            box.points = pts @ R[b].T + t[b]
-            colour = cmap(0.15 + 0.75 * depth[b] / top)[:3]
-            pl.add_mesh(box, color=colour, show_edges=True, edge_color="black", line_width=1, smooth_shading=False)
-        if joint_axes and body.n_bodies > 1:
-            for b in range(1, body.n_bodies):
-                L = 2.4 * float(body.half_extents[b].max())
-                anchor = R[b] @ body.joint_pos_child[b] + t[b]
-                a = R[b] @ body.joint_axis[b]
-                colour = "blue" if body.joint_type[b] == PRISMATIC else "red"
-                pl.add_mesh(pv.Line(anchor - 0.5 * L * a, anchor + 0.5 * L * a), color=colour, line_width=4)
-        lo, hi = corners.reshape(-1, 3).min(0), corners.reshape(-1, 3).max(0)
-        centre = 0.5 * (lo + hi)
-        radius = max(float(np.linalg.norm(hi - lo)), 0.1)
-        az, el = np.radians(azimuth), np.radians(elevation)
-        eye = centre + radius * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
-        pl.camera_position = [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)]
-        pl.reset_camera()  # keep the direction, fit the distance to the bounds
-        if path is None:
-            return np.asarray(pl.screenshot(return_img=True))[..., :3].copy()
-        path = Path(path)
-        fd, tmp = tempfile.mkstemp(prefix=path.stem + ".", suffix=".png", dir=path.parent or ".")
-        os.close(fd)
-        try:
-            pl.screenshot(tmp)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-        return path
+        extent = np.concatenate([scene.pose(*p) for p in (poses[0], poses[-1])])
+        lo, hi = extent.min(0), extent.max(0)
+        reach = float(np.ptp(np.concatenate([scene.pose(*p) for p in poses[:: max(1, len(poses) // 8)]]), axis=0).max())
+        floor_z = float(lo[2]) - 0.3 * reach
+        size_xy = 3.0 * max(reach, float(np.linalg.norm(hi - lo)), 0.5)
+        centre0 = 0.5 * (lo + hi)
+        grid = pv.Plane(center=(centre0[0], centre0[1], floor_z), direction=(0, 0, 1), i_size=size_xy, j_size=size_xy,
+                        i_resolution=12, j_resolution=12)
+        scene.pl.add_mesh(grid, style="wireframe", color="#7fa7c9", line_width=1)
+        radius = max(float(np.linalg.norm(np.ptp(scene.pose(*poses[0]), axis=0))), 0.1) * 1.6
+
+        def write(tmp):
+            scene.pl.open_gif(tmp, fps=fps)
+            for R, t in poses:
+                c = scene.pose(R, t)
+                scene.look(0.5 * (c.min(0) + c.max(0)), radius, azimuth, elevation, fit=False)
+                scene.pl.write_frame()
+            scene.pl.mwriter.close()  # flush the GIF before it is moved into place
+            scene.pl.mwriter = None
+
+        return _atomic(path, ".gif", write)
     finally:
-        pl.close()
+        scene.pl.close()

@@ -28,8 +28,10 @@ class SimulationResult:
     """Outcome of :func:`simulate`.
 
     ``fitness`` (C,), ``com`` (C, T, 3) centre-of-mass trajectory of the evaluation phase,
-    ``times`` (T,) its sample times (0 = end of settling), ``diverged`` (C,) flags, and the
-    final ``qpos``/``qvel`` (lists, MuJoCo layout).
+    ``times`` (T,) its sample times (0 = end of settling), ``diverged`` (C,) flags, the
+    final ``qpos``/``qvel`` (lists, MuJoCo layout), and with ``record_every=k`` the ``trajectory``:
+    per creature an (F, nq) array of ``qpos`` every k steps from the start of the evaluation
+    (times ``frame_times``), for animations.
     """
 
     fitness: np.ndarray
@@ -39,6 +41,8 @@ class SimulationResult:
     qpos: list
     qvel: list
     dt: float
+    trajectory: list | None = None
+    frame_times: np.ndarray | None = None
 
 
 def _brains(creatures):
@@ -63,6 +67,7 @@ def simulate(
     controller=None,
     initial_state=None,
     progress: bool = False,
+    record_every: int = 0,
     **options,
 ) -> SimulationResult:
     """Simulate and score a population of swimmers together.
@@ -79,6 +84,7 @@ def simulate(
             (passive bodies).
         initial_state: optional ``(qpos, qvel)`` in MuJoCo layout; default at rest at the origin.
         progress: show a tqdm progress bar.
+        record_every: record every creature's ``qpos`` every this many steps (0: don't).
         **options: passed to :class:`~coursekit.creatures.physics.world.World` (``backend``,
             ``device``, ``integrator``, ``drag_coefficient``, ``contacts``, caps ...).
 
@@ -111,6 +117,8 @@ def simulate(
             contact[m.order] = bk.to_numpy(world.contact_sensors)
         return q, qd, contact
 
+    if not (isinstance(record_every, (int, np.integer)) and record_every >= 0):
+        raise ValueError(f"record_every: must be an integer >= 0 (steps), got {record_every!r}")
     n_settle = int(round(settle / dt))
     n_steps = int(round(seconds / dt))
     if n_steps < 11:
@@ -129,6 +137,7 @@ def simulate(
         controller.reset()
     com = np.empty((m.n_creatures, n_steps + 1, 3))
     com[:, 0] = world.centre_of_mass()
+    frames = [world.get_state()[0]] if record_every else None
     for i in range(n_steps):
         if controller is not None:
             for _ in range(2):  # two brain ticks per physics step (Sims 1994 section 3)
@@ -136,6 +145,8 @@ def simulate(
             world.set_effectors(np.asarray(bk.to_numpy(effector), dtype=np.float64))
         world.step()
         com[:, i + 1] = world.centre_of_mass()
+        if record_every and (i + 1) % record_every == 0:
+            frames.append(world.get_state()[0])
         if bar:
             bar.update()
     if bar:
@@ -143,4 +154,8 @@ def simulate(
     times = np.arange(n_steps + 1) * dt
     fitness = swimming_fitness(com, times, world.diverged)
     qpos, qvel = world.get_state()
-    return SimulationResult(fitness, com, times, world.diverged.copy(), qpos, qvel, dt)
+    trajectory = frame_times = None
+    if record_every:
+        trajectory = [np.stack([f[c] for f in frames]) for c in range(m.n_creatures)]
+        frame_times = np.arange(len(frames)) * record_every * dt
+    return SimulationResult(fitness, com, times, world.diverged.copy(), qpos, qvel, dt, trajectory, frame_times)

@@ -36,6 +36,7 @@ text otherwise, ``inputs_after`` (the array arguments after the first call, when
 
 from __future__ import annotations
 
+import copy
 import io
 import json
 import math
@@ -88,7 +89,7 @@ def decode(value, seed):
         if "function" in value:
             return _library_attr(value["function"])
         raise ValueError(f"unknown encoded argument {sorted(value)}")
-    return value
+    return copy.deepcopy(value)  # a function that edits its list argument must not edit the case
 
 
 def encode_array(a):

@@ -21,10 +21,17 @@ re-normalised and sign-canonicalised).
     y  += h y' + h^2/6 (a1 + a2 + a3);   y' += h/6 (a1 + 2 a2 + 2 a3 + a4)
 
 RK4 uses the same velocity update and the classic stage positions ``y + c h y'_stage``.
+
+Plug-in point: ``method`` may also be a function ``rkn_step(f, t, y, v, h) -> (y_next, v_next)``
+for ``y'' = f(t, y, y')`` on flat 1-D arrays (exercise 07 has students write one). The chart
+coordinates ``(root position, theta, joint coordinates)`` and their rates are then packed into
+one vector each and the function is applied to them unchanged, so a correct Nyström step gives
+the library's own result to round-off.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from . import spatial as sp
@@ -53,7 +60,7 @@ class State:
         return State(*(c(a) for a in (self.pos, self.quat, self.q, self.lin, self.omega, self.qd)))
 
 
-def step(xp, state: State, h: float, accel, method: str = "rkn") -> State:
+def step(xp, state: State, h: float, accel, method="rkn", t: float = 0.0) -> State:
     """Advance ``state`` by ``h``.
 
     Args:
@@ -62,13 +69,15 @@ def step(xp, state: State, h: float, accel, method: str = "rkn") -> State:
         h: step (s).
         accel: ``accel(pos, R, q, lin, omega, qd) -> (lin_acc, omega_dot, qdd)``, with ``R`` the
             (C, 3, 3) root rotation.
-        method: "rkn" (4-stage Nyström) or "rk4".
+        method: "rkn" (4-stage Nyström), "rk4", or a function ``rkn_step(f, t, y, v, h)``.
+        t: time at the start of the step (only passed on to a ``method`` function; the
+            accelerations do not depend on it).
 
     Returns:
         The new :class:`State`.
     """
-    if method not in INTEGRATORS:
-        raise ValueError(f"integrator: got {method!r}; allowed: {', '.join(INTEGRATORS)}")
+    if not callable(method) and method not in INTEGRATORS:
+        raise ValueError(f"integrator: got {method!r}; allowed: {', '.join(INTEGRATORS)} or a function rkn_step(f, t, y, v, h)")
     quat0 = state.quat
 
     def f(y, yd):
@@ -82,8 +91,19 @@ def step(xp, state: State, h: float, accel, method: str = "rkn") -> State:
 
     y = (state.pos, xp.zeros_like(state.omega), state.q)
     yd = (state.lin, state.omega, state.qd)
-    lin = lambda *terms: tuple(sum(c * t[i] for c, t in terms) for i in range(3))  # noqa: E731
 
+    if callable(method):
+        y_new, yd_new = _plugged_step(xp, method, f, t, y, yd, h)
+    else:
+        y_new, yd_new = _builtin_step(f, y, yd, h, method)
+    pos, theta, q = y_new
+    lin_v, theta_d, qd = yd_new
+    quat = sp.quat_canonical(xp, sp.quat_mul(xp, quat0, sp.quat_exp(xp, theta)))
+    return State(pos, quat, q, lin_v, sp.dexp(xp, theta, theta_d), qd)
+
+
+def _builtin_step(f, y, yd, h, method):
+    lin = lambda *terms: tuple(sum(c * t[i] for c, t in terms) for i in range(3))  # noqa: E731
     a1 = f(y, yd)
     if method == "rkn":
         y2 = lin((1, y), (h / 2, yd), (h * h / 8, a1))
@@ -104,8 +124,32 @@ def step(xp, state: State, h: float, accel, method: str = "rkn") -> State:
         a4 = f(lin((1, y), (h, yd3)), yd4)
         y_new = lin((1, y), (h / 6, yd), (h / 3, yd2), (h / 3, yd3), (h / 6, yd4))
     yd_new = lin((1, yd), (h / 6, a1), (h / 3, a2), (h / 3, a3), (h / 6, a4))
+    return y_new, yd_new
 
-    pos, theta, q = y_new
-    lin_v, theta_d, qd = yd_new
-    quat = sp.quat_canonical(xp, sp.quat_mul(xp, quat0, sp.quat_exp(xp, theta)))
-    return State(pos, quat, q, lin_v, sp.dexp(xp, theta, theta_d), qd)
+
+def _plugged_step(xp, rkn_step, f, t, y, yd, h):
+    """Apply a user's ``rkn_step(f, t, y, v, h)`` to the chart coordinates packed into flat vectors."""
+    shapes = [tuple(a.shape) for a in y]
+    sizes = [math.prod(s) for s in shapes]
+    cut = [0, sizes[0], sizes[0] + sizes[1], sum(sizes)]
+    pack = lambda parts: xp.concat([xp.reshape(a, (-1,)) for a in parts])  # noqa: E731
+    unpack = lambda flat: tuple(xp.reshape(flat[cut[i]:cut[i + 1]], shapes[i]) for i in range(3))  # noqa: E731
+
+    def g(_t, y_flat, v_flat):
+        for name, a in (("y", y_flat), ("v", v_flat)):
+            if tuple(getattr(a, "shape", ())) != (cut[3],):
+                raise ValueError(f"integrator: {_name(rkn_step)} called f with {name} of shape "
+                                 f"{tuple(getattr(a, 'shape', ()))}; expected ({cut[3]},), like the y and v it was given")
+        return pack(f(unpack(y_flat), unpack(v_flat)))
+
+    out = rkn_step(g, float(t), pack(y), pack(yd), float(h))
+    if not (isinstance(out, (tuple, list)) and len(out) == 2):
+        raise ValueError(f"integrator: {_name(rkn_step)} returned {type(out).__name__}; expected a pair (y_next, v_next)")
+    for name, a in zip(("y_next", "v_next"), out):
+        if tuple(getattr(a, "shape", ())) != (cut[3],):
+            raise ValueError(f"integrator: {_name(rkn_step)} returned {name} of shape {tuple(getattr(a, 'shape', ()))}; expected ({cut[3]},)")
+    return unpack(out[0]), unpack(out[1])
+
+
+def _name(fn):
+    return getattr(fn, "__name__", "rkn_step")

@@ -22,6 +22,10 @@ half extent). The simulator bounds the step rather than treating drag implicitly
 that ``dt * lambda_max <= STABLE_DRAG_STEP``, well inside the RK4/RKN stability interval
 (``2.785``). With :data:`~coursekit.creatures.body.MIN_HALF_EXTENT` = 0.025 m and the default
 ``k = 2`` this is ``lambda <= 80 /s``, so ``dt = 1/60 s`` needs no sub-steps.
+
+Plug-in point: every function here takes an optional ``box_drag(half_extents, k) -> (6,)``, a
+per-box version of :func:`drag_diagonal` (exercise 07 has students write one); the simulator then
+uses it for every box instead of the library's closed form (``World(..., drag=box_drag)``).
 """
 
 from __future__ import annotations
@@ -48,13 +52,41 @@ def drag_diagonal(half_extents: np.ndarray, k: float) -> np.ndarray:
     return np.concatenate([ang, lin], axis=1)
 
 
-def drag_matrix(model, k: float | None = None):
-    """The (N, 6) drag diagonals of a packed model, on its backend."""
+def body_drag(half_extents: np.ndarray, k: float, box_drag=None) -> np.ndarray:
+    """(B, 6) drag diagonals from the library's closed form or from a per-box function.
+
+    Args:
+        half_extents: (B, 3) box half extents.
+        k: drag coefficient.
+        box_drag: optional ``box_drag(half_extents (3,), k) -> (6,)``, called once per box on a
+            copy of its half extents; its results must be finite and >= 0.
+    Returns:
+        (B, 6) float64 array ``(D_wx, D_wy, D_wz, D_vx, D_vy, D_vz)`` per box.
+    """
+    if box_drag is None:
+        return drag_diagonal(half_extents, k)
+    if not callable(box_drag):
+        raise TypeError(f"drag: must be True, False or a function box_drag(half_extents, k), got {type(box_drag).__name__}")
+    if not (np.isfinite(k) and k >= 0):
+        raise ValueError(f"drag_coefficient: must be finite and >= 0, got {k}")
+    h = np.asarray(half_extents, dtype=np.float64)
+    out = np.empty((len(h), 6))
+    for i, hb in enumerate(h):
+        d = np.asarray(box_drag(hb.copy(), float(k)), dtype=np.float64)
+        if d.shape != (6,) or not np.all(np.isfinite(d)) or np.any(d < 0):
+            raise ValueError(f"drag: {getattr(box_drag, '__name__', 'box_drag')}({hb.tolist()}, {k}) returned {d.tolist()}; "
+                             "expected 6 finite numbers >= 0 (D_wx, D_wy, D_wz, D_vx, D_vy, D_vz)")
+        out[i] = d
+    return out
+
+
+def drag_matrix(model, k: float | None = None, box_drag=None):
+    """The (N, 6) drag diagonals of a packed model, on its backend (see :func:`body_drag`)."""
     k = DRAG_COEFFICIENT if k is None else float(k)
-    return bk.asarray(model.xp, drag_diagonal(model.half_extents_np, k), device=model.device)
+    return bk.asarray(model.xp, body_drag(model.half_extents_np, k, box_drag), device=model.device)
 
 
-def max_drag_rate(model, k: float | None = None) -> float:
+def max_drag_rate(model, k: float | None = None, box_drag=None) -> float:
     """Upper bound on the drag relaxation rate of the whole batch (1/s)."""
     k = DRAG_COEFFICIENT if k is None else float(k)
-    return float(np.max(drag_diagonal(model.half_extents_np, k) / model.inertia_diag_np))
+    return float(np.max(body_drag(model.half_extents_np, k, box_drag) / model.inertia_diag_np))

@@ -3,8 +3,9 @@
 :class:`World` owns a packed :class:`~coursekit.creatures.physics.model.Model` and its
 :class:`~coursekit.creatures.physics.integrate.State`. Each :meth:`World.step` advances every
 creature by ``dt`` with the chosen integrator (sub-stepped when the water would be too stiff, see
-:mod:`~coursekit.creatures.physics.water`). Joint forces from effectors and self-collision forces
-are held constant over a step; drag and limit springs are evaluated at every stage.
+:mod:`~coursekit.creatures.physics.water`). Joint forces from effectors are held constant over a
+step; self-collisions are detected at the step's start and their forces, like drag and the limit
+springs, are evaluated at every stage.
 
 Guards: after each step a creature whose state is not finite or whose root speed, root spin or
 any joint rate exceeds its cap is flagged ``diverged`` and frozen at its last good state with zero
@@ -24,7 +25,7 @@ from .aba import aba, articulated_inertias, body_velocities, forward_kinematics,
 from .contact import Contacts
 from .dynamics import _flatten, split_layout, join_velocity_layout
 from .integrate import INTEGRATORS, State, step
-from .limits import STIFFNESS_PER_STEP, limit_energy, limit_forces, limit_gains
+from .limits import LIMIT_DAMPING_RATIO, STIFFNESS_PER_STEP, limit_energy, limit_forces, limit_gains
 from .model import Model
 from .water import DRAG_COEFFICIENT, STABLE_DRAG_STEP, drag_matrix, max_drag_rate
 
@@ -41,8 +42,11 @@ class World:
         creatures: BodyTrees / creatures, or a packed :class:`Model`.
         dt: physics step (s).
         backend: "numpy" or "torch"; device: torch device.
-        integrator: "rkn" (default) or "rk4".
-        drag: water on/off; drag_coefficient: ``k`` of :mod:`water`.
+        integrator: "rkn" (default), "rk4", or a function ``rkn_step(f, t, y, v, h) -> (y_next,
+            v_next)`` that then advances the state (see :mod:`integrate`; exercise 07).
+        drag: water on/off, or a function ``box_drag(half_extents, k) -> (6,)`` giving one box's
+            drag diagonal, used for every box instead of the library's (see :mod:`water`);
+            drag_coefficient: ``k`` of :mod:`water`.
         limits: joint-limit springs on/off; limit_frequency (rad/s, default ``STIFFNESS_PER_STEP / substep``)
             and limit_damping_ratio of :mod:`limits`.
         contacts: self-collision penalty forces on/off (see :mod:`contact`).
@@ -56,12 +60,12 @@ class World:
         dt: float = 1.0 / 60.0,
         backend: str = "numpy",
         device=None,
-        integrator: str = "rkn",
-        drag: bool = True,
+        integrator="rkn",
+        drag=True,
         drag_coefficient: float = DRAG_COEFFICIENT,
         limits: bool = True,
         limit_frequency: float | None = None,
-        limit_damping_ratio: float = 1.0,
+        limit_damping_ratio: float = LIMIT_DAMPING_RATIO,
         contacts: bool = True,
         contact_stiffness: float | None = None,
         max_speed: float = MAX_SPEED,
@@ -70,8 +74,10 @@ class World:
     ):
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt: must be a positive number of seconds, got {dt!r}")
-        if integrator not in INTEGRATORS:
-            raise ValueError(f"integrator: got {integrator!r}; allowed: {', '.join(INTEGRATORS)}")
+        if not callable(integrator) and integrator not in INTEGRATORS:
+            raise ValueError(f"integrator: got {integrator!r}; allowed: {', '.join(INTEGRATORS)} or a function rkn_step(f, t, y, v, h)")
+        if not (isinstance(drag, (bool, np.bool_)) or callable(drag)):
+            raise TypeError(f"drag: must be True, False or a function box_drag(half_extents, k), got {type(drag).__name__}")
         for name, cap in (("max_speed", max_speed), ("max_angular_speed", max_angular_speed), ("max_joint_speed", max_joint_speed)):
             if not (cap > 0):
                 raise ValueError(f"{name}: must be > 0, got {cap}")
@@ -79,8 +85,9 @@ class World:
         self.xp = xp = m.xp
         self.dt = float(dt)
         self.integrator = integrator
-        self.damping = drag_matrix(m, drag_coefficient) if drag else None
-        rate = max_drag_rate(m, drag_coefficient) if drag else 0.0
+        box_drag = drag if callable(drag) else None
+        self.damping = drag_matrix(m, drag_coefficient, box_drag) if drag else None
+        rate = max_drag_rate(m, drag_coefficient, box_drag) if drag else 0.0
         self.substeps = max(1, math.ceil(self.dt * rate / STABLE_DRAG_STEP))
         self.h = self.dt / self.substeps
         self.limits = limits
@@ -101,7 +108,7 @@ class World:
         quat[:, 0] = 1.0
         self.state = State(z(C, 3), quat, z(M), z(C, 3), z(C, 3), z(M))
         self.tau = z(M)
-        self.f_world = None
+        self.active_contacts = None
         self._inertia_q = self._inertia = None
         self.contact_sensors = None
         self._joint_creature = bk.index(xp, m.joint_creature, device=m.device)
@@ -134,9 +141,11 @@ class World:
         if self.limits:
             tau = tau + limit_forces(xp, q, qd, self.lo, self.hi, self.limit_k, self.limit_b)
         f_ext = None
-        if self.f_world is not None:  # contact wrenches are held in world axes: rotate into each body
-            Rb, _ = forward_kinematics(m, R, pos, q)
-            f_ext = xp.concat([sp.mv(Rb.mT, self.f_world[:, :3]), sp.mv(Rb.mT, self.f_world[:, 3:])], axis=1)
+        if self.active_contacts is not None:  # the step's contacts, followed through this stage
+            Rb, pb = forward_kinematics(m, R, pos, q)
+            E, r = joint_transforms(m, q)
+            v, _ = body_velocities(m, sp.transform_matrix(xp, E, r), xp.concat([omega, vb], axis=1), qd)
+            f_ext = self.contacts.wrench(self.active_contacts, Rb, pb, v)
         if q is not self._inertia_q:  # RKN stages 2 and 3 share positions, hence inertias
             self._inertia_q, self._inertia = q, articulated_inertias(m, q)
         a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping, inertias=self._inertia)
@@ -159,12 +168,11 @@ class World:
         xp, m = self.xp, self.model
         jfrozen = bk.asarray(xp, self.diverged, dtype=xp.bool, device=m.device)[self._joint_creature]
         self.tau = xp.where(jfrozen, xp.zeros_like(self.tau), self.tau)
-        for _ in range(self.substeps):
+        for i in range(self.substeps):
             if self.contacts is not None:
-                f_world, self.contact_sensors = self.contacts.forces(self.state)
-                self.f_world = f_world if bool(xp.any(f_world != 0)) else None
+                self.active_contacts, self.contact_sensors = self.contacts.begin(self.state)
             prev = self.state
-            new = step(xp, prev, self.h, self._accel, self.integrator)
+            new = step(xp, prev, self.h, self._accel, self.integrator, self.time + i * self.h)
             self.state = self._guard(prev, new)
         self.time += self.dt
 

@@ -217,6 +217,9 @@ def exercise(stem: str, names: list[str]) -> None:
 
 def _load() -> None:
     from coursekit.grading.checks import ga  # noqa: F401  (registers its checks on import)
+    from coursekit.grading.checks import pictures  # noqa: F401
+    from coursekit.grading.checks import creatures  # noqa: F401
+    from coursekit.grading.checks import physics  # noqa: F401
 
 
 def get(name: str) -> Check:

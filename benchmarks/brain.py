@@ -1,6 +1,6 @@
 """Brain ticks per second: one vectorised BrainBatch vs a Python loop of per-creature batches.
 
-Run: ``PYTHONPATH=. python benchmarks/bench_creature_brain.py [n_creatures ...]``. Prints a side-by-side table
+Run: ``coursekit bench brain`` (or ``PYTHONPATH=. python benchmarks/brain.py [n_creatures ...]``). Prints a side-by-side table
 measured in the same run (the loop is the reference a naive implementation would use).
 """
 

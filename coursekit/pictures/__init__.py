@@ -1,0 +1,19 @@
+"""Genetic pictures (paper section 3, after Sims 1991).
+
+Genomes of chromosome strings linked by a PreHeader (:mod:`.genome`), a primitive set
+(:mod:`.primitives`), a tensorised whole-image evaluator (:mod:`.evaluate`) with a per-pixel
+reference (:mod:`.reference`), the paper's four mutations and three recombinations
+(:mod:`.operators`), image files carrying their genome (:mod:`.files`) and an interactive
+gallery where the user is the fitness function (:mod:`.gallery`).
+"""
+
+from . import primitives
+from .genome import Chromosome, ChromosomeString, Genome
+from . import operators
+from .evaluate import render
+from .files import load_genome, save_image
+from .gallery import Gallery, GalleryState
+from .reference import render_reference
+
+__all__ = ["primitives", "operators", "Chromosome", "ChromosomeString", "Genome", "render",
+           "render_reference", "save_image", "load_genome", "Gallery", "GalleryState"]

@@ -1,0 +1,409 @@
+"""Genotype of a genetic picture: chromosome strings, head/tail and the PreHeader (paper section 3.1).
+
+A **genome** is several **chromosome strings** of constant length plus a **PreHeader**.
+
+- A *chromosome* is one primitive with its parameter values (:class:`Chromosome`).
+- A *string* has a head of ``h`` chromosomes (any primitive) followed by a tail of
+  ``t = h (n - 1) + 1`` chromosomes (ZeroArgChrom only), ``n`` being the largest arity of the
+  primitive set (2 here, so ``t = h + 1``). With that rule every string decodes to a complete
+  tree whatever its chromosomes, so operators never need repair. Strings are ring lists: the
+  operators rotate them.
+- The *PreHeader* is a ring of head chromosomes, the root tree of the genome. It links any
+  number ``s`` of strings: decoding reads the PreHeader followed by the ``s`` string roots as
+  one more Karva string whose tail *is* the strings, so it holds ``(s - 1) / (n - 1)``
+  chromosomes (``s - 1`` here). Unlike a fixed-arity linker (geppy) this works for any ``s``.
+
+**Reading order (Karva, as in Gene Expression Programming).** A string is read breadth-first:
+position 0 is the root; the arguments of the nodes of one level are the next chromosomes in
+the string, left to right. Reading stops when every node has its arguments; the chromosomes
+read form the *open reading frame* (the coding part), the rest are non-coding but kept, and
+can become active after a mutation (:attr:`Genome.active`).
+
+Example with ``h = 2`` (``t = 3``): ``plus sin | x y const`` decodes to
+``(plus (sin y) x)``: ``plus`` takes ``sin`` and ``x``, then ``sin`` takes ``y``; ``const``
+is non-coding.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from . import primitives as P
+
+__all__ = ["Chromosome", "ChromosomeString", "Genome", "Node", "FORMAT", "random_chromosome"]
+
+FORMAT = "coursekit.genome/1"
+
+
+@dataclass(frozen=True)
+class Chromosome:
+    """One primitive and its parameter values (floats, in the primitive's declared order)."""
+
+    symbol: str
+    params: tuple[float, ...] = ()
+
+    def __post_init__(self):
+        prim = P.get(self.symbol)
+        params = tuple(float(v) for v in self.params)
+        if len(params) != len(prim.params):
+            raise ValueError(f"chromosome {self.symbol!r}: params has {len(params)} values, "
+                             f"expected {len(prim.params)} ({', '.join(p.name for p in prim.params)})")
+        if not all(math.isfinite(v) for v in params):
+            raise ValueError(f"chromosome {self.symbol!r}: params {params} must be finite")
+        object.__setattr__(self, "params", params)
+
+    @property
+    def arity(self) -> int:
+        """Number of arguments of this chromosome's primitive."""
+        return P.arity(self.symbol)
+
+    @classmethod
+    def random(cls, rng: np.random.Generator, symbol: str) -> "Chromosome":
+        """A chromosome of ``symbol`` with parameters drawn uniformly from their ranges."""
+        return cls(symbol, tuple(float(rng.uniform(p.low, p.high)) for p in P.get(symbol).params))
+
+    def param(self, name: str) -> float:
+        """The value of the parameter called ``name``."""
+        for spec, value in zip(P.get(self.symbol).params, self.params):
+            if spec.name == name:
+                return value
+        raise KeyError(name)
+
+    def label(self) -> str:
+        """``symbol`` or ``(symbol p1 p2 ...)``, parameters with 4 significant digits."""
+        if not self.params:
+            return self.symbol
+        return "(" + " ".join([self.symbol] + [f"{v:.4g}" for v in self.params]) + ")"
+
+
+def _check_chromosomes(seq, where: str) -> tuple[Chromosome, ...]:
+    seq = tuple(seq)
+    for i, c in enumerate(seq):
+        if not isinstance(c, Chromosome):
+            raise TypeError(f"{where}[{i}]: expected a Chromosome, got {type(c).__name__}")
+    return seq
+
+
+@dataclass(frozen=True)
+class ChromosomeString:
+    """A string of ``head_length + tail_length`` chromosomes; the tail holds terminals only."""
+
+    head_length: int
+    chromosomes: tuple[Chromosome, ...]
+
+    def __post_init__(self):
+        h = self.head_length
+        if isinstance(h, bool) or not isinstance(h, (int, np.integer)) or h < 1:
+            raise ValueError(f"head_length: {h!r} must be an integer >= 1")
+        object.__setattr__(self, "head_length", int(h))
+        chroms = _check_chromosomes(self.chromosomes, "chromosomes")
+        expected = self.head_length + self.tail_length
+        if len(chroms) != expected:
+            raise ValueError(f"chromosomes: length {len(chroms)} but head_length {h} needs "
+                             f"{expected} (head {h} + tail {self.tail_length})")
+        for i, c in enumerate(chroms[self.head_length:], self.head_length):
+            if c.arity != 0:
+                raise ValueError(f"chromosomes[{i}]: {c.symbol!r} (arity {c.arity}) is in the "
+                                 f"tail, which allows only ZeroArgChrom primitives")
+        object.__setattr__(self, "chromosomes", chroms)
+
+    @property
+    def tail_length(self) -> int:
+        """t = h (n - 1) + 1."""
+        return self.head_length * (P.max_arity() - 1) + 1
+
+    @property
+    def symbols(self) -> list[str]:
+        """The primitive names of the string, head then tail."""
+        return [c.symbol for c in self.chromosomes]
+
+    @property
+    def head(self) -> tuple[Chromosome, ...]:
+        """The first ``head_length`` chromosomes (any primitive)."""
+        return self.chromosomes[: self.head_length]
+
+    @property
+    def tail(self) -> tuple[Chromosome, ...]:
+        """The last ``tail_length`` chromosomes (ZeroArgChrom only)."""
+        return self.chromosomes[self.head_length:]
+
+    def __len__(self) -> int:
+        return len(self.chromosomes)
+
+    def replace(self, chromosomes: Sequence[Chromosome]) -> "ChromosomeString":
+        """A new string of the same head length holding ``chromosomes``."""
+        return ChromosomeString(self.head_length, tuple(chromosomes))
+
+    @classmethod
+    def random(cls, rng: np.random.Generator, head_length: int, symbols: Sequence[str] | None = None,
+               function_rate: float = 0.75) -> "ChromosomeString":
+        """A random string (see :meth:`Genome.random` for the arguments)."""
+        if isinstance(head_length, bool) or not isinstance(head_length, (int, np.integer)) or head_length < 1:
+            raise ValueError(f"head_length: {head_length!r} must be an integer >= 1")
+        t = head_length * (P.max_arity() - 1) + 1
+        head = [random_chromosome(rng, "head", symbols, function_rate) for _ in range(head_length)]
+        tail = [random_chromosome(rng, "tail", symbols) for _ in range(t)]
+        return cls(head_length, tuple(head + tail))
+
+
+def _symbol_pools(symbols):
+    if symbols is None:
+        symbols = P.names()
+    symbols = list(symbols)
+    for s in symbols:
+        P.get(s)
+    funcs = [s for s in symbols if P.arity(s) > 0]
+    terms = [s for s in symbols if P.arity(s) == 0]
+    if not terms:
+        raise ValueError(f"symbols: {symbols} has no ZeroArgChrom primitive for the tail")
+    return funcs, terms
+
+
+def random_chromosome(rng: np.random.Generator, place: str, symbols: Sequence[str] | None = None,
+                      function_rate: float = 0.75) -> Chromosome:
+    """A random chromosome valid for ``place``.
+
+    Args:
+        rng: the random generator.
+        place: ``'tail'`` (ZeroArgChrom only), ``'head'`` (a function with probability
+            ``function_rate``, else a terminal) or ``'pre'`` (PreHeader: functions only when
+            the set has any).
+        symbols: primitive names to draw from (default: all primitives), uniformly per kind.
+        function_rate: probability of a function at a head position.
+    """
+    funcs, terms = _symbol_pools(symbols)
+    if place == "tail":
+        pool = terms
+    elif place == "head":
+        if not 0.0 <= function_rate <= 1.0:
+            raise ValueError(f"function_rate: {function_rate!r} must lie in [0, 1]")
+        pool = funcs if funcs and rng.random() < function_rate else terms
+    elif place == "pre":
+        pool = funcs or terms
+    else:
+        raise ValueError(f"place: {place!r}; allowed: 'head', 'tail', 'pre'")
+    return Chromosome.random(rng, pool[rng.integers(len(pool))])
+
+
+@dataclass(frozen=True)
+class Node:
+    """A decoded expression-tree node; ``site`` is ``('pre', i)`` or ``(string, position)``."""
+
+    chromosome: Chromosome
+    children: tuple["Node", ...]
+    site: tuple
+
+    @property
+    def symbol(self) -> str:
+        return self.chromosome.symbol
+
+    @property
+    def params(self) -> tuple[float, ...]:
+        return self.chromosome.params
+
+    def sexpr(self) -> str:
+        """This subtree as an s-expression."""
+        if not self.children:
+            return self.chromosome.label()
+        head = " ".join([self.symbol] + [f"{v:.4g}" for v in self.params])
+        return "(" + head + " " + " ".join(c.sexpr() for c in self.children) + ")"
+
+    def structure(self):
+        """The tree's shape and symbols without parameters (genomes sharing it batch together)."""
+        return (self.symbol,) + tuple(c.structure() for c in self.children)
+
+    def walk(self):
+        """All nodes of the subtree, depth first."""
+        yield self
+        for c in self.children:
+            yield from c.walk()
+
+    def size(self) -> int:
+        """Number of nodes of the subtree."""
+        return sum(1 for _ in self.walk())
+
+
+def _karva(items: Sequence, arity_of) -> tuple[list[tuple[int, ...]], int]:
+    """Breadth-first (Karva) reading: children index lists per item and the ORF length."""
+    children: list[tuple[int, ...]] = [()] * len(items)
+    level, nxt = [0], 1
+    while level:
+        new_level = []
+        for i in level:
+            a = arity_of(items[i])
+            children[i] = tuple(range(nxt, nxt + a))
+            new_level.extend(children[i])
+            nxt += a
+        level = new_level
+    return children, nxt
+
+
+@dataclass(frozen=True)
+class Genome:
+    """Chromosome strings linked by a PreHeader. Immutable: operators build new genomes."""
+
+    strings: tuple[ChromosomeString, ...]
+    preheader: tuple[Chromosome, ...] = ()
+
+    def __post_init__(self):
+        strings = tuple(self.strings)
+        if not strings:
+            raise ValueError("strings: a genome needs at least one chromosome string")
+        for i, s in enumerate(strings):
+            if not isinstance(s, ChromosomeString):
+                raise TypeError(f"strings[{i}]: expected a ChromosomeString, got {type(s).__name__}")
+        pre = _check_chromosomes(self.preheader, "preheader")
+        n = P.max_arity()
+        if (len(strings) - 1) % (n - 1):
+            raise ValueError(f"strings: {len(strings)} strings cannot be linked by a PreHeader of "
+                             f"arity-{n} chromosomes; need 1 + k*{n - 1}")
+        need = (len(strings) - 1) // (n - 1)
+        if len(pre) != need:
+            raise ValueError(f"preheader: {len(pre)} chromosomes but {len(strings)} strings need "
+                             f"exactly {need}")
+        object.__setattr__(self, "strings", strings)
+        object.__setattr__(self, "preheader", pre)
+
+    # ---- construction -------------------------------------------------------------------
+    @classmethod
+    def random(cls, rng: np.random.Generator, *, n_strings: int = 3, head_length: int = 4,
+               symbols: Sequence[str] | None = None, function_rate: float = 0.75) -> "Genome":
+        """A random genome.
+
+        Args:
+            rng: the random generator.
+            n_strings: number of chromosome strings (>= 1); the PreHeader gets ``n_strings - 1``.
+            head_length: h of every string (>= 1); the tail is ``h + 1``.
+            symbols: primitive names to draw from (default: all); tails use its ZeroArgChrom
+                members only.
+            function_rate: probability that a head chromosome is a function (the rest are
+                terminals). PreHeader chromosomes start as functions so every string links in;
+                mutations may later put terminals there.
+        Returns:
+            A valid :class:`Genome`.
+        """
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng: expected numpy.random.Generator, got {type(rng).__name__}")
+        if isinstance(n_strings, bool) or not isinstance(n_strings, (int, np.integer)) or n_strings < 1:
+            raise ValueError(f"n_strings: {n_strings!r} must be an integer >= 1")
+        strings = tuple(ChromosomeString.random(rng, head_length, symbols, function_rate)
+                        for _ in range(n_strings))
+        pre = tuple(random_chromosome(rng, "pre", symbols)
+                    for _ in range((n_strings - 1) // (P.max_arity() - 1)))
+        return cls(strings, pre)
+
+    # ---- decoding -----------------------------------------------------------------------
+    def _string_tree(self, k: int) -> Node:
+        s = self.strings[k]
+        kids, _ = _karva(s.chromosomes, lambda c: c.arity)
+
+        def build(i):
+            return Node(s.chromosomes[i], tuple(build(j) for j in kids[i]), (k, i))
+        return build(0)
+
+    def decode(self) -> Node:
+        """The expression tree (PreHeader read first, then the string roots as its tail)."""
+        items = list(self.preheader) + list(range(len(self.strings)))
+        kids, _ = _karva(items, lambda it: 0 if isinstance(it, int) else it.arity)
+
+        def build(i):
+            it = items[i]
+            if isinstance(it, int):
+                return self._string_tree(it)
+            return Node(it, tuple(build(j) for j in kids[i]), ("pre", i))
+        return build(0)
+
+    @property
+    def active(self) -> dict:
+        """Coding sites: ``{'pre': [i, ...], 0: [positions], 1: [...], ...}``, sorted."""
+        out: dict = {"pre": []}
+        for k in range(len(self.strings)):
+            out[k] = []
+        for node in self.decode().walk():
+            out[node.site[0]].append(node.site[1])
+        return {k: sorted(v) for k, v in out.items()}
+
+    def expression(self) -> str:
+        """Readable s-expression of the coding part, e.g. ``(plus (sin x) (const 0.42))``."""
+        return self.decode().sexpr()
+
+    def size(self) -> int:
+        """Number of coding chromosomes (nodes of the expression tree)."""
+        return self.decode().size()
+
+    # ---- files --------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        """The JSON-ready dict of :meth:`to_json`."""
+        def chrom(c):
+            return [c.symbol, list(c.params)]
+        return {"format": FORMAT,
+                "expression": self.expression(),  # for readers; ignored when loading
+                "preheader": [chrom(c) for c in self.preheader],
+                "strings": [{"head_length": s.head_length, "chromosomes": [chrom(c) for c in s.chromosomes]}
+                            for s in self.strings]}
+
+    def to_json(self, indent: int | None = None) -> str:
+        """Versioned JSON (``"format": "coursekit.genome/1"``); floats round-trip exactly.
+
+        Holds ``preheader`` and ``strings`` (each ``head_length`` and ``chromosomes`` as
+        ``[symbol, [params]]``), plus the readable ``expression`` of the coding part.
+        """
+        return json.dumps(self.to_dict(), indent=indent)
+
+    @classmethod
+    def from_dict(cls, d) -> "Genome":
+        """Inverse of :meth:`to_dict`; ValueError naming the broken field otherwise."""
+        if not isinstance(d, dict):
+            raise ValueError(f"genome: expected a JSON object, got {type(d).__name__}")
+        if d.get("format") != FORMAT:
+            raise ValueError(f"genome: format {d.get('format')!r} is not {FORMAT!r}")
+
+        def chrom(v, where):
+            if (not isinstance(v, list) or len(v) != 2 or not isinstance(v[0], str)
+                    or not isinstance(v[1], list)
+                    or not all(isinstance(p, (int, float)) and not isinstance(p, bool) for p in v[1])):
+                raise ValueError(f"genome: {where} = {v!r} is not [symbol, [numbers]]")
+            try:
+                return Chromosome(v[0], tuple(v[1]))
+            except ValueError as e:
+                raise ValueError(f"genome: {where}: {e}") from None
+
+        strings_in, pre_in = d.get("strings"), d.get("preheader")
+        if not isinstance(strings_in, list) or not isinstance(pre_in, list):
+            raise ValueError("genome: 'strings' and 'preheader' must be lists")
+        strings = []
+        for k, s in enumerate(strings_in):
+            if not isinstance(s, dict) or not isinstance(s.get("chromosomes"), list):
+                raise ValueError(f"genome: strings[{k}] must be an object with 'chromosomes'")
+            chroms = [chrom(v, f"strings[{k}].chromosomes[{i}]") for i, v in enumerate(s["chromosomes"])]
+            try:
+                strings.append(ChromosomeString(s.get("head_length"), tuple(chroms)))
+            except (ValueError, TypeError) as e:
+                raise ValueError(f"genome: strings[{k}]: {e}") from None
+        pre = [chrom(v, f"preheader[{i}]") for i, v in enumerate(pre_in)]
+        try:
+            return cls(tuple(strings), tuple(pre))
+        except (ValueError, TypeError) as e:
+            raise ValueError(f"genome: {e}") from None
+
+    @classmethod
+    def from_json(cls, text: str | bytes) -> "Genome":
+        """Parse :meth:`to_json` output; ValueError for truncated, foreign or invalid text."""
+        try:
+            d = json.loads(text)
+        except (json.JSONDecodeError, UnicodeDecodeError, TypeError) as e:
+            raise ValueError(f"genome: not valid JSON ({e})") from None
+        return cls.from_dict(d)
+
+    def replace_string(self, k, string: ChromosomeString | Iterable[Chromosome]) -> "Genome":
+        """A new genome with string ``k`` (or ``'pre'`` for the PreHeader) replaced."""
+        if k == "pre":
+            return Genome(self.strings, tuple(string))
+        strings = list(self.strings)
+        strings[k] = string
+        return Genome(tuple(strings), self.preheader)

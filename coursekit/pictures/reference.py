@@ -1,0 +1,336 @@
+"""Per-pixel reference evaluator of genetic pictures (paper section 3.2, Sims-style).
+
+Sims (1991) evaluated a genotype's symbolic expression once per pixel coordinate. This module
+does exactly that in plain Python floats (double precision), one pixel at a time, with the
+``math`` module: it is the independent definition the tensorised :mod:`.evaluate` is tested
+against, and the baseline of the lesson's speed comparison. It is slow on purpose.
+
+Neighbourhood primitives (``blur``, ``band-pass``, ``bump``, ``grad-mag``, ``grad-dir``) need
+their argument at neighbouring pixels: the argument is evaluated pixel by pixel on the whole
+grid (memoised) and filtered with explicit loops, borders replicated. Coordinate transforms
+evaluate their argument at the transformed coordinates of the pixel.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import textures as T
+from .genome import Genome, Node
+from .evaluate import _parse_size, _parse_window
+
+__all__ = ["render_reference"]
+
+_BIG = 1e6
+TWO_PI = 2.0 * math.pi
+
+
+def _sane(v: float) -> float:
+    if math.isnan(v):
+        return 0.0
+    return min(max(v, -_BIG), _BIG)
+
+
+def _fold(v: float) -> float:
+    m = v % 2.0
+    return 2.0 - m if m > 1.0 else m
+
+
+def _smooth(t):
+    return t * t * (3.0 - 2.0 * t)
+
+
+def _map1(f, a):
+    return tuple(f(v) for v in a)
+
+
+def _map2(f, a, b):
+    if len(a) < len(b):
+        a = a * len(b)
+    elif len(b) < len(a):
+        b = b * len(a)
+    return tuple(f(u, v) for u, v in zip(a, b))
+
+
+def _grey(a):
+    return (sum(a) / len(a),) if len(a) > 1 else a
+
+
+class _Coords:
+    """Pixel (i, j) -> world (x, y), memoised."""
+
+    def __init__(self, fn):
+        self.fn, self.memo = fn, {}
+
+    def __call__(self, i, j):
+        key = (i, j)
+        if key not in self.memo:
+            x, y = self.fn(i, j)
+            self.memo[key] = (_sane(x), _sane(y))
+        return self.memo[key]
+
+
+class _Reference:
+    def __init__(self, H, W, window, time):
+        self.H, self.W, self.time = H, W, float(time)
+        x0, y0, x1, y1 = window
+        self.px, self.py = (x1 - x0) / W, (y1 - y0) / H
+        xs = [float(np.float32(x0 + (j + 0.5) * self.px)) for j in range(W)]
+        ys = [float(np.float32(y0 + (i + 0.5) * self.py)) for i in range(H)]
+        self.px, self.py = abs(self.px), abs(self.py)
+        self.base = _Coords(lambda i, j: (xs[j], ys[i]))
+        self.table = T.noise_table().astype(np.float64)
+        self.memo: dict = {}
+        self.derived: dict = {}
+        self.grids: dict = {}
+
+    # -- helpers ------------------------------------------------------------------------
+    def noise(self, u, v):
+        u, v = _sane(u), _sane(v)
+        i0, j0 = math.floor(u), math.floor(v)
+        su, sv = _smooth(u - i0), _smooth(v - j0)
+        L, t = T.LATTICE, self.table
+        i0, j0 = i0 % L, j0 % L
+        i1, j1 = (i0 + 1) % L, (j0 + 1) % L
+        a = t[j0, i0] + su * (t[j0, i1] - t[j0, i0])
+        b = t[j1, i0] + su * (t[j1, i1] - t[j1, i0])
+        return float(a + sv * (b - a))
+
+    def coords(self, node, C, make):
+        key = (id(node), id(C))
+        if key not in self.derived:
+            self.derived[key] = (_Coords(make), C)  # keep C alive so ids stay unique
+        return self.derived[key][0]
+
+    def grid(self, node, C):
+        key = (id(node), id(C))
+        if key not in self.grids:
+            self.grids[key] = [[self.ev(node, i, j, C) for j in range(self.W)] for i in range(self.H)]
+        return self.grids[key]
+
+    def blur(self, node, C, sigma):
+        key = ("blur", id(node), id(C), sigma)
+        if key not in self.grids:
+            self.grids[key] = self._blur(node, C, sigma)
+        return self.grids[key]
+
+    def _blur(self, node, C, sigma):
+        g = [[list(v) for v in row] for row in self.grid(node, C)]
+        rx = T.box_radius(abs(sigma) / self.px, 4 * self.W)
+        ry = T.box_radius(abs(sigma) / self.py, 4 * self.H)
+        H, W = self.H, self.W
+        for _ in range(3):
+            if rx:
+                g = [[[sum(g[i][min(max(j + d, 0), W - 1)][c] for d in range(-rx, rx + 1)) / (2 * rx + 1)
+                       for c in range(len(g[i][j]))] for j in range(W)] for i in range(H)]
+            if ry:
+                g = [[[sum(g[min(max(i + d, 0), H - 1)][j][c] for d in range(-ry, ry + 1)) / (2 * ry + 1)
+                       for c in range(len(g[i][j]))] for j in range(W)] for i in range(H)]
+        return g
+
+    def gradient(self, node, C, i, j):
+        g = self.grid(node, C)
+        H, W = self.H, self.W
+
+        def grey(a, b):
+            return _sane(_grey(g[a][b])[0])
+        gx = (grey(i, min(j + 1, W - 1)) - grey(i, max(j - 1, 0))) / (2.0 * self.px)
+        gy = (grey(min(i + 1, H - 1), j) - grey(max(i - 1, 0), j)) / (2.0 * self.py)
+        return gx, gy
+
+    # -- evaluation ---------------------------------------------------------------------
+    def ev(self, n: Node, i, j, C):
+        key = (id(n), i, j, id(C))
+        if key not in self.memo:
+            self.memo[key] = self._ev(n, i, j, C)
+        return self.memo[key]
+
+    def _ev(self, n: Node, i, j, C):  # noqa: C901 - one branch per primitive, on purpose
+        s, p, k = n.symbol, n.params, n.children
+        x, y = C(i, j)
+        if s == "const":
+            return (p[0],)
+        if s == "color":
+            return tuple(p[:3])
+        if s == "x":
+            return (x,)
+        if s == "y":
+            return (y,)
+        if s == "radius":
+            return (math.hypot(x - 0.5, y - 0.5),)
+        if s == "angle":
+            return ((math.atan2(y - 0.5, x - 0.5) / TWO_PI) % 1.0,)
+        if s in ("ramp", "gradient"):
+            a = TWO_PI * (p[0] if s == "ramp" else p[6])
+            along = x * math.cos(a) + y * math.sin(a)
+            if s == "ramp":
+                v = p[1] * along
+                return (v - math.floor(v),)
+            t = _fold(along)
+            return tuple(p[c] + (p[3 + c] - p[c]) * t for c in range(3))
+        if s == "bw-noise":
+            return (self.noise(x * p[0] + p[1], y * p[0] + p[2]),)
+        if s == "color-noise":
+            return tuple(self.noise(x * p[0] + p[1] + sx, y * p[0] + p[2] + sy) for sx, sy in T.CHANNEL_SHIFT)
+        if s == "turbulence":
+            octaves = int(min(max(math.floor(p[1]), 1), 8))
+            total = norm = 0.0
+            for o in range(octaves):
+                f = p[0] * 2.0 ** o
+                nv = self.noise(x * f + p[2] + o * T.OCTAVE_SHIFT[0], y * f + p[3] + o * T.OCTAVE_SHIFT[1])
+                total += 0.5 ** o * abs(2.0 * nv - 1.0)
+                norm += 0.5 ** o
+            return (total / norm,)
+        if s == "pixmap":
+            img = T.pixmap(T.pixmap_index(p[0]))
+            h, w = img.shape[:2]
+            fx = min(max(_fold(x) * w - 0.5, 0.0), w - 1.0)
+            fy = min(max(_fold(y) * h - 0.5, 0.0), h - 1.0)
+            x0, y0 = int(math.floor(fx)), int(math.floor(fy))
+            x1, y1 = min(x0 + 1, w - 1), min(y0 + 1, h - 1)
+            tx, ty = fx - x0, fy - y0
+            return tuple(float((img[y0, x0, c] * (1 - tx) + img[y0, x1, c] * tx) * (1 - ty)
+                               + (img[y1, x0, c] * (1 - tx) + img[y1, x1, c] * tx) * ty) for c in range(3))
+        if s == "time":
+            return (self.time,)
+        # ---- one argument -----------------------------------------------------------------
+        if s in _ONE:
+            return _ONE[s](self.ev(k[0], i, j, C))
+        if s == "blur":
+            return tuple(self.blur(k[0], C, p[0])[i][j])
+        if s == "band-pass":
+            a, b = self.blur(k[0], C, p[0])[i][j], self.blur(k[0], C, 3.0 * p[0])[i][j]
+            return tuple(0.5 + u - v for u, v in zip(a, b))
+        if s in ("bump", "grad-mag", "grad-dir"):
+            gx, gy = self.gradient(k[0], C, i, j)
+            if s == "grad-mag":
+                return (p[0] * math.hypot(gx, gy),)
+            if s == "grad-dir":
+                return ((math.atan2(gy, gx) / TWO_PI) % 1.0,)
+            a = TWO_PI * p[0]
+            nx, ny = -gx * p[1], -gy * p[1]
+            dot = (nx * math.cos(a) + ny * math.sin(a) + 1.0) / math.sqrt(2.0)
+            return (max(dot / math.sqrt(nx * nx + ny * ny + 1.0), 0.0),)
+        if s in ("swirl", "rotate"):
+            def make(ii, jj, C=C, p=p, s=s):
+                xx, yy = C(ii, jj)
+                if s == "rotate":
+                    ang = TWO_PI * p[0]
+                else:
+                    ang = p[0] * math.exp(-math.hypot(xx - 0.5, yy - 0.5) / max(p[1], 1e-3))
+                return _turn(xx, yy, ang)
+            return self.ev(k[0], i, j, self.coords(n, C, make))
+        # ---- two arguments ----------------------------------------------------------------
+        if s in _TWO:
+            return _map2(_TWO[s], self.ev(k[0], i, j, C), self.ev(k[1], i, j, C))
+        if s in _BITS:
+            op = _BITS[s]
+            return _map2(lambda u, v: op(_quant(u), _quant(v)) / 255.0,
+                         self.ev(k[0], i, j, C), self.ev(k[1], i, j, C))
+        if s == "warp-swirl":
+            def make(ii, jj, C=C, p=p, k=k):
+                xx, yy = C(ii, jj)
+                return _turn(xx, yy, p[0] * _grey(self.ev(k[1], ii, jj, C))[0])
+            return self.ev(k[0], i, j, self.coords(n, C, make))
+        if s == "warp-by":
+            def make(ii, jj, C=C, p=p, k=k):
+                xx, yy = C(ii, jj)
+                b = self.ev(k[1], ii, jj, C)
+                d0, d1 = (b[0], b[1]) if len(b) == 3 else (b[0], b[0])
+                return xx + p[0] * (d0 - 0.5), yy + p[0] * (d1 - 0.5)
+            return self.ev(k[0], i, j, self.coords(n, C, make))
+        if s == "dissolve":
+            a, b = self.ev(k[0], i, j, C), self.ev(k[1], i, j, C)
+            ci = math.floor(_sane(x * T.DISSOLVE_CELLS + p[2])) % T.LATTICE
+            cj = math.floor(_sane(y * T.DISSOLVE_CELLS + p[3])) % T.LATTICE
+            amount = (p[0] + p[1] * self.time) % 1.0
+            pick = b if self.table[cj, ci] < amount else a
+            n3 = max(len(a), len(b))
+            return pick * (n3 // len(pick))
+        raise ValueError(f"primitive {s!r} has no per-pixel implementation")  # pragma: no cover
+
+
+def _turn(x, y, ang):
+    dx, dy = x - 0.5, y - 0.5
+    c, s = math.cos(ang), math.sin(ang)
+    return 0.5 + dx * c - dy * s, 0.5 + dx * s + dy * c
+
+
+def _hsv(a):
+    if len(a) == 1:
+        h, s, v = a[0], 1.0, 1.0
+    else:
+        h, s, v = a[0], min(max(a[1], 0.0), 1.0), min(max(a[2], 0.0), 1.0)
+    h = _sane(h) % 1.0
+    out = []
+    for n in (5.0, 3.0, 1.0):
+        k = (n + 6.0 * h) % 6.0
+        out.append(v - v * s * min(max(min(k, 4.0 - k), 0.0), 1.0))
+    return tuple(out)
+
+
+def _quant(v):
+    return int(math.floor(_fold(_sane(v)) * 255.999))
+
+
+def _div(a, b):
+    if abs(b) < 1e-3:
+        b = -1e-3 if b < 0 else 1e-3
+    return a / b
+
+
+def _exp_clipped(a, b):
+    return math.exp(min(max(b * math.log(abs(a) + 1e-6), -30.0), 30.0))
+
+
+_ONE = {
+    "abs": lambda a: _map1(abs, a),
+    "sin": lambda a: _map1(lambda v: 0.5 + 0.5 * math.sin(TWO_PI * v), a),
+    "cos": lambda a: _map1(lambda v: 0.5 + 0.5 * math.cos(TWO_PI * v), a),
+    "log": lambda a: _map1(lambda v: math.log(abs(v) + 1e-6), a),
+    "atan": lambda a: _map1(lambda v: math.atan(v) / math.pi + 0.5, a),
+    "round": lambda a: _map1(lambda v: float(math.floor(v + 0.5)), a),
+    "invert": lambda a: _map1(lambda v: 1.0 - v, a),
+    "hsv-to-rgb": _hsv,
+}
+
+_TWO = {
+    "plus": lambda a, b: a + b,
+    "minus": lambda a, b: a - b,
+    "times": lambda a, b: a * b,
+    "divide": _div,
+    "mod": lambda a, b: a if abs(b) < 1e-3 else a % b,
+    "expt": _exp_clipped,
+    "min": min,
+    "max": max,
+}
+
+_BITS = {"and": lambda u, v: u & v, "or": lambda u, v: u | v, "xor": lambda u, v: u ^ v}
+
+
+def render_reference(genome: Genome, size=(16, 16), *, window=(0.0, 0.0, 1.0, 1.0), time: float = 0.0
+                     ) -> np.ndarray:
+    """Evaluate ``genome`` pixel by pixel in Python floats.
+
+    Args:
+        genome: the genome.
+        size: ``(height, width)`` or one int.
+        window: world rectangle ``(x0, y0, x1, y1)``.
+        time: animation time.
+    Returns:
+        ``(H, W, 3)`` float64 array in [0, 1] (the same final mapping as :func:`.evaluate.render`).
+    """
+    if not isinstance(genome, Genome):
+        raise TypeError(f"genome: expected a Genome, got {type(genome).__name__}")
+    H, W = _parse_size(size)
+    ref = _Reference(H, W, _parse_window(window), time)
+    tree = genome.decode()
+    out = np.empty((H, W, 3))
+    for i in range(H):
+        for j in range(W):
+            v = ref.ev(tree, i, j, ref.base)
+            v = v * 3 if len(v) == 1 else v
+            out[i, j] = [_fold(_sane(c)) for c in v]
+    return out

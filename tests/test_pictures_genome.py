@@ -1,0 +1,137 @@
+"""Genome: head/tail rule, Karva decoding, PreHeader linking, JSON (paper section 3.1)."""
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from coursekit.pictures import primitives as P
+from coursekit.pictures.genome import Chromosome, ChromosomeString, Genome, FORMAT
+
+C = Chromosome
+
+
+def s(head_length, *symbols):
+    return ChromosomeString(head_length, tuple(C.random(np.random.default_rng(0), n) for n in symbols))
+
+
+def assert_valid(g: Genome):
+    """Independent check of the paper's rules on a genome."""
+    n = max(P.arity(name) for name in P.names())
+    for string in g.strings:
+        h = string.head_length
+        assert len(string.symbols) == h + h * (n - 1) + 1
+        assert all(P.arity(sym) == 0 for sym in string.symbols[h:])
+    assert len(g.preheader) == len(g.strings) - 1
+    # the Karva reading of every string ends inside the string
+    for string in g.strings:
+        need, i = 1, 0
+        while need:
+            need += P.arity(string.symbols[i]) - 1
+            i += 1
+        assert i <= len(string.symbols)
+
+
+def test_primitive_set_covers_the_paper_and_sims():
+    names = P.names()
+    assert len(names) >= 30
+    assert sum(P.get(n).sims for n in names) >= 20
+    # every example the seed names for ZeroArgChrom, OneArgChrom and TwoArgChrom
+    for name in ["const", "bw-noise", "turbulence", "ramp", "abs", "sin", "cos", "swirl",
+                 "plus", "mod", "xor", "warp-swirl", "color", "x", "y", "pixmap", "gradient"]:
+        assert name in names
+    assert {P.arity(n) for n in names} == {0, 1, 2}
+    assert P.arity("swirl") == 1 and P.arity("xor") == 2 and P.arity("x") == 0
+    with pytest.raises(ValueError, match="unknown name 'nope'"):
+        P.arity("nope")
+
+
+def test_karva_reading_order_breadth_first():
+    # plus takes sin and x; then sin takes y; const is non-coding
+    g = Genome((s(2, "plus", "sin", "x", "y", "const"),))
+    assert g.expression() == "(plus (sin y) x)"
+    assert g.active == {"pre": [], 0: [0, 1, 2, 3]}
+    # deeper: times(minus(x, y), abs(radius)) read level by level
+    g = Genome((s(3, "times", "minus", "abs", "x", "y", "radius", "angle"),))
+    assert g.expression() == "(times (minus x y) (abs radius))"
+    assert g.active[0] == [0, 1, 2, 3, 4, 5]
+
+
+def test_preheader_links_strings_as_its_tail():
+    a = s(1, "sin", "x", "y")
+    b = s(1, "abs", "y", "x")
+    c = s(1, "x", "y", "y")
+    g = Genome((a, b, c), (C("plus"), C("minus")))
+    # PreHeader plus, minus then strings 0,1,2: plus(minus, S0), minus(S1, S2)
+    assert g.expression() == "(plus (minus (abs y) x) (sin x))"
+    assert g.active == {"pre": [0, 1], 0: [0, 1], 1: [0, 1], 2: [0]}
+    # a terminal at the PreHeader root silences every string (kept, non-coding)
+    g2 = Genome((a, b, c), (C("x"), C("minus")))
+    assert g2.expression() == "x"
+    assert g2.active == {"pre": [0], 0: [], 1: [], 2: []}
+
+
+def test_non_coding_chromosomes_become_active_after_rotation():
+    g = Genome((s(2, "x", "sin", "y", "radius", "angle"),))
+    assert g.active[0] == [0]
+    rotated = Genome((s(2, "sin", "x", "y", "radius", "angle"),))
+    assert rotated.expression() == "(sin x)"
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n_strings=st.integers(1, 6), h=st.integers(1, 8))
+def test_random_genomes_obey_head_tail_rule_and_round_trip(seed, n_strings, h):
+    g = Genome.random(np.random.default_rng(seed), n_strings=n_strings, head_length=h)
+    assert_valid(g)
+    assert all(st_.head_length == h and st_.tail_length == h + 1 for st_ in g.strings)
+    text = g.to_json()
+    assert json.loads(text)["format"] == FORMAT
+    assert json.loads(text)["expression"] == g.expression()
+    assert Genome.from_json(text) == g
+    assert Genome.from_json(text).expression() == g.expression()
+    assert g.size() == sum(len(v) for v in g.active.values())
+
+
+def test_same_seed_same_genome():
+    a = Genome.random(np.random.default_rng(7), n_strings=4, head_length=5)
+    b = Genome.random(np.random.default_rng(7), n_strings=4, head_length=5)
+    assert a.to_json() == b.to_json()
+
+
+def test_random_respects_symbol_subset():
+    g = Genome.random(np.random.default_rng(1), symbols=["plus", "x", "y"], n_strings=2)
+    assert set(sum((st_.symbols for st_ in g.strings), [])) <= {"plus", "x", "y"}
+    with pytest.raises(ValueError, match="no ZeroArgChrom"):
+        Genome.random(np.random.default_rng(1), symbols=["plus"])
+
+
+def test_constructors_refuse_invalid_genomes():
+    with pytest.raises(ValueError, match="tail"):
+        ChromosomeString(1, (C("sin"), C("plus"), C("x")))
+    with pytest.raises(ValueError, match="length 2"):
+        ChromosomeString(1, (C("sin"), C("x")))
+    with pytest.raises(ValueError, match="head_length"):
+        ChromosomeString(0, (C("x"),))
+    with pytest.raises(ValueError, match="params has 0 values"):
+        C("const")
+    with pytest.raises(ValueError, match="preheader: 0 chromosomes"):
+        Genome((s(1, "x", "y", "x"), s(1, "x", "y", "x")))
+    with pytest.raises(TypeError, match="rng"):
+        Genome.random(7)
+
+
+@pytest.mark.parametrize("text, match", [
+    ('{"format": "coursekit.genome/1", "strings": [', "not valid JSON"),
+    ('{"format": "coursekit.creature/1", "strings": [], "preheader": []}', "format"),
+    ('[1, 2]', "JSON object"),
+    ('{"format": "coursekit.genome/1", "preheader": [], "strings": [{"head_length": 1, '
+     '"chromosomes": [["sin", []], ["plus", []], ["x", []]]}]}', "tail"),
+    ('{"format": "coursekit.genome/1", "preheader": [], "strings": [{"head_length": 1, '
+     '"chromosomes": [["blah", []], ["x", []], ["x", []]]}]}', "unknown name 'blah'"),
+    ('{"format": "coursekit.genome/1", "preheader": [], "strings": [{"head_length": 1, '
+     '"chromosomes": [["const", [1, 2]], ["x", []], ["x", []]]}]}', "params has 2 values"),
+])
+def test_from_json_refuses_broken_or_foreign_text(text, match):
+    with pytest.raises(ValueError, match=match):
+        Genome.from_json(text)
