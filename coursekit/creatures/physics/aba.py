@@ -52,7 +52,7 @@ def joint_transforms(model, q):
     """
     xp = model.xp
     G = _pose_rows(model, q)
-    return xp.reshape(bk.contiguous(xp, G[:9].T), (-1, 3, 3)).mT, G[9:].T
+    return bk.contiguous(xp, xp.reshape(G[:9].T, (-1, 3, 3)).mT), G[9:].T
 
 
 def joint_basis(xp, revolute, q):
@@ -119,12 +119,13 @@ def _outward_velocities(model, X, v0, vJ):
     return v
 
 
-def _velocities_and_bias(model, X, v0, qd):
-    """``v`` (N, 6), ``vt = v'`` (6, N) (component-major copy for the cross products) and the
-    joints' bias accelerations ``c = v x vJ`` (M, 6)."""
+def _velocities_and_bias(model, X, v0, qd, v=None):
+    """``v`` (N, 6) (swept outwards unless given), ``vt = v'`` (6, N) (component-major copy for
+    the cross products) and the joints' bias accelerations ``c = v x vJ`` (M, 6)."""
     xp = model.xp
     vJt = model.S_t * qd  # (6, M)
-    v = _outward_velocities(model, X, v0, vJt.T)
+    if v is None:
+        v = _outward_velocities(model, X, v0, vJt.T)
     vt = bk.contiguous(xp, v.T)
     return v, vt, bk.contiguous(xp, sp.cross_motion(xp, vt[:, model.n_creatures :], vJt, axis=0).T)
 
@@ -178,7 +179,7 @@ def articulated_inertias(model, q):
     return Xup, IA, U, d, W, Z, Y
 
 
-def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
+def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None):
     """Forward dynamics of the whole batch.
 
     The bias sweep uses ``u = tau - S'pA`` and ``pa = pA + Ia c + U u / d`` (``Ia = IA - U U'/d``),
@@ -195,6 +196,7 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
         f_ext: optional (N, 6) external spatial force on every body, body coordinates.
         damping: optional (N, 6) diagonal of a body-frame damping matrix ``D``; adds ``-D v``.
         inertias: optional result of :func:`articulated_inertias` at this ``q`` (reused).
+        v: optional (N, 6) body velocities at this state (:func:`body_velocities`; reused).
 
     Returns:
         ``(a0, qdd, v)``: root spatial acceleration (C, 6) in root coordinates, joint
@@ -204,7 +206,7 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
     C, L = model.n_creatures, model.leaf_start
     Xup, IA, U, d, W, Z, Y = articulated_inertias(model, q) if inertias is None else inertias
     S = model.S
-    v, vt, c = _velocities_and_bias(model, Xup, v0, qd)
+    v, vt, c = _velocities_and_bias(model, Xup, v0, qd, v)
     I = model.inertia_diag
     pA = bk.contiguous(xp, sp.rigid_bias_force(xp, vt, model.inertia_diag_t, axis=0).T)
     if damping is not None:
