@@ -27,6 +27,9 @@ from . import spatial as sp
 
 
 def _transforms(xp, revolute, q, E0, E1, E2, r0, r1, r2, r3):
+    """Rodrigues' formula with constant factors (``K = [axis]x``, ``J`` the joint rotation):
+    revolute ``E = J' + sin q (-K J') + (1 - cos q) K^2 J'``; prismatic ``E = J'`` and ``r`` moves
+    along ``J axis`` (used to fit :func:`fit_joint_basis`)."""
     zero = xp.zeros_like(q)
     angle = xp.where(revolute, q, zero)
     s, c1 = xp.sin(angle), 1.0 - xp.cos(angle)
@@ -202,6 +205,11 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None):
         ``(a0, qdd, v)``: root spatial acceleration (C, 6) in root coordinates, joint
         accelerations (M,) and body velocities (N, 6).
     """
+    with np.errstate(over="ignore", invalid="ignore"):  # a diverging creature is the guard's business
+        return _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v)
+
+
+def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
     Xup, IA, U, d, W, Z, Y = articulated_inertias(model, q) if inertias is None else inertias

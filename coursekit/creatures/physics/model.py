@@ -1,10 +1,17 @@
 """A population of body trees packed into one batch, sorted by tree depth (paper section 2.4).
 
 All bodies of all creatures live in flat arrays. They are stored level by level -- every root
-first (in creature order), then every body of depth 1, and so on -- and inside a level sorted by
-parent, so each level is one contiguous slice and the children of a level can be summed into
-their parents with one segment sum. Bodies ``C..N-1`` (``C`` creatures, ``N`` bodies) are the
-joints, so per-joint arrays have ``M = N - C`` rows in the same order.
+first (in creature order), then every *inner* body (one with children) of depth 1, of depth 2,
+and so on, and last every leaf (bodies ``L..N-1``) -- each group sorted by parent, so each level
+is one contiguous slice and the children of a level can be summed into their parents with one
+segment sum. The ABA sweeps the inner levels one by one and all leaves at once (see
+:mod:`~coursekit.creatures.physics.aba`). Bodies ``C..N-1`` (``C`` creatures, ``N`` bodies) are
+the joints, so per-joint arrays have ``M = N - C`` rows in the same order.
+
+Everything of a joint that depends on its coordinate ``q`` alone -- the transform ``Xup``, the
+pose ``(E, r)`` and, for leaves, what they pass to their parent -- is stored as constant
+coefficients of a small polynomial basis in ``q`` (``aba.joint_basis``), so evaluating it is one
+stacked product.
 
 The user-facing layout (MuJoCo's, see :func:`coursekit.creatures.mjcf.to_mjcf`) lists each
 creature's joints in BodyTree order; :attr:`Model.joint_order` maps between the two.
