@@ -9,12 +9,14 @@ kinematics (against the phenotype's per-creature poses), the vectorised separati
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from coursekit.creatures.body import REVOLUTE, rotation_about
 from coursekit.creatures.phenotype import part_poses
-from coursekit.creatures.physics import aba, backend as bk, random_body_tree, spatial as sp
-from coursekit.creatures.physics.contact import Contacts
+from coursekit.creatures.physics import aba, random_body_tree
+from coursekit.creatures.physics import backend as bk
+from coursekit.creatures.physics import spatial as sp
 from coursekit.creatures.physics.model import Model
 from coursekit.creatures.physics.world import World
 

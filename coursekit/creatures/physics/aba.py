@@ -92,7 +92,6 @@ def fit_joint_basis(revolute: np.ndarray, consts: dict, sample, k: int = 3) -> n
             ``E = E0 + sin q E1 + (1 - cos q) E2``) and ``r0, r1, r2, r3`` (origin, plus
             ``slide r3`` for prismatic joints) of these joints; sample: ``(E, r) -> (n, w)``.
     """
-    n = len(revolute)
     ks = np.arange(float(k))
     qs = np.where(revolute[:, None], 2 * np.pi * ks / k, ks - (k - 1) / 2)  # (n, k) sample points
     samples = np.stack([sample(*_transforms(np, revolute, qs[:, i], *(consts[c] for c in ("E0", "E1", "E2", "r0", "r1", "r2", "r3")))) for i in range(k)], axis=1)

@@ -77,7 +77,7 @@ class Contacts:
         # rows of the edge-edge axes (i, j) = (k // 3, k % 3), i1 = i + 1, i2 = i + 2 (mod 3)
         I, J = np.repeat(np.arange(3), 3), np.tile(np.arange(3), 3)
         I1, I2, J1, J2 = (I + 1) % 3, (I + 2) % 3, (J + 1) % 3, (J + 2) % 3
-        rows = (3 * I + J, 3 * I1 + J, 3 * I2 + J, 3 * I + J1, 3 * I + J2, I1, I2, J1, J2)
+        rows = (3 * I1 + J, 3 * I2 + J, 3 * I + J1, 3 * I + J2, I1, I2, J1, J2)
         self._edge_rows = tuple(bk.index(xp, k, device=m.device) for k in rows)
         self._set_pairs(a, b, w)
         # Parts that interpenetrate in the creature's own rest pose are fused, not colliding: a
@@ -140,7 +140,7 @@ class Contacts:
         Am = xp.abs(Rm)
         t = xp.sum(A * d[:, None], axis=0)
         hA, hB = xp.take(self.half_t, a, axis=1), xp.take(self.half_t, b, axis=1)
-        ij, i1j, i2j, ij1, ij2, I1, I2, J1, J2 = self._edge_rows
+        i1j, i2j, ij1, ij2, I1, I2, J1, J2 = self._edge_rows
         len_e = xp.sqrt(xp.clip(1.0 - Rm * Rm, 0.0, None))  # |A_i x B_j|
         valid = len_e > 1e-6  # parallel edges: the face axes already decide
         over_e = (

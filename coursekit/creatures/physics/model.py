@@ -19,6 +19,8 @@ creature's joints in BodyTree order; :attr:`Model.joint_order` maps between the 
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from coursekit.creatures.body import PRISMATIC, REVOLUTE, BodyTree
@@ -98,7 +100,7 @@ class Model:
         L = self.leaf_start = bounds[-1][0]  # bodies L..N-1 are the leaves (joint rows L-C..M-1)
         self.n_leaves = N - L
         self.levels = []  # inner joints, by depth: (start, stop, parent positions, Segments)
-        for (ps, pe), (s, e) in zip(bounds[:-2], bounds[1:-1]):
+        for (ps, pe), (s, e) in itertools.pairwise(bounds[:-1]):
             self.levels.append((s, e, bk.index(xp, par[s:e], device=device), bk.Segments(xp, par[s:e], (ps, pe), device=device)))
         self.leaf_parent = bk.index(xp, par[L:], device=device)
         self.joint_parent = bk.index(xp, par[C:], device=device)
