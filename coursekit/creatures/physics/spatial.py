@@ -105,14 +105,11 @@ def rotation_about(xp, axis, angle):
 def quat_to_mat(xp, q):
     """Unit quaternions (..., 4) (w, x, y, z) -> rotation matrices (..., 3, 3)."""
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return xp.stack(
-        [
-            xp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
-            xp.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
-            xp.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
-        ],
-        axis=-2,
-    )
+    x2, y2, z2 = x + x, y + y, z + z
+    xx, yy, zz, xy, xz, yz = x * x2, y * y2, z * z2, x * y2, x * z2, y * z2
+    wx, wy, wz = w * x2, w * y2, w * z2
+    m = xp.stack([1 - (yy + zz), xy - wz, xz + wy, xy + wz, 1 - (xx + zz), yz - wx, xz - wy, yz + wx, 1 - (xx + yy)], axis=-1)
+    return xp.reshape(m, tuple(q.shape[:-1]) + (3, 3))
 
 
 def quat_mul(xp, a, b):
@@ -170,18 +167,22 @@ def mat_to_quat(R: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------- SO(3) chart for the integrator
 
 
-def _dexp_coefficients(xp, theta):
-    """alpha = (1 - cos p)/p^2, beta = (p - sin p)/p^3 and their derivatives over p (divided by p)."""
+def _dexp_coefficients(xp, theta, derivatives=True):
+    """alpha = (1 - cos p)/p^2, beta = (p - sin p)/p^3 and (with ``derivatives``) their
+    derivatives over p, divided by p."""
     p2 = xp.vecdot(theta, theta)
     p = xp.sqrt(p2)
     small = p < 1e-3
     ps = xp.where(small, xp.ones_like(p), p)
     s, c = xp.sin(ps), xp.cos(ps)
-    alpha = xp.where(small, 0.5 - p2 / 24.0 + p2 * p2 / 720.0, (1 - c) / ps**2)
-    beta = xp.where(small, 1.0 / 6.0 - p2 / 120.0 + p2 * p2 / 5040.0, (ps - s) / ps**3)
+    inv2 = 1.0 / (ps * ps)
+    alpha = xp.where(small, 0.5 - p2 / 24.0 + p2 * p2 / 720.0, (1 - c) * inv2)
+    beta = xp.where(small, 1.0 / 6.0 - p2 / 120.0 + p2 * p2 / 5040.0, (ps - s) * inv2 / ps)
+    if not derivatives:
+        return alpha, beta
     # d(alpha)/dp / p and d(beta)/dp / p
-    dalpha = xp.where(small, -1.0 / 12.0 + p2 / 180.0 - p2 * p2 / 6720.0, (ps * s - 2 * (1 - c)) / ps**4)
-    dbeta = xp.where(small, -1.0 / 60.0 + p2 / 1260.0 - p2 * p2 / 60480.0, (3 * s - ps * c - 2 * ps) / ps**5)
+    dalpha = xp.where(small, -1.0 / 12.0 + p2 / 180.0 - p2 * p2 / 6720.0, (ps * s - 2 * (1 - c)) * inv2 * inv2)
+    dbeta = xp.where(small, -1.0 / 60.0 + p2 / 1260.0 - p2 * p2 / 60480.0, (3 * s - ps * c - 2 * ps) * inv2 * inv2 / ps)
     return alpha, beta, dalpha, dbeta
 
 
@@ -190,14 +191,14 @@ def dexp(xp, theta, theta_dot):
 
     ``omega = theta_dot - alpha theta x theta_dot + beta theta x (theta x theta_dot)``.
     """
-    alpha, beta, _, _ = _dexp_coefficients(xp, theta)
+    alpha, beta = _dexp_coefficients(xp, theta, derivatives=False)
     t1 = cross3(xp, theta, theta_dot)
     return theta_dot - alpha[..., None] * t1 + beta[..., None] * cross3(xp, theta, t1)
 
 
 def dexp_dot(xp, theta, theta_dot):
     """Time derivative of ``dexp(theta)`` applied to ``theta_dot`` (the chart's curvature term)."""
-    alpha, beta, dalpha, dbeta = _dexp_coefficients(xp, theta)
+    _, beta, dalpha, dbeta = _dexp_coefficients(xp, theta)
     pdot = xp.vecdot(theta, theta_dot)  # p * dp/dt
     t1 = cross3(xp, theta, theta_dot)
     term_a = -(dalpha * pdot)[..., None] * t1  # theta_dot x theta_dot = 0
