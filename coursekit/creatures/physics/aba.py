@@ -127,7 +127,7 @@ def _velocities_and_bias(model, X, v0, qd, v=None):
     xp = model.xp
     vJt = model.S_t * qd  # (6, M)
     if v is None:
-        v = _outward_velocities(model, X, v0, vJt.T)
+        v = _outward_velocities(model, X, v0, model.S * qd[:, None])
     vt = bk.contiguous(xp, v.T)
     return v, vt, bk.contiguous(xp, sp.cross_motion(xp, vt[:, model.n_creatures :], vJt, axis=0).T)
 
