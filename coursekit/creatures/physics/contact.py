@@ -234,7 +234,7 @@ class Contacts:
         F = mag[:, None] * n
         mid = 0.5 * (xa + xb)
         f = xp.zeros((m.n_bodies, 6), dtype=xp.float64, device=m.device)
-        for body, Rw, Fw in ((b, Rb, F), (a, Ra, -F)):
-            w = xp.concat([sp.cross3(xp, mid - p[body], Fw), Fw], axis=1)
-            bk.scatter_add(xp, f, body, xp.concat([sp.mtv(Rw, w[:, :3]), sp.mtv(Rw, w[:, 3:])], axis=1))
+        body, Rw, Fw = xp.concat([b, a]), xp.concat([Rb, Ra]), xp.concat([F, -F])  # B pushed along +n
+        moment = sp.cross3(xp, xp.concat([mid, mid]) - p[body], Fw)
+        bk.scatter_add(xp, f, body, xp.concat([sp.mtv(Rw, moment), sp.mtv(Rw, Fw)], axis=1))
         return f
