@@ -5,7 +5,13 @@ second of our batched simulator (numpy, torch CPU, torch CUDA when present) next
 stepping the very same exported creatures (``to_mjcf``, all creatures in one model) with its RK4
 integrator, the same step and one thread, and the ratio. Ours runs the full swimmer physics
 (water drag, joint-limit springs; self-collisions in a separate row); MuJoCo runs the exported
-articulated bodies (joint limits as constraints, no fluid, no contacts).
+articulated bodies (joint limits as constraints, no fluid, no contacts). Times are the best
+window of process CPU time (see ``_timed``), so other jobs on a shared machine disturb them little.
+
+Our numpy simulator spends much of its time in stacked 6x6 products (``np.matmul`` on stacks): a
+forced ``OPENBLAS_CORETYPE`` (set on some machines to dodge bugs of old OpenBLAS builds) makes
+those several times slower in current numpy; the header prints it. To measure the library as
+users get it there, run ``env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE python benchmarks/swimmers.py``.
 
     python benchmarks/swimmers.py [--batches 1 30 300] [--seconds 2]
 """
@@ -37,24 +43,38 @@ def _population(n: int, seed: int = 0):
     return trees, states
 
 
-def _timed(step, seconds: float, min_steps: int = 3) -> tuple[float, int]:
+def _timed(step, seconds: float, window: float = 0.25, clock=time.process_time) -> float:
+    """Seconds per call: the best of repeated windows of about ``window`` seconds.
+
+    CPU engines are timed by this process's CPU time (every engine runs on one thread): with the
+    best window, the figures are robust to other jobs sharing the machine, and all engines are
+    measured the same way. CUDA runs use wall time with a synchronisation after every step.
+    """
     step()  # warm up
-    n, t0 = 0, time.perf_counter()
-    while n < min_steps or time.perf_counter() - t0 < seconds:
-        step()
-        n += 1
-    return (time.perf_counter() - t0) / n, n
+    t0 = clock()
+    step()
+    k = max(1, round(window / max(clock() - t0, 1e-6)))
+    best, start = float("inf"), clock()
+    while best == float("inf") or clock() - start < seconds:
+        t0 = clock()
+        for _ in range(k):
+            step()
+        best = min(best, (clock() - t0) / k)
+    return best
 
 
 def bench_ours(trees, states, backend, seconds, device=None, contacts=False):
     w = World(trees, dt=DT, backend=backend, device=device, contacts=contacts)
     w.set_state([s[0] for s in states], [s[1] for s in states])
-    per_step, n = _timed(w.step, seconds)
     if device is not None and "cuda" in str(device):
         import torch
 
-        torch.cuda.synchronize()
-    return per_step
+        def step():
+            w.step()
+            torch.cuda.synchronize()
+
+        return _timed(step, seconds, clock=time.perf_counter)
+    return _timed(w.step, seconds)
 
 
 def bench_mujoco(trees, states, seconds):
@@ -64,7 +84,7 @@ def bench_mujoco(trees, states, seconds):
     data = mujoco.MjData(model)
     data.qpos[:] = np.concatenate([s[0] for s in states])
     data.qvel[:] = np.concatenate([s[1] for s in states])
-    per_step, _ = _timed(lambda: mujoco.mj_step(model, data), seconds)
+    per_step = _timed(lambda: mujoco.mj_step(model, data), seconds)
     return per_step
 
 
@@ -89,7 +109,8 @@ def main(argv=None) -> None:
             t = bench_ours(trees, states, backend, args.seconds, device=device, contacts=contacts)
             name = f"ours {backend}{'/' + device if device else ''} RKN{' +collisions' if contacts else ''}"
             rows.append((batch, bodies, name, t, ref))
-    print(f"step dt = {DT:.5f} s, random creatures of 10-20 boxes; ratio = our body-steps/s over MuJoCo's\n")
+    print(f"step dt = {DT:.5f} s, random creatures of 10-20 boxes; ratio = our body-steps/s over MuJoCo's")
+    print(f"numpy {np.__version__}, OPENBLAS_CORETYPE={os.environ.get('OPENBLAS_CORETYPE', '(unset)')}; best-window CPU time per step\n")
     print(f"{'batch':>5} {'bodies':>6}  {'engine':<34} {'ms/step':>9} {'body-steps/s':>13} {'creature-steps/s':>17} {'ratio':>6}")
     for batch, bodies, name, t, ref in rows:
         print(f"{batch:>5} {bodies:>6}  {name:<34} {t * 1e3:>9.3f} {bodies / t:>13,.0f} {batch / t:>17,.0f} {ref / t:>6.2f}")

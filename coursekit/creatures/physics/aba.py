@@ -9,37 +9,127 @@ so the world pose of the root never enters the dynamics.
 
 Joint motion subspaces are constant in the child frame (revolute: ``(a, c x a)`` for axis ``a``
 through the anchor ``c``; prismatic: ``(0, a)``), so the joint bias ``cJ`` is zero.
+
+Leaves (about half the bodies of a random creature) are not swept level by level: their
+articulated inertia is their rigid one, so ``U``, ``d`` and ``Ia = I - U U'/d`` are constants of
+the model, and what a leaf passes to its parent, ``Xup' Ia Xup``, is a trigonometric (revolute)
+or quadratic (prismatic) polynomial of degree two in ``q`` with constant matrix coefficients
+(:func:`fit_joint_basis`). All leaves are handled by one stacked operation per sweep; the
+level loops run over the inner bodies only (the model stores leaves after them).
 """
 
 from __future__ import annotations
 
+import numpy as np
+
+from . import backend as bk
 from . import spatial as sp
+
+
+def _transforms(xp, revolute, q, E0, E1, E2, r0, r1, r2, r3):
+    """Rodrigues' formula with constant factors (``K = [axis]x``, ``J`` the joint rotation):
+    revolute ``E = J' + sin q (-K J') + (1 - cos q) K^2 J'``; prismatic ``E = J'`` and ``r`` moves
+    along ``J axis`` (used to fit :func:`fit_joint_basis`)."""
+    zero = xp.zeros_like(q)
+    angle = xp.where(revolute, q, zero)
+    s, c1 = xp.sin(angle), 1.0 - xp.cos(angle)
+    E = E0 + s[:, None, None] * E1 + c1[:, None, None] * E2
+    slide = xp.where(revolute, zero, q)
+    r = r0 + s[:, None] * r1 + c1[:, None] * r2 + slide[:, None] * r3
+    return E, r
+
+
+def _pose_rows(model, q):
+    """(12, M) component-major ``Rq = E'`` (rows ``3 r + c``) and ``r`` (rows 9..11) at ``q``."""
+    b = bk.contiguous(model.xp, joint_basis(model.xp, model.revolute, q)[:, 1:3].T)  # (2, M)
+    P = model.pose_rows_basis  # (3, 12, M); the first basis function is 1
+    return P[0] + b[0] * P[1] + b[1] * P[2]
 
 
 def joint_transforms(model, q):
     """Joint transforms ``Xup = (E, r)`` at ``q``: ``E`` (M, 3, 3) rotates parent coordinates into
     child coordinates, ``r`` (M, 3) is the child's origin in parent coordinates.
 
-    Rodrigues' formula with the constant factors precomputed by the model: for revolute joints
-    ``E = J' + sin q (-K J') + (1 - cos q) K^2 J'`` (``K = [axis]x``, ``J`` = joint_rot); for
-    prismatic joints ``E = J'`` and ``r`` moves along ``J axis``.
+    Both are of degree one in :func:`joint_basis` (see :func:`fit_joint_basis`): a few stacked
+    operations with the model's constant coefficients.
     """
     xp = model.xp
+    G = _pose_rows(model, q)
+    return bk.contiguous(xp, xp.reshape(G[:9].T, (-1, 3, 3)).mT), G[9:].T
+
+
+def joint_basis(xp, revolute, q):
+    """(n, 5) polynomial basis in ``q``: revolute ``(1, cos q, sin q, cos 2q, sin 2q)``, prismatic
+    ``(1, q, q^2, 0, 0)``. The first three span the entries of ``Xup(q)``."""
     zero = xp.zeros_like(q)
-    angle = xp.where(model.revolute, q, zero)
-    s, c1 = xp.sin(angle), 1.0 - xp.cos(angle)
-    E = model.E0 + s[:, None, None] * model.E1 + c1[:, None, None] * model.E2
-    slide = xp.where(model.revolute, zero, q)
-    r = model.r0 + s[:, None] * model.r1 + c1[:, None] * model.r2 + slide[:, None] * model.r3
-    return E, r
+    angle = xp.where(revolute, q, zero)
+    c, s = xp.cos(angle), xp.sin(angle)
+    slide = xp.where(revolute, zero, q)
+    return xp.stack(
+        [
+            xp.ones_like(q),
+            xp.where(revolute, c, slide),
+            xp.where(revolute, s, slide * slide),
+            xp.where(revolute, c * c - s * s, zero),
+            xp.where(revolute, 2.0 * s * c, zero),
+        ],
+        axis=-1,
+    )
 
 
-def joint_rotations(model, q):
-    """(M, 3, 3) child-to-parent rotations ``Rq = E.T`` at ``q``."""
+def fit_joint_basis(revolute: np.ndarray, consts: dict, sample, k: int = 3) -> np.ndarray:
+    """Constant coefficients ``P`` (n, k, w) with ``sample(E(q), r(q)) = joint_basis(q)[:, :k] @ P``
+    for every ``q`` (numpy).
+
+    ``Xup(q) = X_c Rot(q) X_p`` (constant transforms on either side of the joint's rotation or
+    slide) has entries in ``span(1, cos q, sin q)`` (revolute) or ``span(1, q)`` (prismatic): so
+    ``E``, ``r`` and ``Xup`` are of degree one (``k = 3``) in the basis and congruences
+    ``Xup' I Xup`` of degree two (``k = 5``). Fitted exactly from ``k`` samples per joint (equally
+    spaced angles; slides centred on 0), with Rodrigues' formula at the samples.
+
+    Args:
+        revolute: (n,) joint kinds; consts: the Rodrigues constants ``E0, E1, E2`` (rotation
+            ``E = E0 + sin q E1 + (1 - cos q) E2``) and ``r0, r1, r2, r3`` (origin, plus
+            ``slide r3`` for prismatic joints) of these joints; sample: ``(E, r) -> (n, w)``.
+    """
+    ks = np.arange(float(k))
+    qs = np.where(revolute[:, None], 2 * np.pi * ks / k, ks - (k - 1) / 2)  # (n, k) sample points
+    samples = np.stack([sample(*_transforms(np, revolute, qs[:, i], *(consts[c] for c in ("E0", "E1", "E2", "r0", "r1", "r2", "r3")))) for i in range(k)], axis=1)
+    B = joint_basis(np, revolute[:, None], qs)[..., :k]  # (n, k samples, k functions)
+    return np.linalg.pinv(B) @ samples
+
+
+def joint_transform_matrices(model, q):
+    """(M, 6, 6) joint transforms ``Xup`` at ``q`` from the model's constant coefficients."""
+    return _transform_matrices(model, joint_basis(model.xp, model.revolute, q)[:, None, :])
+
+
+def _transform_matrices(model, b):
+    return (b[..., :3] @ model.X_basis).reshape(-1, 6, 6)
+
+
+def _outward_velocities(model, X, v0, vJ):
     xp = model.xp
-    angle = xp.where(model.revolute, q, xp.zeros_like(q))
-    s, c1 = xp.sin(angle), 1.0 - xp.cos(angle)
-    return model.joint_rot + s[:, None, None] * model.Rq1 + c1[:, None, None] * model.Rq2
+    C, L = model.n_creatures, model.leaf_start
+    v = xp.zeros((model.n_bodies, 6), dtype=v0.dtype, device=model.device)
+    v[:C] = v0
+    for s, e, par, _ in model.levels:
+        j = slice(s - C, e - C)
+        v[s:e] = sp.mv(X[j], v[par]) + vJ[j]
+    j = slice(L - C, None)
+    v[L:] = sp.mv(X[j], v[model.leaf_parent]) + vJ[j]
+    return v
+
+
+def _velocities_and_bias(model, X, v0, qd, v=None):
+    """``v`` (N, 6) (swept outwards unless given), ``vt = v'`` (6, N) (component-major copy for
+    the cross products) and the joints' bias accelerations ``c = v x vJ`` (M, 6)."""
+    xp = model.xp
+    vJt = model.S_t * qd  # (6, M)
+    if v is None:
+        v = _outward_velocities(model, X, v0, model.S * qd[:, None])
+    vt = bk.contiguous(xp, v.T)
+    return v, vt, bk.contiguous(xp, sp.cross_motion(xp, vt[:, model.n_creatures :], vJt, axis=0).T)
 
 
 def body_velocities(model, X, v0, qd):
@@ -47,47 +137,58 @@ def body_velocities(model, X, v0, qd):
 
     ``X`` is the (M, 6, 6) stack of joint transforms ``Xup`` (:func:`spatial.transform_matrix`).
     """
-    xp = model.xp
-    C, N = model.n_creatures, model.n_bodies
-    vJ = model.S * qd[:, None]
-    v = xp.zeros((N, 6), dtype=v0.dtype, device=model.device)
-    v[:C] = v0
-    for s, e, par, _ in model.levels:
-        j = slice(s - C, e - C)
-        v[s:e] = sp.mv(X[j], v[par]) + vJ[j]
-    c = xp.concat([xp.zeros_like(v0), sp.cross_motion(xp, v[C:], vJ)], axis=0)
-    return v, c
+    v, _, c = _velocities_and_bias(model, X, v0, qd)
+    return v, model.xp.concat([model.xp.zeros_like(v0), c], axis=0)
 
 
 def articulated_inertias(model, q):
-    """The velocity-independent half of the inward sweep: ``(Xup, IA, U, d)`` at ``q``.
+    """The velocity-independent half of the ABA: ``(Xup, IA, U, d, W, Z, Y)`` at ``q``.
 
-    ``IA`` (N, 6, 6) are the articulated inertias (roots' included), ``U = IA S`` and
-    ``d = S' U`` per joint. Each child passes ``Xup' (IA - U U' / d) Xup`` to its parent. They
-    depend on the positions only, so the Nyström stages 2 and 3, which share positions, share
-    them.
+    ``Xup`` (M, 6, 6) are the joint transforms; ``IA`` (L, 6, 6) the articulated inertias of the
+    roots and inner bodies (a leaf's is its rigid inertia), ``U = IA S`` and ``d = S' U`` (M,)
+    per joint, ``W = Xup' U / d`` (M, 6) and, for the inner joints, ``Z = Xup - S W'`` and
+    ``Y = Xup' IA`` (L - C, 6, 6). Each child passes ``Xup' (IA - U U' / d) Xup = Y Z`` to its
+    parent.
+    They depend on the positions only, so the Nyström stages 2 and 3, which share positions,
+    share them.
     """
     xp = model.xp
-    C = model.n_creatures
-    E, r = joint_transforms(model, q)
-    Xup = sp.transform_matrix(xp, E, r)
-    IA = model.inertia_matrix + 0.0  # a fresh (N, 6, 6) copy of the rigid-body inertias
+    C, L = model.n_creatures, model.leaf_start
+    b = joint_basis(xp, model.revolute, q)[:, None, :]
+    Xup = _transform_matrices(model, b)
+    IA = model.inner_inertia + 0.0  # a fresh (L, 6, 6) copy of the rigid-body inertias
+    model.leaf_segments.add_into(IA, b[L - C :] @ model.leaf_P)
     S = model.S
-    U = xp.zeros_like(S)
-    d = xp.zeros_like(S[:, 0])
+    U, d = model.U_leaf + 0.0, model.d_leaf + 0.0  # leaf rows are constant; inner rows follow
+    W = xp.zeros_like(U)
+    jl = slice(L - C, None)
+    W[jl] = sp.mtv(Xup[jl], U[jl]) / d[jl][:, None]
+    Z = xp.zeros((L - C, 6, 6), dtype=Xup.dtype, device=model.device)
+    Y = xp.zeros_like(Z)
     for s, e, _, seg in reversed(model.levels):
         j = slice(s - C, e - C)
-        Uj = sp.mv(IA[s:e], S[j])
-        dj = xp.sum(S[j] * Uj, axis=-1)
+        IAj = IA[s:e]
+        Uj = sp.mv(IAj, S[j])
+        dj = xp.vecdot(S[j], Uj)
         U[j], d[j] = Uj, dj
         X = Xup[j]
-        w = sp.mv(X.mT, Uj)  # Xup' U
-        seg.add_into(IA, X.mT @ (IA[s:e] @ X) - w[:, :, None] * (w / dj[:, None])[:, None, :])
-    return Xup, IA, U, d
+        Wj = sp.mtv(X, Uj) / dj[:, None]
+        W[j] = Wj
+        Zj = X - sp.outer(xp, S[j], Wj)
+        Yj = X.mT @ IAj
+        Z[j], Y[j] = Zj, Yj
+        seg.add_into(IA, Yj @ Zj)
+    return Xup, IA, U, d, W, Z, Y
 
 
-def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
+def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None):
     """Forward dynamics of the whole batch.
+
+    The bias sweep uses ``u = tau - S'pA`` and ``pa = pA + Ia c + U u / d`` (``Ia = IA - U U'/d``),
+    so a child passes ``Xup' pa = Z' pA + Y c + W (tau - U'c)`` to its parent; the
+    acceleration sweep ``a = Xup a_parent + c + S qdd`` with ``qdd = (u - U'(Xup a_parent + c))/d``
+    is ``a = Z a_parent + c + S (u - U'c) / d`` (``W``, ``Z``, ``Y`` of :func:`articulated_inertias`).
+    Leaves need no sweep: their ``pA`` is complete at once and their ``a`` is never needed.
 
     Args:
         model: packed :class:`~coursekit.creatures.physics.model.Model`.
@@ -97,57 +198,76 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None):
         f_ext: optional (N, 6) external spatial force on every body, body coordinates.
         damping: optional (N, 6) diagonal of a body-frame damping matrix ``D``; adds ``-D v``.
         inertias: optional result of :func:`articulated_inertias` at this ``q`` (reused).
+        v: optional (N, 6) body velocities at this state (:func:`body_velocities`; reused).
 
     Returns:
         ``(a0, qdd, v)``: root spatial acceleration (C, 6) in root coordinates, joint
         accelerations (M,) and body velocities (N, 6).
     """
-    xp = model.xp
-    C, N = model.n_creatures, model.n_bodies
-    Xup, IA, U, d = articulated_inertias(model, q) if inertias is None else inertias
-    v, c = body_velocities(model, Xup, v0, qd)
+    with np.errstate(over="ignore", invalid="ignore"):  # a diverging creature is the guard's business
+        return _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v)
 
+
+def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
+    xp = model.xp
+    C, L = model.n_creatures, model.leaf_start
+    Xup, IA, U, d, W, Z, Y = articulated_inertias(model, q) if inertias is None else inertias
+    S = model.S
+    v, vt, c = _velocities_and_bias(model, Xup, v0, qd, v)
     I = model.inertia_diag
-    pA = sp.cross_force(xp, v, I * v)
+    pA = bk.contiguous(xp, sp.rigid_bias_force(xp, vt, model.inertia_diag_t, axis=0).T)
     if damping is not None:
         pA = pA + damping * v
     if f_ext is not None:
         pA = pA - f_ext
-    S = model.S
-    u = xp.zeros_like(tau)
+    Uc = xp.vecdot(U, c)
+    jl, ji = slice(L - C, None), slice(0, L - C)
+    # leaves, all at once (their IA is the diagonal I)
+    ul = tau[jl] - xp.vecdot(S[jl], pA[L:])
+    pa = pA[L:] + I[L:] * c[jl] + U[jl] * ((ul - Uc[jl]) / d[jl])[:, None]
+    model.leaf_segments.add_into(pA, sp.mtv(Xup[jl], pa))
+    # inner bodies, level by level
+    h = sp.mv(Y, c[ji]) + W[ji] * (tau[ji] - Uc[ji])[:, None]
     for s, e, _, seg in reversed(model.levels):
         j = slice(s - C, e - C)
-        uj = tau[j] - xp.sum(S[j] * pA[s:e], axis=-1)
-        u[j] = uj
-        # pa = pA + Ia c + U u / d with Ia = IA - U U' / d
-        pa = pA[s:e] + sp.mv(IA[s:e], c[s:e]) + U[j] * ((uj - xp.sum(U[j] * c[s:e], axis=-1)) / d[j])[:, None]
-        seg.add_into(pA, sp.mv(Xup[j].mT, pa))
+        seg.add_into(pA, sp.mtv(Z[j], pA[s:e]) + h[j])
+    ud = (tau - xp.vecdot(S, pA[C:]) - Uc) / d  # (u - U'c) / d
 
     a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
-    a = xp.zeros((N, 6), dtype=v.dtype, device=model.device)
+    a = xp.zeros((L, 6), dtype=v.dtype, device=model.device)
     a[:C] = a0
-    qdd = xp.zeros_like(tau)
+    k = c[ji] + S[ji] * ud[ji][:, None]
     for s, e, par, _ in model.levels:
         j = slice(s - C, e - C)
-        ai = sp.mv(Xup[j], a[par]) + c[s:e]
-        qddj = (u[j] - xp.sum(U[j] * ai, axis=-1)) / d[j]
-        qdd[j] = qddj
-        a[s:e] = ai + S[j] * qddj[:, None]
+        a[s:e] = sp.mv(Z[j], a[par]) + k[j]
+    qdd = ud - xp.vecdot(W, a[model.joint_parent])
     return a0, qdd, v
+
+
+def poses_rows(model, R0, p0, q):
+    """World rotations (3, 3, N) and positions (3, N) of every body, component-major.
+
+    Each level is a handful of operations on contiguous rows (``R = R_parent Rq``,
+    ``p = p_parent + R_parent r``), which numpy does much faster than stacks of 3x3 products.
+    """
+    xp = model.xp
+    C, N, L = model.n_creatures, model.n_bodies, model.leaf_start
+    G = _pose_rows(model, q)
+    Rq, t = xp.reshape(G[:9], (3, 3, -1)), G[9:]
+    R = xp.zeros((3, 3, N), dtype=R0.dtype, device=model.device)
+    p = xp.zeros((3, N), dtype=R0.dtype, device=model.device)
+    R[:, :, :C] = xp.permute_dims(R0, (1, 2, 0))
+    p[:, :C] = p0.T
+    for s, e, par, _ in model.levels + [(L, N, model.leaf_parent, None)]:
+        j = slice(s - C, e - C)
+        Rp = xp.take(R, par, axis=2)  # (3, 3, n)
+        R[:, :, s:e] = xp.sum(Rp[:, :, None] * Rq[None, :, :, j], axis=1)
+        p[:, s:e] = xp.take(p, par, axis=1) + xp.sum(Rp * t[None, :, j], axis=1)
+    return R, p
 
 
 def forward_kinematics(model, R0, p0, q):
     """World rotation (N, 3, 3) and position (N, 3) of every body."""
     xp = model.xp
-    C, N = model.n_creatures, model.n_bodies
-    _, t = joint_transforms(model, q)
-    Rq = joint_rotations(model, q)
-    R = xp.zeros((N, 3, 3), dtype=R0.dtype, device=model.device)
-    p = xp.zeros((N, 3), dtype=R0.dtype, device=model.device)
-    R[:C], p[:C] = R0, p0
-    for s, e, par, _ in model.levels:
-        j = slice(s - C, e - C)
-        Rp = R[par]
-        R[s:e] = Rp @ Rq[j]
-        p[s:e] = p[par] + sp.mv(Rp, t[j])
-    return R, p
+    R, p = poses_rows(model, R0, p0, q)
+    return bk.contiguous(xp, xp.permute_dims(R, (2, 0, 1))), bk.contiguous(xp, p.T)

@@ -18,8 +18,7 @@ box's smallest half extent so that deep initial overlaps are resolved with bound
 are then followed through the integrator's stages (:meth:`Contacts.wrench`), so the force is a
 smooth function of the state within a step. Holding the start-of-step force over the step instead
 (an explicit, first-order treatment) let passive creatures thrown into themselves gain up to 16 %
-energy in 3 s -- an energy leak evolution would find (Sims' "clacking" exploit). Forces are computed once per (sub)step and held
-over it. Sensors: a face is touching (+1) when it is the face of its box whose outward normal is
+energy in 3 s -- an energy leak evolution would find (Sims' "clacking" exploit). Sensors: a face is touching (+1) when it is the face of its box whose outward normal is
 closest to the contact direction, otherwise -1 (Sims' per-face contact sensors).
 """
 
@@ -29,7 +28,8 @@ import numpy as np
 
 from . import backend as bk
 from . import spatial as sp
-from .aba import body_velocities, forward_kinematics, joint_transforms
+from .aba import forward_kinematics, poses_rows
+
 #: Default ``dt * w`` of the contact springs (see the module docstring for why it is lower than the limits').
 CONTACT_STIFFNESS_PER_STEP = 0.1
 
@@ -72,9 +72,13 @@ class Contacts:
             b_list.append(b[~adjacent])
         a = np.concatenate(a_list) if a_list else np.zeros(0, np.int64)
         b = np.concatenate(b_list) if b_list else np.zeros(0, np.int64)
-        self.radius = bk.asarray(xp, np.linalg.norm(m.half_extents_np, axis=1), device=m.device)
+        self.half_extents = m.half_extents
+        self.half_t = bk.asarray(xp, m.half_extents_np.T, device=m.device)  # (3, N)
+        # rows of the edge-edge axes (i, j) = (k // 3, k % 3), i1 = i + 1, i2 = i + 2 (mod 3)
         I, J = np.repeat(np.arange(3), 3), np.tile(np.arange(3), 3)
-        self._edge_index = tuple(bk.index(xp, k, device=m.device) for k in (I, J, (I + 1) % 3, (I + 2) % 3, (J + 1) % 3, (J + 2) % 3))
+        I1, I2, J1, J2 = (I + 1) % 3, (I + 2) % 3, (J + 1) % 3, (J + 2) % 3
+        rows = (3 * I1 + J, 3 * I2 + J, 3 * I + J1, 3 * I + J2, I1, I2, J1, J2)
+        self._edge_rows = tuple(bk.index(xp, k, device=m.device) for k in rows)
         self._set_pairs(a, b, w)
         # Parts that interpenetrate in the creature's own rest pose are fused, not colliding: a
         # deep overlap has no meaningful normal (the axis of least overlap flips as the parts
@@ -102,6 +106,8 @@ class Contacts:
         self.c = bk.asarray(xp, 2.0 * m_red * w, device=m.device)
         h_min = m.half_extents_np.min(axis=1)
         self.depth_cap = bk.asarray(xp, DEPTH_CAP * np.minimum(h_min[a], h_min[b]), device=m.device)
+        radius = np.linalg.norm(m.half_extents_np, axis=1)
+        self.reach2 = bk.asarray(xp, (radius[a] + radius[b]) ** 2, device=m.device)  # bounding spheres
 
     def detect(self, R, p):
         """Colliding pairs among the candidates.
@@ -114,52 +120,60 @@ class Contacts:
             normals from A to B (world), penetration depths and contact points (world) of the
             pairs in contact.
         """
-        xp, m = self.xp, self.model
+        xp = self.xp
+        N = p.shape[0]
+        return self._detect_rows(bk.contiguous(xp, xp.reshape(R, (N, 9)).T), bk.contiguous(xp, p.T))
+
+    def _detect_rows(self, Rt, pt):
+        """:meth:`detect` on component-major poses: ``Rt`` (9, N), ``Rt[3k + i]`` = component k of
+        box axis i (``R[:, k, i]``), and ``pt`` (3, N). Component-major (k, n) rows throughout:
+        numpy gathers and multiplies contiguous rows fast."""
+        xp = self.xp
         a, b = self.a, self.b
-        d = p[b] - p[a]
-        near = xp.sum(d * d, axis=1) < (self.radius[a] + self.radius[b]) ** 2
-        sel = xp.nonzero(near)[0]
-        a, b, d = a[sel], b[sel], d[sel]
-        hA, hB = m.half_extents[a], m.half_extents[b]
-        A, B = R[a], R[b]  # columns: box axes in world
-        # the 15 axes in A's frame (Gottschalk et al. 1996): Rm[i, j] = A_i . B_j, t = d in A's frame
-        Rm = A.mT @ B
-        AbsR = xp.abs(Rm)
-        t = sp.mv(A.mT, d)
-        I, J, I1, I2, J1, J2 = self._edge_index
-        len_e = xp.sqrt(xp.clip(1.0 - Rm[:, I, J] ** 2, 0.0, None))  # |A_i x B_j|
+        d = xp.take(pt, b, axis=1) - xp.take(pt, a, axis=1)
+        sel = xp.nonzero(xp.sum(d * d, axis=0) < self.reach2)[0]  # bounding spheres overlap
+        a, b, d = a[sel], b[sel], xp.take(d, sel, axis=1)
+        n = a.shape[0]
+        A, B = xp.reshape(xp.take(Rt, a, axis=1), (3, 3, n)), xp.reshape(xp.take(Rt, b, axis=1), (3, 3, n))  # [component, axis]
+        # the 15 axes in A's frame (Gottschalk et al. 1996): Rm[3i + j] = A_i . B_j, t = d in A's frame
+        Rm = xp.reshape(xp.sum(A[:, :, None] * B[:, None], axis=0), (9, n))
+        Am = xp.abs(Rm)
+        t = xp.sum(A * d[:, None], axis=0)
+        hA, hB = xp.take(self.half_t, a, axis=1), xp.take(self.half_t, b, axis=1)
+        i1j, i2j, ij1, ij2, I1, I2, J1, J2 = self._edge_rows
+        len_e = xp.sqrt(xp.clip(1.0 - Rm * Rm, 0.0, None))  # |A_i x B_j|
         valid = len_e > 1e-6  # parallel edges: the face axes already decide
-        safe = xp.where(valid, len_e, xp.ones_like(len_e))
         over_e = (
-            hA[:, I1] * AbsR[:, I2, J] + hA[:, I2] * AbsR[:, I1, J] + hB[:, J1] * AbsR[:, I, J2] + hB[:, J2] * AbsR[:, I, J1]
-            - xp.abs(t[:, I2] * Rm[:, I1, J] - t[:, I1] * Rm[:, I2, J])
-        ) / safe
-        dist_b = sp.mv(Rm.mT, t)
+            hA[I1] * Am[i2j] + hA[I2] * Am[i1j] + hB[J1] * Am[ij2] + hB[J2] * Am[ij1]
+            - xp.abs(t[I2] * Rm[i1j] - t[I1] * Rm[i2j])
+        ) / xp.where(valid, len_e, xp.ones_like(len_e))
+        A3, R3 = xp.reshape(Am, (3, 3, n)), xp.reshape(Rm, (3, 3, n))
         overlap = xp.concat(
             [
-                hA + sp.mv(AbsR, hB) - xp.abs(t),
-                sp.mv(AbsR.mT, hA) + hB - xp.abs(dist_b),
+                hA + xp.sum(A3 * hB[None], axis=1) - xp.abs(t),
+                xp.sum(A3 * hA[:, None], axis=0) + hB - xp.abs(xp.sum(R3 * t[:, None], axis=0)),
                 xp.where(valid, over_e, xp.full_like(over_e, float("inf"))),
             ],
-            axis=1,
+            axis=0,
         )
-        depth = xp.min(overlap, axis=1)
+        depth = xp.min(overlap, axis=0)
         hit = xp.nonzero(depth > 0)[0]
-        best = xp.argmin(overlap, axis=1)[hit]
-        rows = xp.arange(hit.shape[0], device=m.device) if bk.is_torch(xp) else np.arange(hit.shape[0])
-        Ah, Bh = A[hit], B[hit]
-        axes = [Ah[:, :, k] for k in range(3)] + [Bh[:, :, k] for k in range(3)]
-        axes += [sp.cross3(xp, Ah[:, :, i], Bh[:, :, j]) for i in range(3) for j in range(3)]
-        n = xp.stack(axes, axis=1)[rows, best]
-        n = n / xp.sqrt(xp.sum(n * n, axis=1, keepdims=True))
-        s = xp.where(xp.sum(n * d[hit], axis=1) < 0, -xp.ones_like(depth[hit]), xp.ones_like(depth[hit]))
-        n = n * s[:, None]
-        A, B, hA, hB = A[hit], B[hit], hA[hit], hB[hit]
-        a, b = a[hit], b[hit]
+        best = xp.argmin(xp.take(overlap, hit, axis=1), axis=0)
+        a, b, d, depth = a[hit], b[hit], xp.take(d, hit, axis=1), depth[hit]
+        A, B, hA, hB = (xp.take(x, hit, axis=-1) for x in (A, B, hA, hB))
+        # the normal: A's axis best (< 3), B's axis best - 3 (< 6) or A_i x B_j (best = 6 + 3i + j)
+        zero = xp.zeros_like(best)
+        h = best.shape[0]
+        rows = xp.arange(h, device=self.model.device) if bk.is_torch(xp) else np.arange(h)
+        a_ax = xp.take(xp.reshape(A, (3, 3 * h)), h * xp.where(best < 3, best, xp.where(best < 6, zero, (best - 6) // 3)) + rows, axis=1)
+        b_ax = xp.take(xp.reshape(B, (3, 3 * h)), h * xp.where(best < 3, zero, xp.where(best < 6, best - 3, (best - 6) % 3)) + rows, axis=1)
+        nrm = xp.where(best < 3, a_ax, xp.where(best < 6, b_ax, sp.cross3(xp, a_ax, b_ax, axis=0)))
+        nrm = nrm / xp.sqrt(xp.sum(nrm * nrm, axis=0))
+        nrm = xp.where(xp.sum(nrm * d, axis=0) < 0, -nrm, nrm)
         # deepest vertices: of A along +n, of B along -n
-        vA = p[a] + sp.mv(A, hA * _sign(xp, sp.mv(A.mT, n)))
-        vB = p[b] - sp.mv(B, hB * _sign(xp, sp.mv(B.mT, n)))
-        return sel[hit], a, b, n, depth[hit], 0.5 * (vA + vB)
+        vA = xp.take(pt, a, axis=1) + xp.sum(A * (hA * _sign(xp, xp.sum(A * nrm[:, None], axis=0)))[None], axis=1)
+        vB = xp.take(pt, b, axis=1) - xp.sum(B * (hB * _sign(xp, xp.sum(B * nrm[:, None], axis=0)))[None], axis=1)
+        return sel[hit], a, b, bk.contiguous(xp, nrm.T), depth, bk.contiguous(xp, (0.5 * (vA + vB)).T)
 
     def begin(self, state):
         """Detect the contacts of a step at its start and freeze their geometry.
@@ -173,12 +187,13 @@ class Contacts:
         if self.n_pairs == 0:
             return None, sensors
         R0 = sp.quat_to_mat(xp, state.quat)
-        R, p = forward_kinematics(m, R0, state.pos, state.q)
-        pair_idx, a, b, n, depth, x = self.detect(R, p)
+        Rr, pr = poses_rows(m, R0, state.pos, state.q)
+        pair_idx, a, b, n, depth, x = self._detect_rows(xp.reshape(Rr, (9, m.n_bodies)), pr)
         if a.shape[0] == 0:
             return None, sensors
+        R, p = bk.contiguous(xp, xp.permute_dims(Rr, (2, 0, 1))), bk.contiguous(xp, pr.T)
         for body, direction in ((b, -n), (a, n)):
-            dl = sp.mv(R[body].mT, direction)  # contact direction in the box frame
+            dl = sp.mtv(R[body], direction)  # contact direction in the box frame
             k = xp.argmax(xp.abs(dl), axis=1)
             rows = xp.arange(dl.shape[0], device=m.device) if bk.is_torch(xp) else np.arange(dl.shape[0])
             face = 2 * k + (dl[rows, k] > 0)  # faces -x,+x,-y,+y,-z,+z
@@ -186,7 +201,7 @@ class Contacts:
         active = {
             "a": a, "b": b, "depth": depth, "cap": self.depth_cap[pair_idx], "k": self.k[pair_idx], "c": self.c[pair_idx],
             # the contact point as a material point of each box, and the normal as a direction in A
-            "xa": sp.mv(R[a].mT, x - p[a]), "xb": sp.mv(R[b].mT, x - p[b]), "n": sp.mv(R[a].mT, n),
+            "xa": sp.mtv(R[a], x - p[a]), "xb": sp.mtv(R[b], x - p[b]), "n": sp.mtv(R[a], n),
         }
         return active, sensors
 
@@ -211,15 +226,15 @@ class Contacts:
         xa = sp.mv(Ra, active["xa"]) + p[a]
         xb = sp.mv(Rb, active["xb"]) + p[b]
         n = sp.mv(Ra, active["n"])
-        depth = xp.minimum(active["depth"] + xp.sum(n * (xa - xb), axis=1), active["cap"])
+        depth = xp.minimum(active["depth"] + xp.vecdot(n, xa - xb), active["cap"])
         va = sp.mv(Ra, v[a, 3:] + sp.cross3(xp, v[a, :3], active["xa"]))
         vb = sp.mv(Rb, v[b, 3:] + sp.cross3(xp, v[b, :3], active["xb"]))
-        vn = xp.sum((vb - va) * n, axis=1)
+        vn = xp.vecdot(vb - va, n)
         mag = xp.clip(active["k"] * depth - active["c"] * vn, 0.0, None)
         F = mag[:, None] * n
         mid = 0.5 * (xa + xb)
         f = xp.zeros((m.n_bodies, 6), dtype=xp.float64, device=m.device)
-        for body, Rw, Fw in ((b, Rb, F), (a, Ra, -F)):
-            w = xp.concat([sp.cross3(xp, mid - p[body], Fw), Fw], axis=1)
-            bk.scatter_add(xp, f, body, xp.concat([sp.mv(Rw.mT, w[:, :3]), sp.mv(Rw.mT, w[:, 3:])], axis=1))
+        body, Rw, Fw = xp.concat([b, a]), xp.concat([Rb, Ra]), xp.concat([F, -F])  # B pushed along +n
+        moment = sp.cross3(xp, xp.concat([mid, mid]) - p[body], Fw)
+        bk.scatter_add(xp, f, body, xp.concat([sp.mtv(Rw, moment), sp.mtv(Rw, Fw)], axis=1))
         return f

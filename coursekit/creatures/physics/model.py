@@ -1,10 +1,17 @@
 """A population of body trees packed into one batch, sorted by tree depth (paper section 2.4).
 
 All bodies of all creatures live in flat arrays. They are stored level by level -- every root
-first (in creature order), then every body of depth 1, and so on -- and inside a level sorted by
-parent, so each level is one contiguous slice and the children of a level can be summed into
-their parents with one segment sum. Bodies ``C..N-1`` (``C`` creatures, ``N`` bodies) are the
-joints, so per-joint arrays have ``M = N - C`` rows in the same order.
+first (in creature order), then every *inner* body (one with children) of depth 1, of depth 2,
+and so on, and last every leaf (bodies ``L..N-1``) -- each group sorted by parent, so each level
+is one contiguous slice and the children of a level can be summed into their parents with one
+segment sum. The ABA sweeps the inner levels one by one and all leaves at once (see
+:mod:`~coursekit.creatures.physics.aba`). Bodies ``C..N-1`` (``C`` creatures, ``N`` bodies) are
+the joints, so per-joint arrays have ``M = N - C`` rows in the same order.
+
+Everything of a joint that depends on its coordinate ``q`` alone -- the transform ``Xup``, the
+pose ``(E, r)`` and, for leaves, what they pass to their parent -- is stored as constant
+coefficients of a small polynomial basis in ``q`` (``aba.joint_basis``), so evaluating it is one
+stacked product.
 
 The user-facing layout (MuJoCo's, see :func:`coursekit.creatures.mjcf.to_mjcf`) lists each
 creature's joints in BodyTree order; :attr:`Model.joint_order` maps between the two.
@@ -12,11 +19,15 @@ creature's joints in BodyTree order; :attr:`Model.joint_order` maps between the 
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from coursekit.creatures.body import PRISMATIC, REVOLUTE, BodyTree
 
 from . import backend as bk
+from . import spatial as sp
+from .aba import fit_joint_basis
 
 
 def as_trees(creatures) -> list[BodyTree]:
@@ -63,15 +74,21 @@ class Model:
         parent = np.concatenate([np.where(t.parent >= 0, t.parent + f, -1) for t, f in zip(trees, first)])
         depth = np.concatenate([t.depth for t in trees])
 
-        # depth-sorted order, inside a level sorted by the parent's new position
+        # depth-sorted order: the roots (in creature order), then the inner joints (bodies with
+        # children) level by level, then every leaf; each group sorted by the parent's new position
+        is_parent = np.zeros(N, dtype=bool)
+        is_parent[parent[parent >= 0]] = True
+        leaf = ~is_parent & (depth > 0)
+        groups = [np.flatnonzero(depth == 0)]
+        groups += [np.flatnonzero((depth == d) & ~leaf) for d in range(1, int(depth.max()) + 1)]
+        groups = [g for g in groups if len(g)] + [np.flatnonzero(leaf)]
         order = []
         new_pos = np.full(N, -1)
-        level_bounds = []
-        for d in range(int(depth.max()) + 1):
-            members = np.flatnonzero(depth == d)
-            if d > 0:
+        bounds = []
+        for members in groups:
+            if len(order):
                 members = members[np.lexsort((members, new_pos[parent[members]]))]
-            level_bounds.append((len(order), len(order) + len(members)))
+            bounds.append((len(order), len(order) + len(members)))
             new_pos[members] = np.arange(len(order), len(order) + len(members))
             order.extend(members.tolist())
         order = np.asarray(order, dtype=np.int64)
@@ -80,9 +97,14 @@ class Model:
         self.creature = creature[order]
         par = np.where(parent[order] >= 0, new_pos[np.maximum(parent[order], 0)], -1)
         self.parent = par
-        self.levels = []  # (start, stop, parent positions, Segments)
-        for (ps, pe), (s, e) in zip(level_bounds[:-1], level_bounds[1:]):
+        L = self.leaf_start = bounds[-1][0]  # bodies L..N-1 are the leaves (joint rows L-C..M-1)
+        self.n_leaves = N - L
+        self.levels = []  # inner joints, by depth: (start, stop, parent positions, Segments)
+        for (ps, pe), (s, e) in itertools.pairwise(bounds[:-1]):
             self.levels.append((s, e, bk.index(xp, par[s:e], device=device), bk.Segments(xp, par[s:e], (ps, pe), device=device)))
+        self.leaf_parent = bk.index(xp, par[L:], device=device)
+        self.joint_parent = bk.index(xp, par[C:], device=device)
+        self.leaf_segments = bk.Segments(xp, par[L:], (0, L), device=device)
         # joints: sorted body C + j; user layout: creature-concatenated BodyTree order (bodies 1..)
         packed_joint = np.concatenate([np.arange(f + 1, f + n) for f, n in zip(first, sizes)])
         self.joint_order = new_pos[packed_joint] - C  # user joint k -> internal joint row
@@ -115,25 +137,43 @@ class Model:
         f = lambda a: bk.asarray(xp, a, device=device)  # noqa: E731
         self.inertia_diag = f(self.inertia_diag_np)
         self.S = f(S)
-        self.inertia_matrix = f(np.einsum("ni,ij->nij", self.inertia_diag_np, np.eye(6)))
+        self.S_t = f(S.T)  # component-major copies for the cross products
+        self.inertia_diag_t = f(self.inertia_diag_np.T)
         self.revolute = bk.asarray(xp, rev, dtype=xp.bool, device=device)
-        self.axis = f(axis)
-        self.jpp = f(self.jpp_np)
-        self.jpc = f(jpc)
-        self.joint_rot = f(self.joint_rot_np)
         # Rodrigues with constant factors: Rot(a, q) = 1 + sin q K + (1 - cos q) K^2, K = [a]x, so
         # E(q) = Rot(a, -q) J' and r(q) = jpp + J (slide a - Rot(a, q) c) are sums of constants
         K = np.cross(axis[:, None, :], -np.eye(3)[None])  # K @ x == cross(axis, x)
         K2 = K @ K
         JT = np.swapaxes(self.joint_rot_np, 1, 2)
         J = self.joint_rot_np
-        self.E0, self.E1, self.E2 = f(np.ascontiguousarray(JT)), f(-K @ JT), f(K2 @ JT)
-        self.Rq1, self.Rq2 = f(J @ K), f(J @ K2)
         Jc = np.einsum("mij,mj->mi", J, jpc)
-        self.r0 = f(self.jpp_np - Jc)
-        self.r1 = f(-np.einsum("mij,mj->mi", J @ K, jpc))
-        self.r2 = f(-np.einsum("mij,mj->mi", J @ K2, jpc))
-        self.r3 = f(np.einsum("mij,mj->mi", J, axis))
+        consts = {
+            "E0": np.ascontiguousarray(JT), "E1": -K @ JT, "E2": K2 @ JT,
+            "r0": self.jpp_np - Jc, "r1": -np.einsum("mij,mj->mi", J @ K, jpc),
+            "r2": -np.einsum("mij,mj->mi", J @ K2, jpc), "r3": np.einsum("mij,mj->mi", J, axis),
+        }  # fmt: skip
+        # E, r and Xup are of degree one in aba.joint_basis(q): constant coefficients
+        pose = fit_joint_basis(rev, consts, lambda E, r: np.concatenate([E.mT.reshape(-1, 9), r], axis=1))
+        self.pose_rows_basis = f(np.transpose(pose, (1, 2, 0)))  # (3, 12, M): rows of E' and r
+        self.X_basis = f(fit_joint_basis(rev, consts, lambda E, r: sp.transform_matrix(np, E, r).reshape(-1, 36)))
+        # leaves never change their articulated inertia: U = I S, d = S'U and Ia = I - U U'/d are
+        # constants, and what a leaf passes to its parent, Xup' Ia Xup, is a fixed combination of
+        # five constant matrices (degree two in aba.joint_basis)
+        Il, Sl = self.inertia_diag_np[L:], S[L - C :]
+        Ul = Il * Sl
+        dl = np.sum(Sl * Ul, axis=1)
+        U0, d0 = np.zeros_like(S), np.ones(N - C)
+        U0[L - C :], d0[L - C :] = Ul, dl
+        self.U_leaf, self.d_leaf = f(U0), f(d0)
+        Ia = np.einsum("ni,ij->nij", Il, np.eye(6)) - Ul[:, :, None] * Ul[:, None, :] / dl[:, None, None]
+        leaf = {name: value[L - C :] for name, value in consts.items()}
+
+        def congruence(E, r):
+            X = sp.transform_matrix(np, E, r)
+            return (X.mT @ Ia @ X).reshape(-1, 36)
+
+        self.leaf_P = f(fit_joint_basis(rev[L - C :], leaf, congruence, k=5))
+        self.inner_inertia = f(np.einsum("ni,ij->nij", self.inertia_diag_np[:L], np.eye(6)))
         self.half_extents = f(self.half_extents_np)
         self.mass = f(mass)
         self.body_creature = bk.index(xp, self.creature, device=device)

@@ -140,15 +140,14 @@ class World:
         tau = self.tau
         if self.limits:
             tau = tau + limit_forces(xp, q, qd, self.lo, self.hi, self.limit_k, self.limit_b)
-        f_ext = None
-        if self.active_contacts is not None:  # the step's contacts, followed through this stage
-            Rb, pb = forward_kinematics(m, R, pos, q)
-            E, r = joint_transforms(m, q)
-            v, _ = body_velocities(m, sp.transform_matrix(xp, E, r), xp.concat([omega, vb], axis=1), qd)
-            f_ext = self.contacts.wrench(self.active_contacts, Rb, pb, v)
         if q is not self._inertia_q:  # RKN stages 2 and 3 share positions, hence inertias
             self._inertia_q, self._inertia = q, articulated_inertias(m, q)
-        a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping, inertias=self._inertia)
+        f_ext = v = None
+        if self.active_contacts is not None:  # the step's contacts, followed through this stage
+            Rb, pb = forward_kinematics(m, R, pos, q)
+            v, _ = body_velocities(m, self._inertia[0], xp.concat([omega, vb], axis=1), qd)  # [0]: Xup
+            f_ext = self.contacts.wrench(self.active_contacts, Rb, pb, v)
+        a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping, inertias=self._inertia, v=v)
         lin_acc = sp.mv(R, a0[:, 3:] + sp.cross3(xp, omega, vb))
         return lin_acc, a0[:, :3], qdd
 
