@@ -14,8 +14,9 @@ rest pose can meet a joint's force with an inertia tens of times smaller. The da
 therefore light, ``zeta =`` :data:`LIMIT_DAMPING_RATIO` = 0.2 (``dt * 2 zeta w = 0.1``): with
 ``zeta = 1`` a random 8-part creature thrown against its limits gained 67x its energy in 2 s
 (its ``m_eff`` had dropped over 5x); at 0.2 the margin is 28x. The water does most of the
-damping anyway. (An implicit damper -- ``dt * b`` added to the joint's articulated inertia -- would
-remove the bound; it is not done yet.)
+damping anyway. (An implicit damper -- ``dt * b`` added to the joint's articulated inertia as
+armature -- removes the bound but breaks momentum conservation: armature carries momentum no
+body has, and the exploit creature above drifted 4 cm in 5 s without water. Not adopted.)
 
 Why not the part's own inertia: in a free-floating chain a light part between light neighbours
 can be far lighter, along its joint, than either box alone suggests (the parent side recoils and
