@@ -21,6 +21,7 @@ import numpy as np
 from coursekit import ga
 from coursekit.creatures import operators
 from coursekit.creatures.genotype import Creature
+from coursekit.creatures.simulate import simulate
 
 
 @dataclass(frozen=True)
@@ -60,8 +61,6 @@ class SwimmerFitness:
     options: dict = field(default_factory=dict)
 
     def __call__(self, _fitness, creatures):
-        from coursekit.creatures.simulate import simulate
-
         creatures = list(creatures)
         if not creatures:
             return []

@@ -165,18 +165,14 @@ def convert(kind, out, max_len):
         raise BadOutput(f"returned a value of type {type(out).__name__}; expected a sequence of integer indices (list or numpy array)")
     if kind == "array":
         return _array(out, "the result", max_len)
-    if kind == "array_pair":
-        if type(out) not in (tuple, list) or len(out) != 2:
-            n = f" of length {len(out)}" if type(out) in (tuple, list) else ""
-            raise BadOutput(f"returned a {type(out).__name__}{n}; expected a pair (child1, child2)")
-        return [_array(out[0], "child 1", max_len), _array(out[1], "child 2", max_len)]
     if kind == "json":
         return _json_text(out, "the result", max_len)
-    if kind == "json_pair":
+    if kind in ("array_pair", "json_pair"):
         if type(out) not in (tuple, list) or len(out) != 2:
             n = f" of length {len(out)}" if type(out) in (tuple, list) else ""
             raise BadOutput(f"returned a {type(out).__name__}{n}; expected a pair (child1, child2)")
-        return [_json_text(out[0], "child 1", max_len), _json_text(out[1], "child 2", max_len)]
+        one = _array if kind == "array_pair" else _json_text
+        return [one(out[0], "child 1", max_len), one(out[1], "child 2", max_len)]
     raise ValueError(f"unknown output kind {kind!r}")
 
 
