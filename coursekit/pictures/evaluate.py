@@ -186,6 +186,32 @@ def to_rgb(v: torch.Tensor, H: int, W: int) -> torch.Tensor:
     return v.expand(v.shape[0], 3, H, W)
 
 
+# ---- transcendental functions ---------------------------------------------------------------
+
+_NUMPY_MIN = 4096  # elements from which numpy's ufunc beats torch's on the CPU
+
+
+def _ufunc(torch_fn, numpy_fn):
+    """``torch_fn``, computed on CPU images by numpy's ufunc instead (zero-copy views).
+
+    On the CPU numpy's vectorised transcendental functions are 2-10x faster than torch's
+    (measured on 256x256 float32: sin 27 vs 73 us, atan 14 vs 148 us, log 17 vs 55 us); they
+    release the GIL like torch's. GPU tensors and small ones keep torch's function.
+    """
+    def f(*args):
+        if args[0].device.type != "cpu" or max(a.numel() for a in args) < _NUMPY_MIN:
+            return torch_fn(*args)
+        with np.errstate(all="ignore"):  # inf and NaN inputs are expected (torch is silent too)
+            return torch.from_numpy(numpy_fn(*(a.numpy() for a in args)))
+    f.__name__ = torch_fn.__name__
+    return f
+
+
+_sin, _cos, _exp = _ufunc(torch.sin, np.sin), _ufunc(torch.cos, np.cos), _ufunc(torch.exp, np.exp)
+_log, _sqrt = _ufunc(torch.log, np.log), _ufunc(torch.sqrt, np.sqrt)
+_atan, _atan2 = _ufunc(torch.atan, np.arctan), _ufunc(torch.atan2, np.arctan2)
+
+
 def _grey(v):
     return v if v.shape[1] == 1 else v.mean(dim=1, keepdim=True)
 
@@ -277,16 +303,16 @@ def _color(ctx, p):
 
 
 def _radius(ctx, p):
-    return torch.sqrt((ctx.x - 0.5) ** 2 + (ctx.y - 0.5) ** 2)
+    return _sqrt((ctx.x - 0.5) ** 2 + (ctx.y - 0.5) ** 2)
 
 
 def _angle(ctx, p):
-    return _fmod(torch.atan2(ctx.y - 0.5, ctx.x - 0.5) / TWO_PI, 1.0)
+    return _fmod(_atan2(ctx.y - 0.5, ctx.x - 0.5) / TWO_PI, 1.0)
 
 
 def _along(ctx, turns):
     a = TWO_PI * turns
-    return ctx.x * torch.cos(a) + ctx.y * torch.sin(a)
+    return ctx.x * _cos(a) + ctx.y * _sin(a)
 
 
 def _ramp(ctx, p):
@@ -431,10 +457,10 @@ def _bits(op):
 
 _POINTWISE1 = {
     "abs": torch.abs,
-    "sin": lambda a: 0.5 + 0.5 * torch.sin(TWO_PI * a),
-    "cos": lambda a: 0.5 + 0.5 * torch.cos(TWO_PI * a),
-    "log": lambda a: torch.log(a.abs() + 1e-6),
-    "atan": lambda a: torch.atan(a) / math.pi + 0.5,
+    "sin": lambda a: 0.5 + 0.5 * _sin(TWO_PI * a),
+    "cos": lambda a: 0.5 + 0.5 * _cos(TWO_PI * a),
+    "log": lambda a: _log(a.abs() + 1e-6),
+    "atan": lambda a: _atan(a) / math.pi + 0.5,
     "round": lambda a: torch.floor(a + 0.5),
     "invert": lambda a: 1.0 - a,
     "hsv-to-rgb": _hsv_to_rgb,
@@ -446,7 +472,7 @@ _POINTWISE2 = {
     "times": torch.mul,
     "divide": _safe_div,
     "mod": _mod,
-    "expt": lambda a, b: torch.exp((b * torch.log(a.abs() + 1e-6)).clamp(-30.0, 30.0)),
+    "expt": lambda a, b: _exp((b * _log(a.abs() + 1e-6)).clamp(-30.0, 30.0)),
     "min": torch.minimum,
     "max": torch.maximum,
     "and": _bits(torch.bitwise_and),
@@ -516,31 +542,31 @@ def _bump(v, p, ctx):
     gx, gy = _gradients(v, ctx)
     a = TWO_PI * p[0]
     nx, ny = -gx * p[1], -gy * p[1]
-    dot = (nx * torch.cos(a) + ny * torch.sin(a) + 1.0) / math.sqrt(2.0)
-    return (dot / torch.sqrt(nx * nx + ny * ny + 1.0)).clamp(min=0.0)
+    dot = (nx * _cos(a) + ny * _sin(a) + 1.0) / math.sqrt(2.0)
+    return (dot / _sqrt(nx * nx + ny * ny + 1.0)).clamp(min=0.0)
 
 
 def _grad_mag(v, p, ctx):
     gx, gy = _gradients(v, ctx)
-    return p[0] * torch.sqrt(gx * gx + gy * gy)
+    return p[0] * _sqrt(gx * gx + gy * gy)
 
 
 def _grad_dir(v, p, ctx):
     gx, gy = _gradients(v, ctx)
-    return _fmod(torch.atan2(gy, gx) / TWO_PI, 1.0)
+    return _fmod(_atan2(gy, gx) / TWO_PI, 1.0)
 
 
 # ---- coordinate transforms ------------------------------------------------------------------
 
 def _turn(ctx, angle):
     dx, dy = ctx.x - 0.5, ctx.y - 0.5
-    c, s = torch.cos(angle), torch.sin(angle)
+    c, s = _cos(angle), _sin(angle)
     return ctx.with_coords(0.5 + dx * c - dy * s, 0.5 + dx * s + dy * c)
 
 
 def _swirl_ctx(ctx, p):
-    r = torch.sqrt((ctx.x - 0.5) ** 2 + (ctx.y - 0.5) ** 2)
-    return _turn(ctx, p[0] * torch.exp(-r / p[1].clamp(min=1e-3)))
+    r = _sqrt((ctx.x - 0.5) ** 2 + (ctx.y - 0.5) ** 2)
+    return _turn(ctx, p[0] * _exp(-r / p[1].clamp(min=1e-3)))
 
 
 _TERMINALS = {
