@@ -7,15 +7,17 @@ coding nodes, fixed seed), images per second at 128^2 and 256^2 for:
   sample of the population because it is slow),
 - whole-image, one genome per call (the numpy-style loop: every primitive a whole-image
   array operation, genomes one after the other, one thread),
-- tensorised (:func:`coursekit.pictures.render`: same-shaped genomes batched, genomes spread
-  over the CPU cores), with its cache of unwarped pixel maps warm (as in a gallery, which
-  renders every generation at one size and window) and cold (cache emptied before each run),
+- tensorised (:func:`coursekit.pictures.render`: same-shaped genomes batched) in this process,
+  and with the population split over worker processes (one per core; their start-up, paid once
+  per session, is printed separately), with the workers' cache of unwarped pixel maps warm (as
+  in a gallery, which renders every generation at one size and window) and cold (cache emptied
+  before each run),
 - the same on a generation as Sims' interactive loop makes it (20 children of one parent, each
   one mutation away: they share most subtrees, which the evaluator computes once),
 - tensorised on CUDA, and a population of 256 on CUDA, when a GPU is present.
 
-Wall-clock times drive the images/s column; the CPU column (process time, all threads) is
-the better guide on a machine shared with other work.
+Times are wall-clock seconds, the best and the median of ``--repeats`` runs (the best is the
+better guide on a machine shared with other work).
 
 Usage: ``python benchmarks/pictures.py [--population 20] [--repeats 3] [--reference-sample 2]``
 """
@@ -31,6 +33,7 @@ import torch
 
 from coursekit.pictures import Genome, render, render_reference
 from coursekit.pictures import operators as O
+from coursekit.pictures import workers
 from coursekit.pictures.evaluate import clear_cache
 
 
@@ -52,17 +55,23 @@ def children(parent: Genome, n: int, seed: int = 5) -> list[Genome]:
     return [ops[rng.integers(len(ops))](parent, rng) for _ in range(n)]
 
 
-def best_of(fn, repeats: int, before=None) -> tuple[float, float]:
-    """Best wall-clock and best process CPU time (all threads) over ``repeats`` runs
-    (``before()``, untimed, runs before each)."""
-    wall = cpu = float("inf")
+def best_of(fn, repeats: int) -> tuple[float, float]:
+    """Best and median wall-clock seconds of ``repeats`` runs."""
+    times = []
     for _ in range(repeats):
-        if before is not None:
-            before()
-        t, c = time.perf_counter(), time.process_time()
+        t = time.perf_counter()
         fn()
-        wall, cpu = min(wall, time.perf_counter() - t), min(cpu, time.process_time() - c)
-    return wall, cpu
+        times.append(time.perf_counter() - t)
+    return min(times), float(np.median(times))
+
+
+_fresh = iter(range(1, 1 << 30))
+
+
+def cold_window():
+    """A window not rendered before (shifted by a hair): every worker's cache of unwarped pixel
+    maps misses, as on a generation's first look."""
+    return (0.0, 0.0, 1.0, 1.0 + 1e-7 * next(_fresh))
 
 
 def per_image(times, n):
@@ -84,18 +93,23 @@ def main(argv=None):
           f"(min {min(g.size() for g in pop)}, max {max(g.size() for g in pop)}); "
           f"CPU cores {os.cpu_count()}, torch {torch.__version__}"
           + (f", GPU {torch.cuda.get_device_name()}" if cuda else ", no GPU"))
-    render(pop, 32)  # warm-up: load pixel maps, noise lattice
+    t = time.perf_counter()
+    render(pop, max(args.sizes))  # warm-up: worker processes, pixel maps, noise lattice
+    print(f"worker processes: {os.cpu_count()}, started (with the first render) in {time.perf_counter() - t:.2f} s")
+    render(pop, max(args.sizes), workers=1)
     rows = []
     for size in args.sizes:
         sample = pop[: args.reference_sample]
         t_ref = per_image(best_of(lambda: [render_reference(g, size) for g in sample], 1), len(sample))
         t_loop = per_image(best_of(lambda: [render(g, size, workers=1) for g in pop], args.repeats), len(pop))
+        t_one = per_image(best_of(lambda: render(pop, size, workers=1), args.repeats), len(pop))
         t_tensor = per_image(best_of(lambda: render(pop, size), args.repeats), len(pop))
-        t_cold = per_image(best_of(lambda: render(pop, size), args.repeats, before=clear_cache), len(pop))
+        t_cold = per_image(best_of(lambda: render(pop, size, window=cold_window()), args.repeats), len(pop))
         rows += [(size, "per-pixel Python (reference)", len(sample), t_ref),
                  (size, "whole-image, one genome per call", len(pop), t_loop),
-                 (size, "tensorised render (CPU)", len(pop), t_tensor),
-                 (size, "tensorised render (CPU), cold cache", len(pop), t_cold)]
+                 (size, "tensorised render, this process", len(pop), t_one),
+                 (size, "tensorised render, worker processes", len(pop), t_tensor),
+                 (size, "tensorised render, workers, cold cache", len(pop), t_cold)]
         kids = children(pop[0], len(pop))
         rows += [(size, "children of one parent, one per call", len(kids),
                   per_image(best_of(lambda: [render(g, size, workers=1) for g in kids], args.repeats), len(kids))),
@@ -115,9 +129,9 @@ def main(argv=None):
         ref = t_ref[0]
         print()
         print(f"{'size':>5} | {'evaluator':42} | {'images':>6} | {'images/s':>9} | "
-              f"{'s per 20 images':>15} | {'CPU s per 20':>12} | {'vs per-pixel':>12}")
-        for s, name, n, (t, c) in [r for r in rows if r[0] == size]:
-            print(f"{s:>4}² | {name:42} | {n:>6} | {1 / t:>9.3g} | {20 * t:>15.3f} | {20 * c:>12.3f} | "
+              f"{'s per 20 images':>15} | {'median':>7} | {'vs per-pixel':>12}")
+        for s, name, n, (t, med) in [r for r in rows if r[0] == size]:
+            print(f"{s:>4}² | {name:42} | {n:>6} | {1 / t:>9.3g} | {20 * t:>15.3f} | {20 * med:>7.3f} | "
                   f"{ref / t:>11.0f}×")
     return rows
 
