@@ -285,13 +285,23 @@ def _noise(ctx: _Ctx, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
     # interpolation; the table is padded with its first row and column to wrap around
     u, v = torch.broadcast_tensors(u, v)
     grid = torch.empty(u.shape[0], u.shape[2], u.shape[3], 2, dtype=u.dtype, device=u.device)
-    for t, g in ((u[:, 0], grid[..., 0]), (v[:, 0], grid[..., 1])):
-        t = _fmod(t, float(T.LATTICE))  # exact: same fraction, cell index wrapped
-        i0 = torch.floor(t)
-        torch.add(i0, _smooth(t - i0), out=g)
+    _lattice_point(u[:, 0], grid[..., 0])
+    _lattice_point(v[:, 0], grid[..., 1])
     grid.mul_(2.0 / T.LATTICE).sub_(1.0)
     return torch.nn.functional.grid_sample(res.wrapped.expand(grid.shape[0], -1, -1, -1), grid,
                                            mode="bilinear", align_corners=True)
+
+
+def _lattice_point(t: torch.Tensor, out: torch.Tensor) -> None:
+    """``out = (floor(t) mod L) + smooth(t - floor(t))``: the point of the padded table that
+    bilinear lookup reads (fresh intermediates updated in place: few allocations)."""
+    i0 = torch.floor(t)
+    f = torch.sub(t, i0)
+    s = f * f
+    f.mul_(-2.0).add_(3.0).mul_(s)  # smooth(frac) = frac^2 (3 - 2 frac)
+    w = torch.mul(i0, 1.0 / T.LATTICE).floor_()
+    i0.sub_(w, alpha=float(T.LATTICE))  # the cell index mod L (exact: L is a power of two)
+    torch.add(i0, f, out=out)
 
 
 # ---- terminals (p: list of (B, 1, 1, 1) parameter tensors) ---------------------------------
@@ -333,8 +343,12 @@ def _bw_noise(ctx, p):
 
 
 def _stacked_noise(ctx, freq, ox, oy, scales, shifts):
-    """Noise at frequencies ``freq * scales[o]`` and offsets ``(ox, oy) + shifts[o]``, all
-    evaluated in one call; returns (O, B, 1, Hs, Ws)."""
+    """Noise at frequencies ``freq * scales[o]`` and offsets ``(ox, oy) + shifts[o]``; returns
+    (O, B, 1, Hs, Ws). Separable coordinates are evaluated in one stacked call; full coordinate
+    images one octave at a time (faster: each octave's intermediates stay in cache)."""
+    if ctx.x.shape[-2] > 1 or ctx.y.shape[-1] > 1:
+        return torch.stack([_noise(ctx, ctx.x * (freq * s) + ox + dx, ctx.y * (freq * s) + oy + dy)
+                            for s, (dx, dy) in zip(scales, shifts)])
     O = len(scales)
     k = torch.tensor([[s, dx, dy] for s, (dx, dy) in zip(scales, shifts)], dtype=torch.float32,
                      device=ctx.x.device).reshape(O, 3, 1, 1, 1, 1)
@@ -447,13 +461,14 @@ def _mod(a, b):
 
 
 def _quant(v):
-    return fold(_sane(v)).mul_(255.999).to(torch.int32)  # >= 0: truncation is floor
+    """fold(v) in 256 levels (int32); ``_sane`` gives a fresh tensor, folded in place."""
+    v = _sane(v)
+    return v.sub_((v * 0.5).round_(), alpha=2.0).abs_().mul_(255.999).to(torch.int32)  # >= 0: floor
 
 
 def _bits(op):
-    def f(a, b):
-        a, b = torch.broadcast_tensors(a, b)
-        return op(_quant(a), _quant(b)).to(torch.float32) / 255.0
+    def f(a, b):  # each operand quantised at its own shape; the bit operation broadcasts
+        return op(_quant(a), _quant(b)).to(torch.float32).div_(255.0)
     return f
 
 
