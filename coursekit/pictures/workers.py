@@ -131,10 +131,10 @@ def render_parts(units: list[tuple[list[int], list]], costs: list[float], shape:
                     _pool.close()
                 _pool = _Pool(workers)
             shm = _pool.block(n * H * W * 3 * 4)
-            # two chunks per worker: a worker that finishes early takes the next one
+            # three chunks per worker: a worker that finishes early takes the next one
             with _main_hidden():
                 jobs = [_pool.executor.submit(_render_chunk, shm.name, n, H, W, [units[k] for k in chunk],
-                                              options) for chunk in _chunks(costs, 2 * workers)]
+                                              options) for chunk in _chunks(costs, 3 * workers)]
             for job in jobs:
                 job.result()
         except (OSError, RuntimeError, AssertionError) as e:
