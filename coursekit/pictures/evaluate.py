@@ -625,26 +625,32 @@ def _stack_trees(trees: Sequence[Node], device, shared: dict) -> _BNode:
 
     def build(trees):
         first = trees[0]
-        kids = [build([t.children[i] for t in trees]) for i in range(len(first.children))]
-        params = [t.params for t in trees]
-        uniform = all(k.uniform for k in kids) and all(p == params[0] for p in params)
-        if uniform:
-            params = params[:1]
-        key = (first.symbol, tuple(params), tuple(id(k) for k in kids))
-        if key in shared:
-            shared[key].uses += 1
-            return shared[key]
+        if len(trees) == 1:
+            kids = [build([c]) for c in first.children]
+            params = [first.params]
+            uniform = all(k.uniform for k in kids)
+        else:
+            kids = [build([t.children[i] for t in trees]) for i in range(len(first.children))]
+            params = [t.params for t in trees]
+            uniform = all(k.uniform for k in kids) and all(p == params[0] for p in params)
+            if uniform:
+                params = params[:1]
+        key = (first.symbol, tuple(params), *map(id, kids))
+        node = shared.get(key)
+        if node is not None:
+            node.uses += 1
+            return node
         node = shared[key] = _BNode(first.symbol, [], kids, uniform)
-        if first.params:
-            pending.append((node, len(columns[uniform]), len(first.params)))
+        if params[0]:
+            pending.append((node, len(columns[uniform]), len(params[0])))
             columns[uniform].extend(zip(*params))
         return node
 
     root = build(list(trees))
-    values = {u: torch.tensor(c, dtype=torch.float32, device=device).reshape(len(c), -1, 1, 1, 1)
+    values = {u: torch.tensor(c, dtype=torch.float32, device=device).reshape(len(c), -1, 1, 1, 1).unbind(0)
               for u, c in columns.items() if c}
     for node, start, count in pending:
-        node.params = list(values[node.uniform][start:start + count].unbind(0))
+        node.params = list(values[node.uniform][start:start + count])
     return root
 
 
