@@ -7,8 +7,8 @@ allocations): on two cores two threads reached only about 1.4x one thread. Worke
 share neither; each renders its part of the population straight into one shared-memory block,
 and the parent copies the pictures out in population order.
 
-The pool is started on first use (about two seconds: each worker imports torch) and kept for
-the session, so a gallery pays it once. Where processes cannot be started (a daemonic process,
+The pool is started on first use (about two seconds: a fork server imports torch once, and the
+workers fork from it) and kept for the session, so a gallery pays it once. Where processes cannot be started (a daemonic process,
 a sandbox without shared memory) :func:`render_parts` says so with ``None`` and the caller
 renders in-process.
 """
@@ -40,7 +40,9 @@ class _Pool:
         methods = mp.get_all_start_methods()
         ctx = mp.get_context("forkserver" if "forkserver" in methods else "spawn")
         if ctx.get_start_method() == "forkserver":
-            ctx.set_forkserver_preload([__name__])  # workers fork with torch already imported
+            # the fork server imports torch and the evaluator once; workers fork from it with both
+            # loaded (and share their pages)
+            ctx.set_forkserver_preload(["coursekit.pictures.evaluate", __name__])
         self.n = n
         self.executor = ProcessPoolExecutor(n, mp_context=ctx)
         self.shm: shared_memory.SharedMemory | None = None
