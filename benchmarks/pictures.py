@@ -33,8 +33,6 @@ import torch
 
 from coursekit.pictures import Genome, render, render_reference
 from coursekit.pictures import operators as O
-from coursekit.pictures import workers
-from coursekit.pictures.evaluate import clear_cache
 
 
 def population(n: int, seed: int = 1991, nodes=(35, 45)) -> list[Genome]:

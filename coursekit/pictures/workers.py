@@ -8,9 +8,9 @@ share neither; each renders its part of the population straight into one shared-
 and the parent copies the pictures out in population order.
 
 The pool is started on first use (about two seconds: a fork server imports torch once, and the
-workers fork from it) and kept for the session, so a gallery pays it once. Where processes cannot be started (a daemonic process,
-a sandbox without shared memory) :func:`render_parts` says so with ``None`` and the caller
-renders in-process.
+workers fork from it) and kept for the session, so a gallery pays it once. Where processes
+cannot be started (a daemonic process, a sandbox without shared memory) :func:`render_parts`
+says so with ``None`` and the caller renders in-process.
 """
 
 from __future__ import annotations
@@ -25,6 +25,9 @@ from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import shared_memory
 
 import numpy as np
+import torch
+
+from .evaluate import render_chunk
 
 __all__ = ["render_parts", "shutdown"]
 
@@ -40,9 +43,9 @@ class _Pool:
         methods = mp.get_all_start_methods()
         ctx = mp.get_context("forkserver" if "forkserver" in methods else "spawn")
         if ctx.get_start_method() == "forkserver":
-            # the fork server imports torch and the evaluator once; workers fork from it with both
-            # loaded (and share their pages)
-            ctx.set_forkserver_preload(["coursekit.pictures.evaluate", __name__])
+            # the fork server imports torch and the evaluator (this module's imports) once;
+            # workers fork from it with both loaded, and share their pages
+            ctx.set_forkserver_preload([__name__])
         self.n = n
         self.executor = ProcessPoolExecutor(n, mp_context=ctx)
         self.shm: shared_memory.SharedMemory | None = None
@@ -160,10 +163,6 @@ _attached: dict = {}
 
 
 def _render_chunk(name: str, n: int, H: int, W: int, part: list, options: dict) -> None:
-    import torch
-
-    from .evaluate import render_chunk
-
     shm = _attached.get(name)
     if shm is None:
         for old in _attached.values():
