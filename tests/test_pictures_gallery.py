@@ -72,6 +72,18 @@ def test_each_operator_button_breeds_from_the_selection(gallery, tmp_path):
     assert saved(tmp_path).population == gallery.state.population  # autosaved
 
 
+def test_apply_from_code_breeds_and_redraws_like_the_buttons(gallery):
+    gallery.click(2)
+    before = [bytes(im.value) for im in gallery.images]
+    msg = gallery.apply("substitution")
+    assert msg.startswith("generation 1") and msg in gallery.status.value
+    assert [bytes(im.value) for im in gallery.images] != before  # the pictures on screen follow
+    assert gallery.apply("undo") == "back to generation 0"
+    assert [bytes(im.value) for im in gallery.images] == before
+    with pytest.raises(ValueError, match="name: 'mutate'"):
+        gallery.apply("mutate")
+
+
 def test_buttons_need_a_selection(gallery):
     pop = list(gallery.state.population)
     gallery.buttons["transposition"].click()

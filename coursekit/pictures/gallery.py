@@ -294,6 +294,15 @@ class Gallery:
         if not self._syncing:
             self._sync(self.evolution.select(i, bool(change["new"])), images=False)
 
+    def apply(self, name: str) -> str:
+        """What the button ``name`` does (an operator's name, ``"next generation"``, ``"undo"``
+        or ``"new random"``), pictures redrawn; returns the status message. Use this (and
+        :meth:`click`) to drive the gallery from code: changing ``gallery.evolution`` directly
+        changes the session but not the pictures on screen."""
+        if name not in self.buttons:
+            raise ValueError(f"name: {name!r} is not one of {list(self.buttons)}")
+        return self._act(name)
+
     def _act(self, name):
         ev = self.evolution
         if name in ev.mutations:
@@ -307,6 +316,7 @@ class Gallery:
         else:
             msg = ev.randomize()
         self._sync(msg)
+        return msg
 
     def _sync(self, message: str, images: bool = True):
         """Mirror the state in the widgets."""

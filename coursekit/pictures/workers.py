@@ -18,6 +18,7 @@ from __future__ import annotations
 import atexit
 import contextlib
 import multiprocessing as mp
+import signal
 import sys
 import threading
 import warnings
@@ -47,7 +48,7 @@ class _Pool:
             # workers fork from it with both loaded, and share their pages
             ctx.set_forkserver_preload([__name__])
         self.n = n
-        self.executor = ProcessPoolExecutor(n, mp_context=ctx)
+        self.executor = ProcessPoolExecutor(n, mp_context=ctx, initializer=_ignore_interrupts)
         self.shm: shared_memory.SharedMemory | None = None
 
     def block(self, nbytes: int) -> shared_memory.SharedMemory:
@@ -158,6 +159,12 @@ def render_parts(units: list[tuple[list[int], list]], costs: list[float], shape:
 
 
 # ---- in the worker ---------------------------------------------------------------------------
+
+def _ignore_interrupts() -> None:
+    """Workers leave Ctrl-C (and a Jupyter kernel's interrupt, sent to its process group) to the
+    parent, which stops them cleanly."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
 
 _attached: dict = {}
 
