@@ -278,8 +278,8 @@ def _noise(ctx: _Ctx, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
         i0, sx = _cell(uu)
         table = res.wrapped[0, 0]  # (L + 1, L + 1): index i0 + 1 needs no wrap
         rows = torch.lerp(table[j0], table[j0 + 1], sy.unsqueeze(-1))  # (B, H, L + 1)
-        idx = i0.unsqueeze(1).expand(B, ctx.H, ctx.W)
-        out = torch.lerp(torch.gather(rows, 2, idx), torch.gather(rows, 2, idx + 1), sx.unsqueeze(1))
+        idx0, idx1 = (i.unsqueeze(1).expand(B, ctx.H, ctx.W) for i in (i0, i0 + 1))  # +1 before expanding
+        out = torch.lerp(torch.gather(rows, 2, idx0), torch.gather(rows, 2, idx1), sx.unsqueeze(1))
         return out.unsqueeze(1)
     # general coordinates: bilinear lookup at i0 + smooth(frac) is exactly the smoothstep
     # interpolation; the table is padded with its first row and column to wrap around
