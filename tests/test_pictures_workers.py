@@ -34,12 +34,12 @@ def population(seed, n):
 
 def test_pool_renders_the_in_process_pictures_in_population_order():
     pop = population(3, 12)
-    size = (128, 112)
+    size = (128, 176)
     assert len(pop) * size[0] * size[1] >= _POOL_PIXELS
     window = (-0.4, 0.1, 1.3, 1.2)
     pooled = render(pop, size, window=window, time=0.7, workers=2)
     alone = render(pop, size, window=window, time=0.7, workers=1)
-    assert pooled.shape == (12, 128, 112, 3) and pooled.dtype == np.float32
+    assert pooled.shape == (12, 128, 176, 3) and pooled.dtype == np.float32
     assert np.array_equal(pooled, alone)
     assert Wk._pool is not None and Wk._pool.n == 2  # the pool really ran
     block = Wk._pool.shm.name
@@ -65,7 +65,7 @@ def test_workers_must_be_a_positive_integer(bad):
 
 
 def _render_in_daemon(queue):
-    pop = population(5, 8)
+    pop = population(5, 16)
     import warnings
 
     with warnings.catch_warnings(record=True) as caught:
@@ -83,7 +83,7 @@ def test_daemonic_process_falls_back_to_in_process_rendering():
     p.join(timeout=60)
     assert p.exitcode == 0
     assert any("worker processes unavailable" in m for m in messages)
-    assert np.array_equal(pics, render(population(5, 8), 128, workers=1))
+    assert np.array_equal(pics, render(population(5, 16), 128, workers=1))
 
 
 def test_script_without_main_guard_runs_once_and_frees_its_shared_memory(tmp_path):
@@ -96,7 +96,7 @@ def test_script_without_main_guard_runs_once_and_frees_its_shared_memory(tmp_pat
         with open({str(marker)!r}, "a") as f:
             f.write("ran\\n")
         rng = np.random.default_rng(1)
-        pics = render([Genome.random(rng) for _ in range(10)], 128, workers=2)
+        pics = render([Genome.random(rng) for _ in range(16)], 128, workers=2)
         assert workers._pool is not None, "the pool did not run"
         print(workers._pool.shm.name)
         print(pics.shape, float(pics.min()) >= 0.0, float(pics.max()) <= 1.0)
@@ -106,7 +106,7 @@ def test_script_without_main_guard_runs_once_and_frees_its_shared_memory(tmp_pat
                           timeout=300, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     name, pictures = done.stdout.splitlines()
-    assert pictures == "(10, 128, 128, 3) True True"
+    assert pictures == "(16, 128, 128, 3) True True"
     assert marker.read_text() == "ran\n"  # the workers did not run the script again
     assert "leaked" not in done.stderr and "Traceback" not in done.stderr
     if Path("/dev/shm").is_dir():

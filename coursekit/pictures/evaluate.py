@@ -743,7 +743,7 @@ def _parse_window(window):
     return x0, y0, x1, y1
 
 
-_POOL_PIXELS = 1 << 17  # pixels in all from which worker processes pay off (20 images at 80^2)
+_POOL_PIXELS = 1 << 18  # pixels in all from which worker processes pay off (16 images at 128^2)
 
 # Milliseconds per node at 256 x 256 on one CPU core, measured over random genomes; only used
 # to share a population fairly between worker processes (unlisted primitives: about 0.05).
@@ -776,7 +776,7 @@ def render(genomes, size=(128, 128), *, window=(0.0, 0.0, 1.0, 1.0), time: float
         device: torch device (default: CUDA when present, else CPU).
         batch: stack genomes whose trees have the same shape into one evaluation.
         workers: on the CPU, worker processes that render parts of a population at once when
-            there is enough work (at least 2**17 pixels in all; :mod:`.workers`); default one
+            there is enough work (at least 2**18 pixels in all; :mod:`.workers`); default one
             per core, ``1`` renders in this process.
         as_tensor: return the torch tensor (on ``device``) instead of a numpy array.
     Returns:
