@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import socket
@@ -170,6 +171,9 @@ def test_real_clicks_in_jupyterlab_select_pictures_and_breed(tmp_path):
         try:
             page.goto(f"{base}/lab/tree/gallery.ipynb?token={TOKEN}")
             page.locator(".jp-NotebookPanel .jp-Cell").first.wait_for()
+            # The notebook's own kernel must be up first: Run All on a notebook still without one
+            # starts a second kernel that races the first (JupyterLab 4), sometimes leaving none.
+            page.locator(".jp-StatusBar-Item").filter(has_text=re.compile(r"^(?!No Kernel).+ \| Idle$")).wait_for()
             # Run > Run All Cells, as a student would.
             page.locator(".lm-MenuBar-itemLabel", has_text="Run").first.click()
             page.get_by_role("menuitem", name="Run All Cells", exact=True).click()
