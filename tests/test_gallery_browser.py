@@ -214,6 +214,7 @@ def test_real_clicks_in_jupyterlab_select_pictures_and_breed(tmp_path):
 
     # Exactly those clicks, in click order, then one generation bred from them.
     old = start["population"]
+    assert len(after["history"]) == 1, f"{len(after['history'])} generations in the history, not 1"
     assert after["history"][-1]["selected"] == CLICKS, f"history holds selection {after['history'][-1]['selected']}"
     assert after["history"][-1]["population"] == old, "the bred-from generation is not the starting population"
     assert after["selected"] == [], f"selection not cleared after breeding: {after['selected']}"
