@@ -10,6 +10,11 @@ from __future__ import annotations
 import numpy as np
 import array_api_compat
 
+try:  # scipy's CSR kernel, ``y += A x`` in place (private, stable for a decade; guarded)
+    from scipy.sparse._sparsetools import csr_matvecs as _csr_matvecs
+except ImportError:  # pragma: no cover
+    _csr_matvecs = None
+
 BACKENDS = ("numpy", "torch")
 
 
@@ -66,8 +71,9 @@ class Segments:
         parent_level: ``(start, stop)`` of the parents' level (a contiguous slice of bodies).
 
     numpy sums with a sparse (parents x children) 0/1 matrix product -- several times faster
-    than ``np.add.reduceat`` or ``np.add.at`` on stacks of 6x6 matrices; torch uses an
-    accumulating ``index_put_``.
+    than ``np.add.reduceat`` or ``np.add.at`` on stacks of 6x6 matrices -- accumulated straight
+    into the target rows by scipy's CSR kernel (``y += A x``, no temporary; half the time of
+    ``A @ x`` through ``scipy.sparse`` at these sizes); torch uses an accumulating ``index_put_``.
     """
 
     def __init__(self, xp, parent: np.ndarray, parent_level: tuple[int, int], device=None):
@@ -95,7 +101,13 @@ class Segments:
             target.index_put_((self.parent,), values.reshape((-1,) + shape), accumulate=True)
         else:
             n = values.shape[0]
-            target[self.start : self.stop] += (self.matrix @ values.reshape(n, -1)).reshape((-1,) + shape)
+            x = np.ascontiguousarray(values, dtype=np.float64).reshape(n, -1)
+            rows = target[self.start : self.stop]
+            if _csr_matvecs is not None and target.dtype == np.float64 and rows.flags.c_contiguous:
+                A = self.matrix
+                _csr_matvecs(A.shape[0], n, x.shape[1], A.indptr, A.indices, A.data, x.reshape(-1), rows.reshape(-1))
+            else:
+                rows += (self.matrix @ x).reshape((-1,) + shape)
 
 
 def scatter_add(xp, target, idx, values) -> None:

@@ -79,17 +79,19 @@ def step(xp, state: State, h: float, accel, method="rkn", t: float = 0.0) -> Sta
     if not callable(method) and method not in INTEGRATORS:
         raise ValueError(f"integrator: got {method!r}; allowed: {', '.join(INTEGRATORS)} or a function rkn_step(f, t, y, v, h)")
     quat0 = state.quat
+    theta0 = xp.zeros_like(state.omega)
 
     def f(y, yd):
         pos, theta, q = y
         lin, theta_d, qd = yd
+        if theta is theta0:  # the step's start, where the chart is the identity map
+            return accel(pos, sp.quat_to_mat(xp, quat0), q, lin, theta_d, qd)
         R = sp.quat_to_mat(xp, sp.quat_mul(xp, quat0, sp.quat_exp(xp, theta)))
-        omega = sp.dexp(xp, theta, theta_d)
+        omega, curvature, gamma = sp.chart_rates(xp, theta, theta_d)
         la, wd, qdd = accel(pos, R, q, lin, omega, qd)
-        theta_dd = sp.dexp_inv(xp, theta, wd - sp.dexp_dot(xp, theta, theta_d))
-        return (la, theta_dd, qdd)
+        return (la, sp.dexp_inv(xp, theta, wd - curvature, gamma), qdd)
 
-    y = (state.pos, xp.zeros_like(state.omega), state.q)
+    y = (state.pos, theta0, state.q)
     yd = (state.lin, state.omega, state.qd)
 
     if callable(method):
