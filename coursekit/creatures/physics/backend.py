@@ -87,9 +87,9 @@ class Segments:
             import scipy.sparse
 
             n = parent.size
-            self.matrix = scipy.sparse.csr_matrix(
-                (np.ones(n), (parent - self.start, np.arange(n))), shape=(self.stop - self.start, n)
-            )
+            self._rows = parent - self.start
+            self._pattern = {}  # index structure of add_weighted's matrix, per number of terms
+            self.matrix = scipy.sparse.csr_matrix((np.ones(n), (self._rows, np.arange(n))), shape=(self.stop - self.start, n))
 
     def add_into(self, target, values) -> None:
         """``target[parent[k]] += values[k]`` for every child ``k`` (in place); ``values`` may be
@@ -108,6 +108,38 @@ class Segments:
                 _csr_matvecs(A.shape[0], n, x.shape[1], A.indptr, A.indices, A.data, x.reshape(-1), rows.reshape(-1))
             else:
                 rows += (self.matrix @ x).reshape((-1,) + shape)
+
+
+    def add_weighted(self, target, weights, values) -> None:
+        """``target[parent[k]] += sum_t weights[k, t] values[k, t]`` (in place) for (n, k) weights
+        and (n, k, ...) values: one sparse product with the weights as the matrix entries."""
+        n, k = tuple(weights.shape)
+        if n == 0:
+            return
+        if self.torch:
+            w = weights[:, None, :]
+            target.index_put_((self.parent,), (w @ values.reshape(n, k, -1)).reshape((n,) + tuple(target.shape[1:])), accumulate=True)
+            return
+        x = np.ascontiguousarray(values, dtype=np.float64).reshape(n * k, -1)
+        rows = target[self.start : self.stop]
+        if _csr_matvecs is None or target.dtype != np.float64 or not rows.flags.c_contiguous:
+            rows += (self._weighted_matrix(k, weights) @ x).reshape(rows.shape)
+            return
+        if k not in self._pattern:
+            A = self._weighted_matrix(k, np.ones((n, k)))
+            self._pattern[k] = (A.indptr, A.indices)
+        indptr, indices = self._pattern[k]
+        data = np.ascontiguousarray(weights, dtype=np.float64).reshape(-1)
+        _csr_matvecs(self.stop - self.start, n * k, x.shape[1], indptr, indices, data, x.reshape(-1), rows.reshape(-1))
+
+    def _weighted_matrix(self, k, weights):
+        """(parents x n k) CSR matrix with entry ``weights[i, t]`` at (parent of i, i k + t); its
+        entries are stored in exactly that order (children are sorted by parent)."""
+        import scipy.sparse
+
+        n = weights.shape[0]
+        rows = np.repeat(self._rows, k)
+        return scipy.sparse.csr_matrix((np.asarray(weights, dtype=np.float64).reshape(-1), (rows, np.arange(n * k))), shape=(self.stop - self.start, n * k))
 
 
 def scatter_add(xp, target, idx, values) -> None:

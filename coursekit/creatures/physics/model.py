@@ -172,8 +172,15 @@ class Model:
             X = sp.transform_matrix(np, E, r)
             return (X.mT @ Ia @ X).reshape(-1, 36)
 
-        self.leaf_P = f(fit_joint_basis(rev[L - C :], leaf, congruence, k=5))
-        self.inner_inertia = f(np.einsum("ni,ij->nij", self.inertia_diag_np[:L], np.eye(6)))
+        leaf_P = fit_joint_basis(rev[L - C :], leaf, congruence, k=5)
+        self.leaf_P = f(leaf_P)
+        self.leaf_P_varying = f(np.ascontiguousarray(leaf_P[:, 1:]))  # terms cos q .. sin 2q (q .. q^2)
+        # the rigid inertias of the roots and inner bodies, plus their leaves' constant terms
+        inner = np.einsum("ni,ij->nij", self.inertia_diag_np[:L], np.eye(6))
+        np.add.at(inner, par[L:], leaf_P[:, 0].reshape(-1, 6, 6))
+        self.inner_inertia = f(inner)
+        # and a leaf's W = Xup' U / d, of degree one
+        self.leaf_W = f(fit_joint_basis(rev[L - C :], leaf, lambda E, r: sp.mtv(sp.transform_matrix(np, E, r), Ul) / dl[:, None]))
         self.half_extents = f(self.half_extents_np)
         self.mass = f(mass)
         self.body_creature = bk.index(xp, self.creature, device=device)
