@@ -219,12 +219,12 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
     # leaves, all at once (their IA is the diagonal I)
     ul = tau[jl] - xp.vecdot(S[jl], pA[L:])
     pa = pA[L:] + I[L:] * c[jl] + U[jl] * ((ul - Uc[jl]) / d[jl])[:, None]
-    model.leaf_segments.add_into(pA, sp.mtv(Xup[jl], pa))
-    # inner bodies, level by level
+    # what does not depend on the sweep -- the leaves' Xup' pa and the inner joints' h -- is
+    # summed into the parents at once; the inner levels then pass Z' pA on
     h = sp.mv(Y, c[ji]) + W[ji] * (tau[ji] - Uc[ji])[:, None]
+    model.joint_segments.add_into(pA, xp.concat([h, sp.mtv(Xup[jl], pa)], axis=0))
     for s, e, _, seg in reversed(model.levels):
-        j = slice(s - C, e - C)
-        seg.add_into(pA, sp.mtv(Z[j], pA[s:e]) + h[j])
+        seg.add_into(pA, sp.mtv(Z[s - C : e - C], pA[s:e]))
     ud = (tau - xp.vecdot(S, pA[C:]) - Uc) / d  # (u - U'c) / d
 
     a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]

@@ -64,11 +64,12 @@ def to_numpy(a) -> np.ndarray:
 
 
 class Segments:
-    """Children of one tree level, sorted by parent, to be summed into their parents.
+    """Children (of one tree level, or every joint) to be summed into their parents.
 
     Args:
-        parent: (n,) parent index (into the full body array) of each child, non-decreasing.
-        parent_level: ``(start, stop)`` of the parents' level (a contiguous slice of bodies).
+        parent: (n,) parent index (into the full body array) of each child; non-decreasing for
+            :meth:`add_weighted`.
+        parent_level: ``(start, stop)`` of the parents (a contiguous slice of bodies).
 
     numpy sums with a sparse (parents x children) 0/1 matrix product -- several times faster
     than ``np.add.reduceat`` or ``np.add.at`` on stacks of 6x6 matrices -- accumulated straight
@@ -78,8 +79,7 @@ class Segments:
 
     def __init__(self, xp, parent: np.ndarray, parent_level: tuple[int, int], device=None):
         parent = np.asarray(parent, dtype=np.int64)
-        if parent.size and np.any(np.diff(parent) < 0):
-            raise ValueError("Segments.parent: children must be sorted by parent")
+        self.sorted = not (parent.size and np.any(np.diff(parent) < 0))
         self.torch = is_torch(xp)
         self.parent = index(xp, parent, device=device)
         self.start, self.stop = parent_level
@@ -116,6 +116,8 @@ class Segments:
         n, k = tuple(weights.shape)
         if n == 0:
             return
+        if not self.sorted:
+            raise ValueError("Segments.add_weighted: children must be sorted by parent")
         if self.torch:
             w = weights[:, None, :]
             target.index_put_((self.parent,), (w @ values.reshape(n, k, -1)).reshape((n,) + tuple(target.shape[1:])), accumulate=True)

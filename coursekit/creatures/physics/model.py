@@ -105,6 +105,7 @@ class Model:
         self.leaf_parent = bk.index(xp, par[L:], device=device)
         self.joint_parent = bk.index(xp, par[C:], device=device)
         self.leaf_segments = bk.Segments(xp, par[L:], (0, L), device=device)
+        self.joint_segments = bk.Segments(xp, par[C:], (0, L), device=device)  # every joint into its parent
         # joints: sorted body C + j; user layout: creature-concatenated BodyTree order (bodies 1..)
         packed_joint = np.concatenate([np.arange(f + 1, f + n) for f, n in zip(first, sizes)])
         self.joint_order = new_pos[packed_joint] - C  # user joint k -> internal joint row
