@@ -106,25 +106,38 @@ def _transform_matrices(model, b):
 def _outward_velocities(model, X, v0, vJ):
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
-    v = xp.zeros((model.n_bodies, 6), dtype=v0.dtype, device=model.device)
-    v[:C] = v0
+    v = xp.concat([v0, vJ], axis=0)  # each body then adds its parent's velocity, transformed
     for s, e, par, _ in model.levels:
-        j = slice(s - C, e - C)
-        v[s:e] = sp.mv(X[j], v[par]) + vJ[j]
-    j = slice(L - C, None)
-    v[L:] = sp.mv(X[j], v[model.leaf_parent]) + vJ[j]
+        v[s:e] += sp.mv(X[s - C : e - C], v[par])
+    v[L:] += sp.mv(X[L - C :], v[model.leaf_parent])
     return v
 
 
 def _velocities_and_bias(model, X, v0, qd, v=None):
-    """``v`` (N, 6) (swept outwards unless given), ``vt = v'`` (6, N) (component-major copy for
-    the cross products) and the joints' bias accelerations ``c = v x vJ`` (M, 6)."""
+    """``v`` (N, 6) (swept outwards unless given), the joints' bias accelerations ``c = v x vJ``
+    (M, 6) and the bodies' rigid bias forces ``v x* I v`` (N, 6).
+
+    Cross products are written with rolled copies ``v1``, ``v2`` of ``v`` (components ``(1, 2, 0)``
+    of each half, and ``(2, 0, 1)``), since ``(a x b)_i = a_{i+1} b_{i+2} - a_{i+2} b_{i+1}``:
+    a handful of whole-array products instead of one per component. The rigid bias force of a
+    body at its centre of mass with principal axes is Euler's ``(w1 w2 (I2 - I1), m (w1 u2 - w2 u1))``.
+    """
     xp = model.xp
-    vJt = model.S_t * qd  # (6, M)
+    C, N = model.n_creatures, model.n_bodies
     if v is None:
         v = _outward_velocities(model, X, v0, model.S * qd[:, None])
-    vt = bk.contiguous(xp, v.T)
-    return v, vt, bk.contiguous(xp, sp.cross_motion(xp, vt[:, model.n_creatures :], vJt, axis=0).T)
+    vt = bk.contiguous(xp, v.T)  # component-major: whole rows per component
+    v1, v2 = xp.reshape(xp.take(vt, model.roll1, axis=0), (2, 3, N)), xp.reshape(xp.take(vt, model.roll2, axis=0), (2, 3, N))
+    # v x* I v: rows (w1 w2, w1 u2) - (0, w2 u1), times (I2 - I1, m)
+    pA = v1[0] * v2
+    pA[1] -= v2[0] * v1[1]
+    pA *= model.euler_factor
+    # v x S (times qd): (w x s_w, w x s_u + u x s_w), with S1, S2 the rolled copies of S
+    w1, w2, u1, u2 = v1[0, :, C:], v2[0, :, C:], v1[1, :, C:], v2[1, :, C:]
+    c = w1 * model.S_roll2 - w2 * model.S_roll1
+    c[1] += u1 * model.S_roll2[0] - u2 * model.S_roll1[0]
+    c *= qd
+    return v, bk.contiguous(xp, xp.reshape(c, (6, -1)).T), bk.contiguous(xp, xp.reshape(pA, (6, N)).T)
 
 
 def body_velocities(model, X, v0, qd):
@@ -132,7 +145,7 @@ def body_velocities(model, X, v0, qd):
 
     ``X`` is the (M, 6, 6) stack of joint transforms ``Xup`` (:func:`spatial.transform_matrix`).
     """
-    v, _, c = _velocities_and_bias(model, X, v0, qd)
+    v, c, _ = _velocities_and_bias(model, X, v0, qd)
     return v, model.xp.concat([model.xp.zeros_like(v0), c], axis=0)
 
 
@@ -163,15 +176,13 @@ def articulated_inertias(model, q):
     for s, e, _, seg in reversed(model.levels):
         j = slice(s - C, e - C)
         IAj, X, Sj = IA[s:e], Xup[j], S[j]
-        Uj = sp.mv(IAj, Sj)
+        Uj = sp.mv(IAj, Sj, out=U[j])
         dj = xp.vecdot(Sj, Uj)
-        U[j], d[j] = Uj, dj
-        Wj = sp.mtv(X, Uj) / dj[:, None]
-        W[j] = Wj
-        Zj = X - sp.outer(xp, Sj, Wj)
-        Yj = X.mT @ IAj
-        Z[j], Y[j] = Zj, Yj
-        seg.add_into(IA, Yj @ Zj)
+        d[j] = dj
+        Wj = sp.mtv(X, Uj, out=W[j])
+        Wj /= dj[:, None]
+        Zj = xp.subtract(X, sp.outer(xp, Sj, Wj), out=Z[j])
+        seg.add_into(IA, xp.matmul(xp.matmul(X.mT, IAj, out=Y[j]), Zj))
     return Xup, IA, U, d, W, Z, Y
 
 
@@ -207,9 +218,8 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
     C, L = model.n_creatures, model.leaf_start
     Xup, IA, U, d, W, Z, Y = articulated_inertias(model, q) if inertias is None else inertias
     S = model.S
-    v, vt, c = _velocities_and_bias(model, Xup, v0, qd, v)
+    v, c, pA = _velocities_and_bias(model, Xup, v0, qd, v)
     I = model.inertia_diag
-    pA = bk.contiguous(xp, sp.rigid_bias_force(xp, vt, model.inertia_diag_t, axis=0).T)
     if damping is not None:
         pA = pA + damping * v
     if f_ext is not None:
@@ -228,12 +238,9 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
     ud = (tau - xp.vecdot(S, pA[C:]) - Uc) / d  # (u - U'c) / d
 
     a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
-    a = xp.zeros((L, 6), dtype=v.dtype, device=model.device)
-    a[:C] = a0
-    k = c[ji] + S[ji] * ud[ji][:, None]
+    a = xp.concat([a0, c[ji] + S[ji] * ud[ji][:, None]], axis=0)  # each body then adds Z a_parent
     for s, e, par, _ in model.levels:
-        j = slice(s - C, e - C)
-        a[s:e] = sp.mv(Z[j], a[par]) + k[j]
+        a[s:e] += sp.mv(Z[s - C : e - C], a[par])
     qdd = ud - xp.vecdot(W, a[model.joint_parent])
     return a0, qdd, v
 

@@ -138,8 +138,12 @@ class Model:
         f = lambda a: bk.asarray(xp, a, device=device)  # noqa: E731
         self.inertia_diag = f(self.inertia_diag_np)
         self.S = f(S)
-        self.S_t = f(S.T)  # component-major copies for the cross products
-        self.inertia_diag_t = f(self.inertia_diag_np.T)
+        # rolled components for the cross products of aba._velocities_and_bias
+        roll1, roll2 = [1, 2, 0, 4, 5, 3], [2, 0, 1, 5, 3, 4]
+        self.roll1, self.roll2 = bk.index(xp, roll1, device=device), bk.index(xp, roll2, device=device)
+        self.S_roll1, self.S_roll2 = f(S.T[roll1].reshape(2, 3, -1)), f(S.T[roll2].reshape(2, 3, -1))  # (2, 3, M)
+        It = self.inertia_diag_np.T
+        self.euler_factor = f(np.stack([It[[2, 0, 1]] - It[[1, 2, 0]], It[3:]]))  # (2, 3, N): I2 - I1, m
         self.revolute = bk.asarray(xp, rev, dtype=xp.bool, device=device)
         # Rodrigues with constant factors: Rot(a, q) = 1 + sin q K + (1 - cos q) K^2, K = [a]x, so
         # E(q) = Rot(a, -q) J' and r(q) = jpp + J (slide a - Rot(a, q) c) are sums of constants

@@ -29,18 +29,25 @@ def _halves(v, axis):
     return (v[:3], v[3:]) if axis == 0 else (v[..., :3], v[..., 3:])
 
 
-def mv(A, x):
-    """Stacked matrix-vector product ``A @ x`` for (..., n, m) and (..., m)."""
+def mv(A, x, out=None):
+    """Stacked matrix-vector product ``A @ x`` for (..., n, m) and (..., m) (into ``out`` if given)."""
     if isinstance(A, np.ndarray):
-        return np.matvec(A, x)
-    return (A @ x[..., None])[..., 0]
+        return np.matvec(A, x, out=out)
+    if out is None:
+        return (A @ x[..., None])[..., 0]
+    out[...] = (A @ x[..., None])[..., 0]
+    return out
 
 
-def mtv(A, x):
-    """Stacked transposed product ``A' @ x`` for (..., m, n) and (..., m), without a transpose."""
+def mtv(A, x, out=None):
+    """Stacked transposed product ``A' @ x`` for (..., m, n) and (..., m), without a transpose
+    (into ``out`` if given)."""
     if isinstance(A, np.ndarray):
-        return np.vecmat(x, A)
-    return (x[..., None, :] @ A)[..., 0, :]
+        return np.vecmat(x, A, out=out)
+    if out is None:
+        return (x[..., None, :] @ A)[..., 0, :]
+    out[...] = (x[..., None, :] @ A)[..., 0, :]
+    return out
 
 
 def outer(xp, a, b):
