@@ -167,6 +167,7 @@ def articulated_inertias(model, q):
     jl, bl = slice(L - C, None), b[L - C :]
     IA = model.inner_inertia + 0.0  # a fresh copy: rigid inertias plus the leaves' constant terms
     model.leaf_segments.add_weighted(IA, bl[:, 1:], model.leaf_P_varying)
+    IA = xp.reshape(xp.take(IA, model.sym_expand, axis=1), (-1, 6, 6))  # 21 upper entries -> 6x6
     S = model.S
     U, d = model.U_leaf + 0.0, model.d_leaf + 0.0  # leaf rows are constant; inner rows follow
     W = xp.empty_like(U)

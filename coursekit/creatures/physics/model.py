@@ -179,11 +179,15 @@ class Model:
 
         leaf_P = fit_joint_basis(rev[L - C :], leaf, congruence, k=5)
         self.leaf_P = f(leaf_P)
-        self.leaf_P_varying = f(np.ascontiguousarray(leaf_P[:, 1:]))  # terms cos q .. sin 2q (q .. q^2)
+        # symmetric matrices are summed as their 21 upper entries (less memory to stream) and
+        # expanded to 6x6 after
+        upper = np.flatnonzero(np.triu(np.ones((6, 6), dtype=bool)))
+        self.sym_expand = bk.index(xp, np.searchsorted(upper, np.minimum.outer(np.arange(6), np.arange(6)) * 6 + np.maximum.outer(np.arange(6), np.arange(6))).reshape(-1), device=device)
+        self.leaf_P_varying = f(np.ascontiguousarray(leaf_P[:, 1:, upper]))  # terms cos q .. sin 2q (q .. q^2)
         # the rigid inertias of the roots and inner bodies, plus their leaves' constant terms
         inner = np.einsum("ni,ij->nij", self.inertia_diag_np[:L], np.eye(6))
         np.add.at(inner, par[L:], leaf_P[:, 0].reshape(-1, 6, 6))
-        self.inner_inertia = f(inner)
+        self.inner_inertia = f(inner.reshape(-1, 36)[:, upper])  # (L, 21)
         # and a leaf's W = Xup' U / d, of degree one
         self.leaf_W = f(fit_joint_basis(rev[L - C :], leaf, lambda E, r: sp.mtv(sp.transform_matrix(np, E, r), Ul) / dl[:, None]))
         self.half_extents = f(self.half_extents_np)
