@@ -150,13 +150,14 @@ def body_velocities(model, X, v0, qd):
 
 
 def articulated_inertias(model, q):
-    """The velocity-independent half of the ABA: ``(Xup, IA, U, d, W, Z, Y)`` at ``q``.
+    """The velocity-independent half of the ABA: ``(Xup, IA, U, d, W, Z, Yt)`` at ``q``.
 
     ``Xup`` (M, 6, 6) are the joint transforms; ``IA`` (L, 6, 6) the articulated inertias of the
     roots and inner bodies (a leaf's is its rigid inertia), ``U = IA S`` and ``d = S' U`` (M,)
     per joint, ``W = Xup' U / d`` (M, 6) and, for the inner joints, ``Z = Xup - S W'`` and
-    ``Y = Xup' IA`` (L - C, 6, 6). Each child passes ``Xup' (IA - U U' / d) Xup = Y Z`` to its
-    parent.
+    ``Yt = IA Xup`` (L - C, 6, 6). Each child passes ``Xup' (IA - U U' / d) Xup = Yt' Z`` to its
+    parent. (``IA`` is symmetric, so ``U = IA S`` is computed as ``S' IA`` and ``Yt`` is the
+    transpose of ``Xup' IA``: numpy's stacked ``x' A`` is faster than its ``A x``.)
     They depend on the positions only, so the Nyström stages 2 and 3, which share positions,
     share them.
     """
@@ -171,29 +172,29 @@ def articulated_inertias(model, q):
     S = model.S
     U, d = model.U_leaf + 0.0, model.d_leaf + 0.0  # leaf rows are constant; inner rows follow
     W = xp.empty_like(U)
-    W[jl] = (bl[:, None, :3] @ model.leaf_W)[:, 0]
+    W[jl] = model.leaf_W[0] + bl[:, 1:2] * model.leaf_W[1] + bl[:, 2:3] * model.leaf_W[2]
     Z = xp.empty((L - C, 6, 6), dtype=Xup.dtype, device=model.device)
-    Y = xp.empty_like(Z)
+    Yt = xp.empty_like(Z)
     for s, e, _, seg in reversed(model.levels):
         j = slice(s - C, e - C)
         IAj, X, Sj = IA[s:e], Xup[j], S[j]
-        Uj = sp.mv(IAj, Sj, out=U[j])
+        Uj = sp.mtv(IAj, Sj, out=U[j])
         dj = xp.vecdot(Sj, Uj)
         d[j] = dj
         Wj = sp.mtv(X, Uj, out=W[j])
         Wj /= dj[:, None]
         Zj = xp.subtract(X, sp.outer(xp, Sj, Wj), out=Z[j])
-        seg.add_into(IA, xp.matmul(xp.matmul(X.mT, IAj, out=Y[j]), Zj))
-    return Xup, IA, U, d, W, Z, Y
+        seg.add_into(IA, xp.matmul(xp.matmul(IAj, X, out=Yt[j]).mT, Zj))
+    return Xup, IA, U, d, W, Z, Yt
 
 
 def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None):
     """Forward dynamics of the whole batch.
 
     The bias sweep uses ``u = tau - S'pA`` and ``pa = pA + Ia c + U u / d`` (``Ia = IA - U U'/d``),
-    so a child passes ``Xup' pa = Z' pA + Y c + W (tau - U'c)`` to its parent; the
+    so a child passes ``Xup' pa = Z' pA + Yt' c + W (tau - U'c)`` to its parent; the
     acceleration sweep ``a = Xup a_parent + c + S qdd`` with ``qdd = (u - U'(Xup a_parent + c))/d``
-    is ``a = Z a_parent + c + S (u - U'c) / d`` (``W``, ``Z``, ``Y`` of :func:`articulated_inertias`).
+    is ``a = Z a_parent + c + S (u - U'c) / d`` (``W``, ``Z``, ``Yt`` of :func:`articulated_inertias`).
     Leaves need no sweep: their ``pA`` is complete at once and their ``a`` is never needed.
 
     Args:
@@ -217,7 +218,7 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None):
 def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
-    Xup, IA, U, d, W, Z, Y = articulated_inertias(model, q) if inertias is None else inertias
+    Xup, IA, U, d, W, Z, Yt = articulated_inertias(model, q) if inertias is None else inertias
     S = model.S
     v, c, pA = _velocities_and_bias(model, Xup, v0, qd, v)
     I = model.inertia_diag
@@ -232,7 +233,7 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
     pa = pA[L:] + I[L:] * c[jl] + U[jl] * ((ul - Uc[jl]) / d[jl])[:, None]
     # what does not depend on the sweep -- the leaves' Xup' pa and the inner joints' h -- is
     # summed into the parents at once; the inner levels then pass Z' pA on
-    h = sp.mv(Y, c[ji]) + W[ji] * (tau[ji] - Uc[ji])[:, None]
+    h = sp.mtv(Yt, c[ji]) + W[ji] * (tau[ji] - Uc[ji])[:, None]
     model.joint_segments.add_into(pA, xp.concat([h, sp.mtv(Xup[jl], pa)], axis=0))
     for s, e, _, seg in reversed(model.levels):
         seg.add_into(pA, sp.mtv(Z[s - C : e - C], pA[s:e]))

@@ -189,7 +189,8 @@ class Model:
         np.add.at(inner, par[L:], leaf_P[:, 0].reshape(-1, 6, 6))
         self.inner_inertia = f(inner.reshape(-1, 36)[:, upper])  # (L, 21)
         # and a leaf's W = Xup' U / d, of degree one
-        self.leaf_W = f(fit_joint_basis(rev[L - C :], leaf, lambda E, r: sp.mtv(sp.transform_matrix(np, E, r), Ul) / dl[:, None]))
+        leaf_W = fit_joint_basis(rev[L - C :], leaf, lambda E, r: sp.mtv(sp.transform_matrix(np, E, r), Ul) / dl[:, None])
+        self.leaf_W = f(np.ascontiguousarray(leaf_W.transpose(1, 0, 2)))  # (3, leaves, 6)
         self.half_extents = f(self.half_extents_np)
         self.mass = f(mass)
         self.body_creature = bk.index(xp, self.creature, device=device)
