@@ -89,8 +89,12 @@ def step(xp, state: State, h: float, accel, method="rkn", t: float = 0.0) -> Sta
     pack = lambda parts: xp.concat([xp.reshape(a, (-1,)) for a in parts])  # noqa: E731
     unpack = lambda flat: tuple(xp.reshape(flat[cut[i] : cut[i + 1]], shapes[i]) for i in range(3))  # noqa: E731
 
+    last = [None, None]  # the last y unpacked: stages that share positions get the same q array
+
     def f(y_flat, yd_flat, start=False):
-        (pos, theta, q), (lin, theta_d, qd) = unpack(y_flat), unpack(yd_flat)
+        if y_flat is not last[0]:
+            last[:] = y_flat, unpack(y_flat)
+        (pos, theta, q), (lin, theta_d, qd) = last[1], unpack(yd_flat)
         if start:  # theta = 0: the chart is the identity map there
             return pack(accel(pos, sp.quat_to_mat(xp, quat0), q, lin, theta_d, qd))
         R = sp.quat_to_mat(xp, sp.quat_mul(xp, quat0, sp.quat_exp(xp, theta)))
