@@ -141,12 +141,11 @@ def _velocities_and_bias(model, X, v0, qd, v=None):
 
 
 def body_velocities(model, X, v0, qd):
-    """Outward sweep: spatial velocities ``v`` (N, 6) and bias accelerations ``c`` (N, 6).
+    """Outward sweep: spatial velocities ``v`` (N, 6) of every body, in body coordinates.
 
     ``X`` is the (M, 6, 6) stack of joint transforms ``Xup`` (:func:`spatial.transform_matrix`).
     """
-    v, c, _ = _velocities_and_bias(model, X, v0, qd)
-    return v, model.xp.concat([model.xp.zeros_like(v0), c], axis=0)
+    return _outward_velocities(model, X, v0, model.S * qd[:, None])
 
 
 def articulated_inertias(model, q):
@@ -271,6 +270,10 @@ def poses_rows(model, R0, p0, q):
 
 def forward_kinematics(model, R0, p0, q):
     """World rotation (N, 3, 3) and position (N, 3) of every body."""
-    xp = model.xp
-    R, p = poses_rows(model, R0, p0, q)
+    return pose_stacks(model.xp, poses_rows(model, R0, p0, q))
+
+
+def pose_stacks(xp, rows):
+    """The component-major poses ``rows`` of :func:`poses_rows` as (N, 3, 3) and (N, 3) stacks."""
+    R, p = rows
     return bk.contiguous(xp, xp.permute_dims(R, (2, 0, 1))), bk.contiguous(xp, p.T)

@@ -95,8 +95,8 @@ def step(xp, state: State, h: float, accel, method="rkn", t: float = 0.0) -> Sta
         if y_flat is not last[0]:
             last[:] = y_flat, unpack(y_flat)
         (pos, theta, q), (lin, theta_d, qd) = last[1], unpack(yd_flat)
-        if start:  # theta = 0: the chart is the identity map there
-            return pack(accel(pos, sp.quat_to_mat(xp, quat0), q, lin, theta_d, qd))
+        if start:  # theta = 0: the chart is the identity map there (and the state's own arrays)
+            return pack(accel(state.pos, sp.quat_to_mat(xp, quat0), state.q, state.lin, state.omega, state.qd))
         R = sp.quat_to_mat(xp, sp.quat_mul(xp, quat0, sp.quat_exp(xp, theta)))
         omega, curvature, gamma = sp.chart_rates(xp, theta, theta_d)
         la, wd, qdd = accel(pos, R, q, lin, omega, qd)
