@@ -100,7 +100,11 @@ def joint_transform_matrices(model, q):
 
 
 def _transform_matrices(model, b):
-    return (b[..., :3] @ model.X_basis).reshape(-1, 6, 6)
+    P = model.X_basis
+    if model.xp is np:
+        return (b[..., :3] @ P).reshape(-1, 6, 6)
+    b = b[:, 0]
+    return P[0].addcmul(b[:, 1:2], P[1]).addcmul_(b[:, 2:3], P[2]).reshape(-1, 6, 6)
 
 
 def _outward_velocities(model, X, v0, vJ):

@@ -160,7 +160,10 @@ class Model:
         # E, r and Xup are of degree one in aba.joint_basis(q): constant coefficients
         pose = fit_joint_basis(rev, consts, lambda E, r: np.concatenate([E.mT.reshape(-1, 9), r], axis=1))
         self.pose_rows_basis = f(np.transpose(pose, (1, 2, 0)))  # (3, 12, M): rows of E' and r
-        self.X_basis = f(fit_joint_basis(rev, consts, lambda E, r: sp.transform_matrix(np, E, r).reshape(-1, 36)))
+        X_basis = fit_joint_basis(rev, consts, lambda E, r: sp.transform_matrix(np, E, r).reshape(-1, 36))
+        # numpy: one stacked (1 x 3) @ (3 x 36) product per joint; torch (whose small stacked
+        # products are slow on the CPU): three term rows (3, M, 36) combined by addcmul
+        self.X_basis = f(X_basis if xp is np else np.ascontiguousarray(X_basis.transpose(1, 0, 2)))
         # leaves never change their articulated inertia: U = I S, d = S'U and Ia = I - U U'/d are
         # constants, and what a leaf passes to its parent, Xup' Ia Xup, is a fixed combination of
         # five constant matrices (degree two in aba.joint_basis)
