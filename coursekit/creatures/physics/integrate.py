@@ -89,16 +89,21 @@ def step(xp, state: State, h: float, accel, method="rkn", t: float = 0.0) -> Sta
     pack = lambda parts: xp.concat([xp.reshape(a, (-1,)) for a in parts])  # noqa: E731
     unpack = lambda flat: tuple(xp.reshape(flat[cut[i] : cut[i + 1]], shapes[i]) for i in range(3))  # noqa: E731
 
-    last = [None, None]  # the last y unpacked: stages that share positions get the same q array
+    # what depends on the positions alone, for the last y seen: stages that share positions (RKN
+    # 2 and 3) share the unpacked arrays (the same q lets the world reuse its inertias), the root
+    # rotation and the chart's coefficients
+    last = [None, None, None, None]
 
     def f(y_flat, yd_flat, start=False):
-        if y_flat is not last[0]:
-            last[:] = y_flat, unpack(y_flat)
-        (pos, theta, q), (lin, theta_d, qd) = last[1], unpack(yd_flat)
         if start:  # theta = 0: the chart is the identity map there (and the state's own arrays)
             return pack(accel(state.pos, sp.quat_to_mat(xp, quat0), state.q, state.lin, state.omega, state.qd))
-        R = sp.quat_to_mat(xp, sp.quat_mul(xp, quat0, sp.quat_exp(xp, theta)))
-        omega, curvature, gamma = sp.chart_rates(xp, theta, theta_d)
+        if y_flat is not last[0]:
+            y = unpack(y_flat)
+            R = sp.quat_to_mat(xp, sp.quat_mul(xp, quat0, sp.quat_exp(xp, y[1])))
+            last[:] = y_flat, y, R, sp.chart_coefficients(xp, y[1])
+        (pos, theta, q), R, coefficients = last[1:]
+        lin, theta_d, qd = unpack(yd_flat)
+        omega, curvature, gamma = sp.chart_rates(xp, theta, theta_d, coefficients)
         la, wd, qdd = accel(pos, R, q, lin, omega, qd)
         return pack((la, sp.dexp_inv(xp, theta, wd - curvature, gamma), qdd))
 

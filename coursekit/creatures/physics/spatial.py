@@ -212,10 +212,16 @@ def dexp_dot(xp, theta, theta_dot):
     return chart_rates(xp, theta, theta_dot)[1]
 
 
-def chart_rates(xp, theta, theta_dot):
+def chart_coefficients(xp, theta):
+    """The coefficients of ``dexp`` and its companions at ``theta`` (for :func:`chart_rates`)."""
+    return _dexp_coefficients(xp, theta)
+
+
+def chart_rates(xp, theta, theta_dot, coefficients=None):
     """``dexp(theta) theta_dot``, ``dexp_dot(theta, theta_dot)`` and ``gamma`` (for
-    :func:`dexp_inv`), sharing one set of coefficients (one integrator stage's chart work)."""
-    alpha, beta, dalpha, dbeta, gamma = _dexp_coefficients(xp, theta)
+    :func:`dexp_inv`), sharing one set of coefficients (:func:`chart_coefficients` at ``theta``,
+    computed here unless given)."""
+    alpha, beta, dalpha, dbeta, gamma = _dexp_coefficients(xp, theta) if coefficients is None else coefficients
     pdot = xp.vecdot(theta, theta_dot)[..., None]  # p * dp/dt
     t1 = cross3(xp, theta, theta_dot)
     t2 = cross3(xp, theta, t1)
