@@ -96,14 +96,16 @@ def fit_joint_basis(revolute: np.ndarray, consts: dict, sample, k: int = 3) -> n
 
 def joint_transform_matrices(model, q):
     """(M, 6, 6) joint transforms ``Xup`` at ``q`` from the model's constant coefficients."""
-    return _transform_matrices(model, joint_basis(model.xp, model.revolute, q)[:, None, :])
+    return _transform_matrices(model, joint_basis(model.xp, model.revolute, q))
 
 
 def _transform_matrices(model, b):
+    """(M, 6, 6) ``Xup`` from the (M, 5) :func:`joint_basis` ``b``: numpy takes one stacked
+    (1 x 3) @ (3 x 36) product per joint; torch, whose small stacked products are slow on the
+    CPU, two ``addcmul`` over the coefficient rows."""
     P = model.X_basis
     if model.xp is np:
-        return (b[..., :3] @ P).reshape(-1, 6, 6)
-    b = b[:, 0]
+        return (b[:, None, :3] @ P).reshape(-1, 6, 6)
     return P[0].addcmul(b[:, 1:2], P[1]).addcmul_(b[:, 2:3], P[2]).reshape(-1, 6, 6)
 
 
@@ -167,7 +169,7 @@ def articulated_inertias(model, q):
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
     b = joint_basis(xp, model.revolute, q)
-    Xup = _transform_matrices(model, b[:, None, :])
+    Xup = _transform_matrices(model, b)
     jl, bl = slice(L - C, None), b[L - C :]
     IA = model.inner_inertia + 0.0  # a fresh copy: rigid inertias plus the leaves' constant terms
     model.leaf_segments.add_weighted(IA, bl[:, 1:], model.leaf_P_varying)

@@ -109,7 +109,6 @@ class Segments:
             else:
                 rows += (self.matrix @ x).reshape((-1,) + shape)
 
-
     def add_weighted(self, target, weights, values) -> None:
         """``target[parent[k]] += sum_t weights[k, t] values[k, t]`` (in place) for (n, k) weights
         and (n, k, ...) values: one sparse product with the weights as the matrix entries."""

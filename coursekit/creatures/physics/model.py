@@ -161,8 +161,7 @@ class Model:
         pose = fit_joint_basis(rev, consts, lambda E, r: np.concatenate([E.mT.reshape(-1, 9), r], axis=1))
         self.pose_rows_basis = f(np.transpose(pose, (1, 2, 0)))  # (3, 12, M): rows of E' and r
         X_basis = fit_joint_basis(rev, consts, lambda E, r: sp.transform_matrix(np, E, r).reshape(-1, 36))
-        # numpy: one stacked (1 x 3) @ (3 x 36) product per joint; torch (whose small stacked
-        # products are slow on the CPU): three term rows (3, M, 36) combined by addcmul
+        # (M, 3, 36); for torch (3, M, 36), rows for addcmul (see aba._transform_matrices)
         self.X_basis = f(X_basis if xp is np else np.ascontiguousarray(X_basis.transpose(1, 0, 2)))
         # leaves never change their articulated inertia: U = I S, d = S'U and Ia = I - U U'/d are
         # constants, and what a leaf passes to its parent, Xup' Ia Xup, is a fixed combination of
@@ -184,8 +183,10 @@ class Model:
         self.leaf_P = f(leaf_P)
         # symmetric matrices are summed as their 21 upper entries (less memory to stream) and
         # expanded to 6x6 after
-        upper = np.flatnonzero(np.triu(np.ones((6, 6), dtype=bool)))
-        self.sym_expand = bk.index(xp, np.searchsorted(upper, np.minimum.outer(np.arange(6), np.arange(6)) * 6 + np.maximum.outer(np.arange(6), np.arange(6))).reshape(-1), device=device)
+        upper = np.flatnonzero(np.triu(np.ones((6, 6), dtype=bool)))  # flat positions i <= j
+        i, j = np.indices((6, 6))
+        mirrored = np.minimum(i, j) * 6 + np.maximum(i, j)  # entry (i, j) of a symmetric matrix
+        self.sym_expand = bk.index(xp, np.searchsorted(upper, mirrored).reshape(-1), device=device)
         self.leaf_P_varying = f(np.ascontiguousarray(leaf_P[:, 1:, upper]))  # terms cos q .. sin 2q (q .. q^2)
         # the rigid inertias of the roots and inner bodies, plus their leaves' constant terms
         inner = np.einsum("ni,ij->nij", self.inertia_diag_np[:L], np.eye(6))

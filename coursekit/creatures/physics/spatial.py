@@ -69,13 +69,6 @@ def cross_force(xp, v, f, axis=-1):
     return xp.concat([cross3(xp, w, n, axis) + cross3(xp, u, fl, axis), cross3(xp, w, fl, axis)], axis=axis)
 
 
-def rigid_bias_force(xp, v, I, axis=-1):
-    """``v x* (I v)`` for body-frame diagonal inertias ``I = (Ixx, Iyy, Izz, m, m, m)`` at the centre
-    of mass: ``(w x (I_w w), m (w x u))`` (the ``u x m u`` term vanishes); 6-vectors along ``axis``."""
-    (w, u), (Iw, Im) = _halves(v, axis), _halves(I, axis)
-    return xp.concat([cross3(xp, w, Iw * w, axis), Im * cross3(xp, w, u, axis)], axis=axis)
-
-
 def transform_motion(xp, E, r, m):
     """``X @ m`` for the transform ``X = (E, r)``."""
     mw, mu = m[..., :3], m[..., 3:]

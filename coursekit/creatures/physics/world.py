@@ -171,7 +171,7 @@ class World:
         for i in range(self.substeps):
             if self.contacts is not None:
                 s = self.state
-                rows = poses_rows(m, sp.quat_to_mat(xp, s.quat), s.pos, s.q)
+                rows = poses_rows(m, sp.quat_to_mat(xp, s.quat), s.pos, s.q) if self.contacts.n_pairs else None
                 self.active_contacts, self.contact_sensors = self.contacts.begin(s, rows)
                 if self.active_contacts is not None:  # the first stage's poses (it passes s.q on)
                     self._poses_q, self._poses = s.q, pose_stacks(xp, rows)
