@@ -225,19 +225,20 @@ class Contacts:
         """
         xp, m = self.xp, self.model
         a, b = active["a"], active["b"]
-        Ra, Rb = R[a], R[b]
-        xa = sp.mv(Ra, active["xa"]) + p[a]
-        xb = sp.mv(Rb, active["xb"]) + p[b]
+        take = lambda x, i: xp.take(x, i, axis=0)  # noqa: E731  (several times faster than x[i])
+        Ra, Rb, pa, pb, v_a, v_b = take(R, a), take(R, b), take(p, a), take(p, b), take(v, a), take(v, b)
+        xa = sp.mv(Ra, active["xa"]) + pa
+        xb = sp.mv(Rb, active["xb"]) + pb
         n = sp.mv(Ra, active["n"])
         depth = xp.minimum(active["depth"] + xp.vecdot(n, xa - xb), active["cap"])
-        va = sp.mv(Ra, v[a, 3:] + sp.cross3(xp, v[a, :3], active["xa"]))
-        vb = sp.mv(Rb, v[b, 3:] + sp.cross3(xp, v[b, :3], active["xb"]))
+        va = sp.mv(Ra, v_a[:, 3:] + sp.cross3(xp, v_a[:, :3], active["xa"]))
+        vb = sp.mv(Rb, v_b[:, 3:] + sp.cross3(xp, v_b[:, :3], active["xb"]))
         vn = xp.vecdot(vb - va, n)
         mag = xp.clip(active["k"] * depth - active["c"] * vn, 0.0, None)
         F = mag[:, None] * n
         mid = 0.5 * (xa + xb)
         f = xp.zeros((m.n_bodies, 6), dtype=xp.float64, device=m.device)
         body, Rw, Fw = xp.concat([b, a]), xp.concat([Rb, Ra]), xp.concat([F, -F])  # B pushed along +n
-        moment = sp.cross3(xp, xp.concat([mid, mid]) - p[body], Fw)
+        moment = sp.cross3(xp, xp.concat([mid, mid]) - xp.concat([pb, pa]), Fw)
         bk.scatter_add(xp, f, body, xp.concat([sp.mtv(Rw, moment), sp.mtv(Rw, Fw)], axis=1))
         return f
