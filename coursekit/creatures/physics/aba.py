@@ -228,9 +228,9 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
     v, c, pA = _velocities_and_bias(model, Xup, v0, qd, v)
     I = model.inertia_diag
     if damping is not None:
-        pA = pA + damping * v
+        pA += damping * v
     if f_ext is not None:
-        pA = pA - f_ext
+        pA -= f_ext
     Uc = xp.vecdot(U, c)
     jl, ji = slice(L - C, None), slice(0, L - C)
     # leaves, all at once (their IA is the diagonal I)
@@ -238,8 +238,11 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
     pa = pA[L:] + I[L:] * c[jl] + U[jl] * ((ul - Uc[jl]) / d[jl])[:, None]
     # what does not depend on the sweep -- the leaves' Xup' pa and the inner joints' h -- is
     # summed into the parents at once; the inner levels then pass Z' pA on
-    h = sp.mtv(Yt, c[ji]) + W[ji] * (tau[ji] - Uc[ji])[:, None]
-    model.joint_segments.add_into(pA, xp.concat([h, sp.mtv(Xup[jl], pa)], axis=0))
+    g = xp.empty_like(c)  # h of the inner joints, Xup' pa of the leaves
+    h = sp.mtv(Yt, c[ji], out=g[ji])
+    h += W[ji] * (tau[ji] - Uc[ji])[:, None]
+    sp.mtv(Xup[jl], pa, out=g[jl])
+    model.joint_segments.add_into(pA, g)
     for s, e, _, seg in reversed(model.levels):
         seg.add_into(pA, sp.mtv(Z[s - C : e - C], pA[s:e]))
     ud = (tau - xp.vecdot(S, pA[C:]) - Uc) / d  # (u - U'c) / d
