@@ -167,8 +167,9 @@ def mat_to_quat(R: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------- SO(3) chart for the integrator
 
 
-def _dexp_coefficients(xp, theta, derivatives=True):
-    """alpha = (1 - cos p)/p^2, beta = (p - sin p)/p^3 and (with ``derivatives``) their
+def chart_coefficients(xp, theta, derivatives=True):
+    """The coefficients of ``dexp`` and its companions at ``theta`` (for :func:`chart_rates`):
+    alpha = (1 - cos p)/p^2, beta = (p - sin p)/p^3 and (with ``derivatives``) their
     derivatives over p, divided by p, and gamma = (1 - (p/2) cot(p/2)) / p^2 (of ``dexp_inv``);
     each (..., 1)."""
     p2 = xp.vecdot(theta, theta)[..., None]
@@ -195,7 +196,7 @@ def dexp(xp, theta, theta_dot):
 
     ``omega = theta_dot - alpha theta x theta_dot + beta theta x (theta x theta_dot)``.
     """
-    alpha, beta = _dexp_coefficients(xp, theta, derivatives=False)
+    alpha, beta = chart_coefficients(xp, theta, derivatives=False)
     t1 = cross3(xp, theta, theta_dot)
     return theta_dot - alpha * t1 + beta * cross3(xp, theta, t1)
 
@@ -205,16 +206,11 @@ def dexp_dot(xp, theta, theta_dot):
     return chart_rates(xp, theta, theta_dot)[1]
 
 
-def chart_coefficients(xp, theta):
-    """The coefficients of ``dexp`` and its companions at ``theta`` (for :func:`chart_rates`)."""
-    return _dexp_coefficients(xp, theta)
-
-
 def chart_rates(xp, theta, theta_dot, coefficients=None):
     """``dexp(theta) theta_dot``, ``dexp_dot(theta, theta_dot)`` and ``gamma`` (for
     :func:`dexp_inv`), sharing one set of coefficients (:func:`chart_coefficients` at ``theta``,
     computed here unless given)."""
-    alpha, beta, dalpha, dbeta, gamma = _dexp_coefficients(xp, theta) if coefficients is None else coefficients
+    alpha, beta, dalpha, dbeta, gamma = chart_coefficients(xp, theta) if coefficients is None else coefficients
     pdot = xp.vecdot(theta, theta_dot)[..., None]  # p * dp/dt
     t1 = cross3(xp, theta, theta_dot)
     t2 = cross3(xp, theta, t1)
@@ -228,6 +224,6 @@ def dexp_inv(xp, theta, omega, gamma=None):
     """Solve ``dexp(theta) @ x = omega`` for ``x`` (exactly, by the closed-form inverse);
     ``gamma`` from :func:`chart_rates` at this ``theta`` when known."""
     if gamma is None:
-        gamma = _dexp_coefficients(xp, theta)[4]
+        gamma = chart_coefficients(xp, theta)[4]
     t1 = cross3(xp, theta, omega)
     return omega + 0.5 * t1 + gamma * cross3(xp, theta, t1)
