@@ -155,16 +155,14 @@ def body_velocities(model, X, v0, qd):
 
 
 def articulated_inertias(model, q):
-    """The velocity-independent half of the ABA: ``(Xup, IA, U, d, W, Z, Yt, Lt)`` at ``q``.
+    """The velocity-independent half of the ABA: ``(Xup, IA, U, d, W, Z, Yt)`` at ``q``.
 
     ``Xup`` (M, 6, 6) are the joint transforms; ``IA`` (L, 6, 6) the articulated inertias of the
     roots and inner bodies (a leaf's is its rigid inertia), ``U = IA S`` and ``d = S' U`` (M,)
     per joint, ``W = Xup' U / d`` (M, 6) and, for the inner joints, ``Z = Xup - S W'`` and
     ``Yt = IA Xup`` (L - C, 6, 6). Each child passes ``Xup' (IA - U U' / d) Xup = Yt' Z`` to its
     parent. (``IA`` is symmetric, so ``U = IA S`` is computed as ``S' IA`` and ``Yt`` is the
-    transpose of ``Xup' IA``: numpy's stacked ``x' A`` is faster than its ``A x``.) ``Lt`` is the
-    Cholesky factor of the roots' ``IA``, component-major (6, 6, C), for :func:`_root_solve`
-    (``None`` if some root's ``IA`` is not positive definite: a diverging creature).
+    transpose of ``Xup' IA``: numpy's stacked ``x' A`` is faster than its ``A x``.)
     They depend on the positions only, so the Nyström stages 2 and 3, which share positions,
     share them.
     """
@@ -192,32 +190,7 @@ def articulated_inertias(model, q):
         Wj /= dj[:, None]
         Zj = xp.subtract(X, sp.outer(xp, Sj, Wj), out=Z[j])
         seg.add_into(IA, xp.matmul(xp.matmul(IAj, X, out=Yt[j]).mT, Zj))
-    try:
-        Lt = bk.contiguous(xp, xp.permute_dims(xp.linalg.cholesky(IA[:C]), (1, 2, 0)))
-    except (np.linalg.LinAlgError, RuntimeError):  # torch's error is a RuntimeError
-        Lt = None
-    return Xup, IA, U, d, W, Z, Yt, Lt
-
-
-def _root_solve(xp, IA0, Lt, p):
-    """``IA0^-1 p`` for the roots: two triangular solves with the Cholesky factor ``Lt`` (a few
-    whole-row operations; several times cheaper than a stacked LU solve), or ``solve``."""
-    if Lt is None:
-        return xp.linalg.solve(IA0, p[:, :, None])[:, :, 0]
-    pt = p.T
-    y = []
-    for k in range(6):  # L y = p
-        acc = pt[k]
-        for j in range(k):
-            acc = acc - Lt[k, j] * y[j]
-        y.append(acc / Lt[k, k])
-    x = [None] * 6
-    for k in range(5, -1, -1):  # L' x = y
-        acc = y[k]
-        for j in range(k + 1, 6):
-            acc = acc - Lt[j, k] * x[j]
-        x[k] = acc / Lt[k, k]
-    return xp.stack(x, axis=1)
+    return Xup, IA, U, d, W, Z, Yt
 
 
 def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None):
@@ -250,7 +223,7 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None):
 def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
-    Xup, IA, U, d, W, Z, Yt, Lt = articulated_inertias(model, q) if inertias is None else inertias
+    Xup, IA, U, d, W, Z, Yt = articulated_inertias(model, q) if inertias is None else inertias
     S = model.S
     v, c, pA = _velocities_and_bias(model, Xup, v0, qd, v)
     I = model.inertia_diag
@@ -274,7 +247,7 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
         seg.add_into(pA, sp.mtv(Z[s - C : e - C], pA[s:e]))
     ud = (tau - xp.vecdot(S, pA[C:]) - Uc) / d  # (u - U'c) / d
 
-    a0 = -_root_solve(xp, IA[:C], Lt, pA[:C])
+    a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
     a = xp.concat([a0, c[ji] + S[ji] * ud[ji][:, None]], axis=0)  # each body then adds Z a_parent
     for s, e, par, _ in model.levels:
         a[s:e] += sp.mv(Z[s - C : e - C], xp.take(a, par, axis=0))
