@@ -166,8 +166,9 @@ class World:
     def step(self) -> None:
         """Advance the whole batch by ``dt``."""
         xp, m = self.xp, self.model
-        jfrozen = bk.asarray(xp, self.diverged, dtype=xp.bool, device=m.device)[self._joint_creature]
-        self.tau = xp.where(jfrozen, xp.zeros_like(self.tau), self.tau)
+        if self.diverged.any():  # frozen creatures feel no joint forces
+            jfrozen = xp.take(bk.asarray(xp, self.diverged, dtype=xp.bool, device=m.device), self._joint_creature, axis=0)
+            self.tau = xp.where(jfrozen, xp.zeros_like(self.tau), self.tau)
         for i in range(self.substeps):
             if self.contacts is not None:
                 s = self.state
