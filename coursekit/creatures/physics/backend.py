@@ -94,20 +94,18 @@ class Segments:
     def add_into(self, target, values) -> None:
         """``target[parent[k]] += values[k]`` for every child ``k`` (in place); ``values`` may be
         flattened per row."""
-        if values.shape[0] == 0:
+        n = values.shape[0]
+        if n == 0:
             return
-        shape = tuple(target.shape[1:])
         if self.torch:
-            target.index_put_((self.parent,), values.reshape((-1,) + shape), accumulate=True)
+            target.index_put_((self.parent,), values.reshape((-1,) + tuple(target.shape[1:])), accumulate=True)
+            return
+        rows = target[self.start : self.stop]
+        if _csr_matvecs is not None and values.dtype == rows.dtype == np.float64 and values.flags.c_contiguous and rows.flags.c_contiguous:
+            A = self.matrix  # called once per tree level and sweep: kept lean
+            _csr_matvecs(A.shape[0], n, values.size // n, A.indptr, A.indices, A.data, values.reshape(-1), rows.reshape(-1))
         else:
-            n = values.shape[0]
-            x = np.ascontiguousarray(values, dtype=np.float64).reshape(n, -1)
-            rows = target[self.start : self.stop]
-            if _csr_matvecs is not None and target.dtype == np.float64 and rows.flags.c_contiguous:
-                A = self.matrix
-                _csr_matvecs(A.shape[0], n, x.shape[1], A.indptr, A.indices, A.data, x.reshape(-1), rows.reshape(-1))
-            else:
-                rows += (self.matrix @ x).reshape((-1,) + shape)
+            rows += (self.matrix @ np.asarray(values, dtype=np.float64).reshape(n, -1)).reshape(rows.shape)
 
     def add_weighted(self, target, weights, values) -> None:
         """``target[parent[k]] += sum_t weights[k, t] values[k, t]`` (in place) for (n, k) weights
