@@ -138,7 +138,7 @@ def test_bad_options_are_refused():
 
 def test_rkn_stages_two_and_three_share_their_articulated_inertias(monkeypatch):
     # the Nystrom stages 2 and 3 are evaluated at the same positions: one inertia sweep for both
-    import coursekit.creatures.physics.world as world
+    from coursekit.creatures.physics import world
 
     calls = []
     inertias = world.articulated_inertias
