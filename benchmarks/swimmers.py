@@ -6,7 +6,8 @@ stepping the very same exported creatures (``to_mjcf``, all creatures in one mod
 integrator, the same step and one thread, and the ratio. Ours runs the full swimmer physics
 (water drag, joint-limit springs; self-collisions in a separate row); MuJoCo runs the exported
 articulated bodies (joint limits as constraints, no fluid, no contacts). Times are the best
-window of process CPU time (see ``_timed``), so other jobs on a shared machine disturb them little.
+window of process CPU time, the engines taking turns window by window (see ``_timed``), so other
+jobs on a shared machine disturb them little and disturb all engines alike.
 
 Our numpy simulator spends much of its time in stacked 6x6 products (``np.matmul`` on stacks): a
 forced ``OPENBLAS_CORETYPE`` (set on some machines to dodge bugs of old OpenBLAS builds) makes
@@ -43,27 +44,33 @@ def _population(n: int, seed: int = 0):
     return trees, states
 
 
-def _timed(step, seconds: float, window: float = 0.25, clock=time.process_time) -> float:
-    """Seconds per call: the best of repeated windows of about ``window`` seconds.
+def _timed(steps: dict, seconds: float, window: float = 0.25, clock=time.process_time) -> dict:
+    """Seconds per call of every function in ``steps``: the best of repeated windows of about
+    ``window`` seconds, the engines taking turns window by window (about ``seconds`` each).
 
     CPU engines are timed by this process's CPU time (every engine runs on one thread): with the
-    best window, the figures are robust to other jobs sharing the machine, and all engines are
-    measured the same way. CUDA runs use wall time with a synchronisation after every step.
+    best window, and all engines measured in the same stretches of time, the ratios are robust to
+    other jobs sharing the machine. CUDA runs use wall time with a synchronisation after every step.
     """
-    step()  # warm up
-    t0 = clock()
-    step()
-    k = max(1, round(window / max(clock() - t0, 1e-6)))
-    best, start = float("inf"), clock()
-    while best == float("inf") or clock() - start < seconds:
+    reps = {}
+    for name, step in steps.items():
+        step()  # warm up
         t0 = clock()
-        for _ in range(k):
-            step()
-        best = min(best, (clock() - t0) / k)
+        step()
+        reps[name] = max(1, round(window / max(clock() - t0, 1e-6)))
+    best = dict.fromkeys(steps, float("inf"))
+    start = clock()
+    while float("inf") in best.values() or clock() - start < seconds * len(steps):
+        for name, step in steps.items():
+            t0 = clock()
+            for _ in range(reps[name]):
+                step()
+            best[name] = min(best[name], (clock() - t0) / reps[name])
     return best
 
 
-def bench_ours(trees, states, backend, seconds, device=None, contacts=False):
+def ours(trees, states, backend, device=None, contacts=False):
+    """One step of our simulator on the population (a function to time)."""
     w = World(trees, dt=DT, backend=backend, device=device, contacts=contacts)
     w.set_state([s[0] for s in states], [s[1] for s in states])
     if device is not None and "cuda" in str(device):
@@ -73,25 +80,25 @@ def bench_ours(trees, states, backend, seconds, device=None, contacts=False):
             w.step()
             torch.cuda.synchronize()
 
-        return _timed(step, seconds, clock=time.perf_counter)
-    return _timed(w.step, seconds)
+        return step
+    return w.step
 
 
-def bench_mujoco(trees, states, seconds):
+def mujoco_step(trees, states):
+    """One RK4 step of MuJoCo on the same creatures, exported into one model (a function to time)."""
     import mujoco
 
     model = mujoco.MjModel.from_xml_string(to_mjcf(trees, timestep=DT, integrator="RK4"))
     data = mujoco.MjData(model)
     data.qpos[:] = np.concatenate([s[0] for s in states])
     data.qvel[:] = np.concatenate([s[1] for s in states])
-    per_step = _timed(lambda: mujoco.mj_step(model, data), seconds)
-    return per_step
+    return lambda: mujoco.mj_step(model, data)
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--batches", type=int, nargs="+", default=[1, 30, 300])
-    ap.add_argument("--seconds", type=float, default=2.0, help="wall time per measurement")
+    ap.add_argument("--seconds", type=float, default=2.0, help="CPU time per engine and batch")
     args = ap.parse_args(argv)
     import torch
 
@@ -100,15 +107,15 @@ def main(argv=None) -> None:
     for batch in args.batches:
         trees, states = _population(batch)
         bodies = sum(t.n_bodies for t in trees)
-        ref = bench_mujoco(trees, states, args.seconds)
-        rows.append((batch, bodies, "mujoco RK4 (1 thread)", ref, ref))
-        configs = [("numpy", None, False), ("numpy", None, True), ("torch", "cpu", False)]
-        if torch.cuda.is_available():
-            configs.append(("torch", "cuda", False))
-        for backend, device, contacts in configs:
-            t = bench_ours(trees, states, backend, args.seconds, device=device, contacts=contacts)
+        steps = {"mujoco RK4 (1 thread)": mujoco_step(trees, states)}
+        for backend, device, contacts in [("numpy", None, False), ("numpy", None, True), ("torch", "cpu", False)]:
             name = f"ours {backend}{'/' + device if device else ''} RKN{' +collisions' if contacts else ''}"
-            rows.append((batch, bodies, name, t, ref))
+            steps[name] = ours(trees, states, backend, device=device, contacts=contacts)
+        times = _timed(steps, args.seconds)
+        if torch.cuda.is_available():
+            times.update(_timed({"ours torch/cuda RKN": ours(trees, states, "torch", device="cuda")}, args.seconds, clock=time.perf_counter))
+        ref = times["mujoco RK4 (1 thread)"]
+        rows += [(batch, bodies, name, t, ref) for name, t in times.items()]
     print(f"step dt = {DT:.5f} s, random creatures of 10-20 boxes; ratio = our body-steps/s over MuJoCo's")
     print(f"numpy {np.__version__}, OPENBLAS_CORETYPE={os.environ.get('OPENBLAS_CORETYPE', '(unset)')}; best-window CPU time per step\n")
     print(f"{'batch':>5} {'bodies':>6}  {'engine':<34} {'ms/step':>9} {'body-steps/s':>13} {'creature-steps/s':>17} {'ratio':>6}")

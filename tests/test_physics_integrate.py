@@ -134,3 +134,19 @@ def test_bad_options_are_refused():
     w = World([tree])
     with pytest.raises(ValueError, match="effector"):
         w.set_effectors(np.zeros(5))
+
+
+def test_rkn_stages_two_and_three_share_their_articulated_inertias(monkeypatch):
+    # the Nystrom stages 2 and 3 are evaluated at the same positions: one inertia sweep for both
+    from coursekit.creatures.physics import world
+
+    calls = []
+    inertias = world.articulated_inertias
+    monkeypatch.setattr(world, "articulated_inertias", lambda m, q: calls.append(1) or inertias(m, q))
+    w, _, _ = _world(5)
+    w.step()
+    assert len(calls) == 3 * w.substeps
+    w.integrator = "rk4"  # classic RK4: stages 2 and 3 have different positions
+    calls.clear()
+    w.step()
+    assert len(calls) == 4 * w.substeps

@@ -28,7 +28,7 @@ import numpy as np
 
 from . import backend as bk
 from . import spatial as sp
-from .aba import forward_kinematics, poses_rows
+from .aba import forward_kinematics, pose_stacks, poses_rows
 
 #: Default ``dt * w`` of the contact springs (see the module docstring for why it is lower than the limits').
 CONTACT_STIFFNESS_PER_STEP = 0.1
@@ -175,8 +175,12 @@ class Contacts:
         vB = xp.take(pt, b, axis=1) - xp.sum(B * (hB * _sign(xp, xp.sum(B * nrm[:, None], axis=0)))[None], axis=1)
         return sel[hit], a, b, bk.contiguous(xp, nrm.T), depth, bk.contiguous(xp, (0.5 * (vA + vB)).T)
 
-    def begin(self, state):
+    def begin(self, state, rows=None):
         """Detect the contacts of a step at its start and freeze their geometry.
+
+        Args:
+            state: the step's start.
+            rows: optional :func:`~coursekit.creatures.physics.aba.poses_rows` at ``state`` (reused).
 
         Returns:
             ``(active, sensors)``: the frozen contact set for :meth:`wrench` (``None`` when no pair
@@ -186,12 +190,11 @@ class Contacts:
         sensors = -xp.ones((m.n_bodies, 6), dtype=xp.float64, device=m.device)
         if self.n_pairs == 0:
             return None, sensors
-        R0 = sp.quat_to_mat(xp, state.quat)
-        Rr, pr = poses_rows(m, R0, state.pos, state.q)
+        Rr, pr = poses_rows(m, sp.quat_to_mat(xp, state.quat), state.pos, state.q) if rows is None else rows
         pair_idx, a, b, n, depth, x = self._detect_rows(xp.reshape(Rr, (9, m.n_bodies)), pr)
         if a.shape[0] == 0:
             return None, sensors
-        R, p = bk.contiguous(xp, xp.permute_dims(Rr, (2, 0, 1))), bk.contiguous(xp, pr.T)
+        R, p = pose_stacks(xp, (Rr, pr))
         for body, direction in ((b, -n), (a, n)):
             dl = sp.mtv(R[body], direction)  # contact direction in the box frame
             k = xp.argmax(xp.abs(dl), axis=1)
@@ -222,19 +225,20 @@ class Contacts:
         """
         xp, m = self.xp, self.model
         a, b = active["a"], active["b"]
-        Ra, Rb = R[a], R[b]
-        xa = sp.mv(Ra, active["xa"]) + p[a]
-        xb = sp.mv(Rb, active["xb"]) + p[b]
+        take = lambda x, i: xp.take(x, i, axis=0)  # noqa: E731  (several times faster than x[i])
+        Ra, Rb, pa, pb, v_a, v_b = take(R, a), take(R, b), take(p, a), take(p, b), take(v, a), take(v, b)
+        xa = sp.mv(Ra, active["xa"]) + pa
+        xb = sp.mv(Rb, active["xb"]) + pb
         n = sp.mv(Ra, active["n"])
         depth = xp.minimum(active["depth"] + xp.vecdot(n, xa - xb), active["cap"])
-        va = sp.mv(Ra, v[a, 3:] + sp.cross3(xp, v[a, :3], active["xa"]))
-        vb = sp.mv(Rb, v[b, 3:] + sp.cross3(xp, v[b, :3], active["xb"]))
+        va = sp.mv(Ra, v_a[:, 3:] + sp.cross3(xp, v_a[:, :3], active["xa"]))
+        vb = sp.mv(Rb, v_b[:, 3:] + sp.cross3(xp, v_b[:, :3], active["xb"]))
         vn = xp.vecdot(vb - va, n)
         mag = xp.clip(active["k"] * depth - active["c"] * vn, 0.0, None)
         F = mag[:, None] * n
         mid = 0.5 * (xa + xb)
         f = xp.zeros((m.n_bodies, 6), dtype=xp.float64, device=m.device)
         body, Rw, Fw = xp.concat([b, a]), xp.concat([Rb, Ra]), xp.concat([F, -F])  # B pushed along +n
-        moment = sp.cross3(xp, xp.concat([mid, mid]) - p[body], Fw)
+        moment = sp.cross3(xp, xp.concat([mid, mid]) - xp.concat([pb, pa]), Fw)
         bk.scatter_add(xp, f, body, xp.concat([sp.mtv(Rw, moment), sp.mtv(Rw, Fw)], axis=1))
         return f

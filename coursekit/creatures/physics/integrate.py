@@ -31,6 +31,7 @@ the library's own result to round-off.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -79,76 +80,82 @@ def step(xp, state: State, h: float, accel, method="rkn", t: float = 0.0) -> Sta
     if not callable(method) and method not in INTEGRATORS:
         raise ValueError(f"integrator: got {method!r}; allowed: {', '.join(INTEGRATORS)} or a function rkn_step(f, t, y, v, h)")
     quat0 = state.quat
-
-    def f(y, yd):
-        pos, theta, q = y
-        lin, theta_d, qd = yd
-        R = sp.quat_to_mat(xp, sp.quat_mul(xp, quat0, sp.quat_exp(xp, theta)))
-        omega = sp.dexp(xp, theta, theta_d)
-        la, wd, qdd = accel(pos, R, q, lin, omega, qd)
-        theta_dd = sp.dexp_inv(xp, theta, wd - sp.dexp_dot(xp, theta, theta_d))
-        return (la, theta_dd, qdd)
-
     y = (state.pos, xp.zeros_like(state.omega), state.q)
     yd = (state.lin, state.omega, state.qd)
+    # the chart coordinates and their rates, each packed into one flat vector (the integrators'
+    # linear combinations are then one array operation per term)
+    shapes = [tuple(a.shape) for a in y]
+    cut = list(itertools.accumulate((math.prod(s) for s in shapes), initial=0))
+    pack = lambda parts: xp.concat([xp.reshape(a, (-1,)) for a in parts])  # noqa: E731
+    unpack = lambda flat: tuple(xp.reshape(flat[cut[i] : cut[i + 1]], shapes[i]) for i in range(3))  # noqa: E731
+
+    # what depends on the positions alone, for the last y seen: stages that share positions (RKN
+    # 2 and 3) share the unpacked arrays (the same q lets the world reuse its inertias), the root
+    # rotation and the chart's coefficients
+    last = [None, None, None, None]
+
+    def f(y_flat, yd_flat, start=False):
+        if start:  # theta = 0: the chart is the identity map there (and the state's own arrays)
+            return pack(accel(state.pos, sp.quat_to_mat(xp, quat0), state.q, state.lin, state.omega, state.qd))
+        if y_flat is not last[0]:
+            y = unpack(y_flat)
+            R = sp.quat_to_mat(xp, sp.quat_mul(xp, quat0, sp.quat_exp(xp, y[1])))
+            last[:] = y_flat, y, R, sp.chart_coefficients(xp, y[1])
+        (pos, theta, q), R, coefficients = last[1:]
+        lin, theta_d, qd = unpack(yd_flat)
+        omega, curvature, gamma = sp.chart_rates(xp, theta, theta_d, coefficients)
+        la, wd, qdd = accel(pos, R, q, lin, omega, qd)
+        return pack((la, sp.dexp_inv(xp, theta, wd - curvature, gamma), qdd))
 
     if callable(method):
-        y_new, yd_new = _plugged_step(xp, method, f, t, y, yd, h)
+        y_new, yd_new = _plugged_step(method, f, t, pack(y), pack(yd), h)
     else:
-        y_new, yd_new = _builtin_step(f, y, yd, h, method)
-    pos, theta, q = y_new
-    lin_v, theta_d, qd = yd_new
+        y_new, yd_new = (_nystrom if method == "rkn" else _rk4)(f, pack(y), pack(yd), h)
+    (pos, theta, q), (lin_v, theta_d, qd) = unpack(y_new), unpack(yd_new)
     quat = sp.quat_canonical(xp, sp.quat_mul(xp, quat0, sp.quat_exp(xp, theta)))
     return State(pos, quat, q, lin_v, sp.dexp(xp, theta, theta_d), qd)
 
 
-def _builtin_step(f, y, yd, h, method):
-    lin = lambda *terms: tuple(sum(c * t[i] for c, t in terms) for i in range(3))  # noqa: E731
-    a1 = f(y, yd)
-    if method == "rkn":
-        y2 = lin((1, y), (h / 2, yd), (h * h / 8, a1))
-        yd2 = lin((1, yd), (h / 2, a1))
-        a2 = f(y2, yd2)
-        yd3 = lin((1, yd), (h / 2, a2))
-        a3 = f(y2, yd3)
-        y4 = lin((1, y), (h, yd), (h * h / 2, a3))
-        yd4 = lin((1, yd), (h, a3))
-        a4 = f(y4, yd4)
-        y_new = lin((1, y), (h, yd), (h * h / 6, a1), (h * h / 6, a2), (h * h / 6, a3))
-    else:
-        yd2 = lin((1, yd), (h / 2, a1))
-        a2 = f(lin((1, y), (h / 2, yd)), yd2)
-        yd3 = lin((1, yd), (h / 2, a2))
-        a3 = f(lin((1, y), (h / 2, yd2)), yd3)
-        yd4 = lin((1, yd), (h, a3))
-        a4 = f(lin((1, y), (h, yd3)), yd4)
-        y_new = lin((1, y), (h / 6, yd), (h / 3, yd2), (h / 3, yd3), (h / 6, yd4))
-    yd_new = lin((1, yd), (h / 6, a1), (h / 3, a2), (h / 3, a3), (h / 6, a4))
-    return y_new, yd_new
+def _nystrom(f, y, yd, h):
+    a1 = f(y, yd, start=True)
+    y2 = y + (h / 2) * yd + (h * h / 8) * a1
+    a2 = f(y2, yd + (h / 2) * a1)
+    a3 = f(y2, yd + (h / 2) * a2)
+    a4 = f(y + h * yd + (h * h / 2) * a3, yd + h * a3)
+    y_new = y + h * yd + (h * h / 6) * (a1 + a2 + a3)
+    return y_new, yd + (h / 6) * (a1 + a4) + (h / 3) * (a2 + a3)
 
 
-def _plugged_step(xp, rkn_step, f, t, y, yd, h):
-    """Apply a user's ``rkn_step(f, t, y, v, h)`` to the chart coordinates packed into flat vectors."""
-    shapes = [tuple(a.shape) for a in y]
-    sizes = [math.prod(s) for s in shapes]
-    cut = [0, sizes[0], sizes[0] + sizes[1], sum(sizes)]
-    pack = lambda parts: xp.concat([xp.reshape(a, (-1,)) for a in parts])  # noqa: E731
-    unpack = lambda flat: tuple(xp.reshape(flat[cut[i]:cut[i + 1]], shapes[i]) for i in range(3))  # noqa: E731
+def _rk4(f, y, yd, h):
+    a1 = f(y, yd, start=True)
+    yd2 = yd + (h / 2) * a1
+    a2 = f(y + (h / 2) * yd, yd2)
+    yd3 = yd + (h / 2) * a2
+    a3 = f(y + (h / 2) * yd2, yd3)
+    yd4 = yd + h * a3
+    a4 = f(y + h * yd3, yd4)
+    y_new = y + (h / 6) * (yd + yd4) + (h / 3) * (yd2 + yd3)
+    return y_new, yd + (h / 6) * (a1 + a4) + (h / 3) * (a2 + a3)
+
+
+def _plugged_step(rkn_step, f, t, y, yd, h):
+    """Apply a user's ``rkn_step(f, t, y, v, h)`` to the packed chart coordinates."""
+    n = y.shape[0]
 
     def g(_t, y_flat, v_flat):
         for name, a in (("y", y_flat), ("v", v_flat)):
-            if tuple(getattr(a, "shape", ())) != (cut[3],):
+            if tuple(getattr(a, "shape", ())) != (n,):
                 raise ValueError(f"integrator: {_name(rkn_step)} called f with {name} of shape "
-                                 f"{tuple(getattr(a, 'shape', ()))}; expected ({cut[3]},), like the y and v it was given")
-        return pack(f(unpack(y_flat), unpack(v_flat)))
+                                 f"{tuple(getattr(a, 'shape', ()))}; expected ({n},), like the y and v it was given")
+        return f(y_flat, v_flat)
 
-    out = rkn_step(g, float(t), pack(y), pack(yd), float(h))
+    out = rkn_step(g, float(t), y, yd, float(h))
     if not (isinstance(out, (tuple, list)) and len(out) == 2):
         raise ValueError(f"integrator: {_name(rkn_step)} returned {type(out).__name__}; expected a pair (y_next, v_next)")
     for name, a in zip(("y_next", "v_next"), out):
-        if tuple(getattr(a, "shape", ())) != (cut[3],):
-            raise ValueError(f"integrator: {_name(rkn_step)} returned {name} of shape {tuple(getattr(a, 'shape', ()))}; expected ({cut[3]},)")
-    return unpack(out[0]), unpack(out[1])
+        if tuple(getattr(a, "shape", ())) != (n,):
+            raise ValueError(f"integrator: {_name(rkn_step)} returned {name} of shape {tuple(getattr(a, 'shape', ()))}; expected ({n},)")
+    return out[0], out[1]
 
 
 def _name(fn):

@@ -80,13 +80,11 @@ def effective_inertia(model) -> np.ndarray:
 
 def limit_forces(xp, q, qd, lo, hi, k, b):
     """Spring-damper joint forces (M,) of joints beyond their limits ``lo``/``hi``."""
-    zero = xp.zeros_like(q)
-    pen = xp.where(q > hi, q - hi, xp.where(q < lo, q - lo, zero))
-    return -k * pen - xp.where(pen != 0, b * qd, zero)
+    pen = q - xp.minimum(xp.maximum(q, lo), hi)  # the penetration beyond the limit, 0 inside
+    return -k * pen - xp.where(pen != 0, b * qd, xp.zeros_like(q))
 
 
 def limit_energy(xp, q, lo, hi, k):
     """Potential energy stored in the limit springs, per joint."""
-    zero = xp.zeros_like(q)
-    pen = xp.where(q > hi, q - hi, xp.where(q < lo, q - lo, zero))
+    pen = q - xp.minimum(xp.maximum(q, lo), hi)
     return 0.5 * k * pen * pen

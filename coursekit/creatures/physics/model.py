@@ -105,6 +105,7 @@ class Model:
         self.leaf_parent = bk.index(xp, par[L:], device=device)
         self.joint_parent = bk.index(xp, par[C:], device=device)
         self.leaf_segments = bk.Segments(xp, par[L:], (0, L), device=device)
+        self.joint_segments = bk.Segments(xp, par[C:], (0, L), device=device)  # every joint into its parent
         # joints: sorted body C + j; user layout: creature-concatenated BodyTree order (bodies 1..)
         packed_joint = np.concatenate([np.arange(f + 1, f + n) for f, n in zip(first, sizes)])
         self.joint_order = new_pos[packed_joint] - C  # user joint k -> internal joint row
@@ -137,8 +138,12 @@ class Model:
         f = lambda a: bk.asarray(xp, a, device=device)  # noqa: E731
         self.inertia_diag = f(self.inertia_diag_np)
         self.S = f(S)
-        self.S_t = f(S.T)  # component-major copies for the cross products
-        self.inertia_diag_t = f(self.inertia_diag_np.T)
+        # rolled components for the cross products of aba._velocities_and_bias
+        roll1, roll2 = [1, 2, 0, 4, 5, 3], [2, 0, 1, 5, 3, 4]
+        self.roll1, self.roll2 = bk.index(xp, roll1, device=device), bk.index(xp, roll2, device=device)
+        self.S_roll1, self.S_roll2 = f(S.T[roll1].reshape(2, 3, -1)), f(S.T[roll2].reshape(2, 3, -1))  # (2, 3, M)
+        It = self.inertia_diag_np.T
+        self.euler_factor = f(np.stack([It[[2, 0, 1]] - It[[1, 2, 0]], It[3:]]))  # (2, 3, N): I2 - I1, m
         self.revolute = bk.asarray(xp, rev, dtype=xp.bool, device=device)
         # Rodrigues with constant factors: Rot(a, q) = 1 + sin q K + (1 - cos q) K^2, K = [a]x, so
         # E(q) = Rot(a, -q) J' and r(q) = jpp + J (slide a - Rot(a, q) c) are sums of constants
@@ -155,7 +160,9 @@ class Model:
         # E, r and Xup are of degree one in aba.joint_basis(q): constant coefficients
         pose = fit_joint_basis(rev, consts, lambda E, r: np.concatenate([E.mT.reshape(-1, 9), r], axis=1))
         self.pose_rows_basis = f(np.transpose(pose, (1, 2, 0)))  # (3, 12, M): rows of E' and r
-        self.X_basis = f(fit_joint_basis(rev, consts, lambda E, r: sp.transform_matrix(np, E, r).reshape(-1, 36)))
+        X_basis = fit_joint_basis(rev, consts, lambda E, r: sp.transform_matrix(np, E, r).reshape(-1, 36))
+        # (M, 3, 36); for torch (3, M, 36), rows for addcmul (see aba._transform_matrices)
+        self.X_basis = f(X_basis if xp is np else np.ascontiguousarray(X_basis.transpose(1, 0, 2)))
         # leaves never change their articulated inertia: U = I S, d = S'U and Ia = I - U U'/d are
         # constants, and what a leaf passes to its parent, Xup' Ia Xup, is a fixed combination of
         # five constant matrices (degree two in aba.joint_basis)
@@ -172,8 +179,22 @@ class Model:
             X = sp.transform_matrix(np, E, r)
             return (X.mT @ Ia @ X).reshape(-1, 36)
 
-        self.leaf_P = f(fit_joint_basis(rev[L - C :], leaf, congruence, k=5))
-        self.inner_inertia = f(np.einsum("ni,ij->nij", self.inertia_diag_np[:L], np.eye(6)))
+        leaf_P = fit_joint_basis(rev[L - C :], leaf, congruence, k=5)
+        self.leaf_P = f(leaf_P)
+        # symmetric matrices are summed as their 21 upper entries (less memory to stream) and
+        # expanded to 6x6 after
+        upper = np.flatnonzero(np.triu(np.ones((6, 6), dtype=bool)))  # flat positions i <= j
+        i, j = np.indices((6, 6))
+        mirrored = np.minimum(i, j) * 6 + np.maximum(i, j)  # entry (i, j) of a symmetric matrix
+        self.sym_expand = bk.index(xp, np.searchsorted(upper, mirrored).reshape(-1), device=device)
+        self.leaf_P_varying = f(np.ascontiguousarray(leaf_P[:, 1:, upper]))  # terms cos q .. sin 2q (q .. q^2)
+        # the rigid inertias of the roots and inner bodies, plus their leaves' constant terms
+        inner = np.einsum("ni,ij->nij", self.inertia_diag_np[:L], np.eye(6))
+        np.add.at(inner, par[L:], leaf_P[:, 0].reshape(-1, 6, 6))
+        self.inner_inertia = f(inner.reshape(-1, 36)[:, upper])  # (L, 21)
+        # and a leaf's W = Xup' U / d, of degree one
+        leaf_W = fit_joint_basis(rev[L - C :], leaf, lambda E, r: sp.mtv(sp.transform_matrix(np, E, r), Ul) / dl[:, None])
+        self.leaf_W = f(np.ascontiguousarray(leaf_W.transpose(1, 0, 2)))  # (3, leaves, 6)
         self.half_extents = f(self.half_extents_np)
         self.mass = f(mass)
         self.body_creature = bk.index(xp, self.creature, device=device)

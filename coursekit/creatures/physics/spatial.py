@@ -29,18 +29,25 @@ def _halves(v, axis):
     return (v[:3], v[3:]) if axis == 0 else (v[..., :3], v[..., 3:])
 
 
-def mv(A, x):
-    """Stacked matrix-vector product ``A @ x`` for (..., n, m) and (..., m)."""
+def mv(A, x, out=None):
+    """Stacked matrix-vector product ``A @ x`` for (..., n, m) and (..., m) (into ``out`` if given)."""
     if isinstance(A, np.ndarray):
-        return np.matvec(A, x)
-    return (A @ x[..., None])[..., 0]
+        return np.matvec(A, x, out=out)
+    if out is None:
+        return (A @ x[..., None])[..., 0]
+    out[...] = (A @ x[..., None])[..., 0]
+    return out
 
 
-def mtv(A, x):
-    """Stacked transposed product ``A' @ x`` for (..., m, n) and (..., m), without a transpose."""
+def mtv(A, x, out=None):
+    """Stacked transposed product ``A' @ x`` for (..., m, n) and (..., m), without a transpose
+    (into ``out`` if given)."""
     if isinstance(A, np.ndarray):
-        return np.vecmat(x, A)
-    return (x[..., None, :] @ A)[..., 0, :]
+        return np.vecmat(x, A, out=out)
+    if out is None:
+        return (x[..., None, :] @ A)[..., 0, :]
+    out[...] = (x[..., None, :] @ A)[..., 0, :]
+    return out
 
 
 def outer(xp, a, b):
@@ -60,13 +67,6 @@ def cross_force(xp, v, f, axis=-1):
     """Spatial force cross product ``v x* f`` (Featherstone's crf(v) @ f); 6-vectors along ``axis``."""
     (w, u), (n, fl) = _halves(v, axis), _halves(f, axis)
     return xp.concat([cross3(xp, w, n, axis) + cross3(xp, u, fl, axis), cross3(xp, w, fl, axis)], axis=axis)
-
-
-def rigid_bias_force(xp, v, I, axis=-1):
-    """``v x* (I v)`` for body-frame diagonal inertias ``I = (Ixx, Iyy, Izz, m, m, m)`` at the centre
-    of mass: ``(w x (I_w w), m (w x u))`` (the ``u x m u`` term vanishes); 6-vectors along ``axis``."""
-    (w, u), (Iw, Im) = _halves(v, axis), _halves(I, axis)
-    return xp.concat([cross3(xp, w, Iw * w, axis), Im * cross3(xp, w, u, axis)], axis=axis)
 
 
 def transform_motion(xp, E, r, m):
@@ -167,23 +167,28 @@ def mat_to_quat(R: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------- SO(3) chart for the integrator
 
 
-def _dexp_coefficients(xp, theta, derivatives=True):
-    """alpha = (1 - cos p)/p^2, beta = (p - sin p)/p^3 and (with ``derivatives``) their
-    derivatives over p, divided by p."""
-    p2 = xp.vecdot(theta, theta)
+def chart_coefficients(xp, theta, derivatives=True):
+    """The coefficients of ``dexp`` and its companions at ``theta`` (for :func:`chart_rates`):
+    alpha = (1 - cos p)/p^2, beta = (p - sin p)/p^3 and (with ``derivatives``) their
+    derivatives over p, divided by p, and gamma = (1 - (p/2) cot(p/2)) / p^2 (of ``dexp_inv``);
+    each (..., 1)."""
+    p2 = xp.vecdot(theta, theta)[..., None]
     p = xp.sqrt(p2)
     small = p < 1e-3
     ps = xp.where(small, xp.ones_like(p), p)
     s, c = xp.sin(ps), xp.cos(ps)
     inv2 = 1.0 / (ps * ps)
-    alpha = xp.where(small, 0.5 - p2 / 24.0 + p2 * p2 / 720.0, (1 - c) * inv2)
-    beta = xp.where(small, 1.0 / 6.0 - p2 / 120.0 + p2 * p2 / 5040.0, (ps - s) * inv2 / ps)
+    p4 = p2 * p2
+    alpha = xp.where(small, 0.5 - p2 / 24.0 + p4 / 720.0, (1 - c) * inv2)
+    beta = xp.where(small, 1.0 / 6.0 - p2 / 120.0 + p4 / 5040.0, (ps - s) * inv2 / ps)
     if not derivatives:
         return alpha, beta
     # d(alpha)/dp / p and d(beta)/dp / p
-    dalpha = xp.where(small, -1.0 / 12.0 + p2 / 180.0 - p2 * p2 / 6720.0, (ps * s - 2 * (1 - c)) * inv2 * inv2)
-    dbeta = xp.where(small, -1.0 / 60.0 + p2 / 1260.0 - p2 * p2 / 60480.0, (3 * s - ps * c - 2 * ps) * inv2 * inv2 / ps)
-    return alpha, beta, dalpha, dbeta
+    dalpha = xp.where(small, -1.0 / 12.0 + p2 / 180.0 - p4 / 6720.0, (ps * s - 2 * (1 - c)) * inv2 * inv2)
+    dbeta = xp.where(small, -1.0 / 60.0 + p2 / 1260.0 - p4 / 60480.0, (3 * s - ps * c - 2 * ps) * inv2 * inv2 / ps)
+    half = 0.5 * ps
+    gamma = xp.where(small, 1.0 / 12.0 + p2 / 720.0 + p4 / 30240.0, (1 - half * xp.cos(half) / xp.sin(half)) * inv2)
+    return alpha, beta, dalpha, dbeta, gamma
 
 
 def dexp(xp, theta, theta_dot):
@@ -191,29 +196,34 @@ def dexp(xp, theta, theta_dot):
 
     ``omega = theta_dot - alpha theta x theta_dot + beta theta x (theta x theta_dot)``.
     """
-    alpha, beta = _dexp_coefficients(xp, theta, derivatives=False)
+    alpha, beta = chart_coefficients(xp, theta, derivatives=False)
     t1 = cross3(xp, theta, theta_dot)
-    return theta_dot - alpha[..., None] * t1 + beta[..., None] * cross3(xp, theta, t1)
+    return theta_dot - alpha * t1 + beta * cross3(xp, theta, t1)
 
 
 def dexp_dot(xp, theta, theta_dot):
     """Time derivative of ``dexp(theta)`` applied to ``theta_dot`` (the chart's curvature term)."""
-    _, beta, dalpha, dbeta = _dexp_coefficients(xp, theta)
-    pdot = xp.vecdot(theta, theta_dot)  # p * dp/dt
+    return chart_rates(xp, theta, theta_dot)[1]
+
+
+def chart_rates(xp, theta, theta_dot, coefficients=None):
+    """``dexp(theta) theta_dot``, ``dexp_dot(theta, theta_dot)`` and ``gamma`` (for
+    :func:`dexp_inv`), sharing one set of coefficients (:func:`chart_coefficients` at ``theta``,
+    computed here unless given)."""
+    alpha, beta, dalpha, dbeta, gamma = chart_coefficients(xp, theta) if coefficients is None else coefficients
+    pdot = xp.vecdot(theta, theta_dot)[..., None]  # p * dp/dt
     t1 = cross3(xp, theta, theta_dot)
-    term_a = -(dalpha * pdot)[..., None] * t1  # theta_dot x theta_dot = 0
-    term_b = (dbeta * pdot)[..., None] * cross3(xp, theta, t1) + beta[..., None] * cross3(xp, theta_dot, t1)
-    return term_a + term_b
+    t2 = cross3(xp, theta, t1)
+    omega = theta_dot - alpha * t1 + beta * t2
+    # theta_dot x theta_dot = 0 leaves three terms
+    curvature = (dbeta * pdot) * t2 - (dalpha * pdot) * t1 + beta * cross3(xp, theta_dot, t1)
+    return omega, curvature, gamma
 
 
-def dexp_inv(xp, theta, omega):
-    """Solve ``dexp(theta) @ x = omega`` for ``x`` (exactly, by the closed-form inverse)."""
-    p2 = xp.vecdot(theta, theta)
-    p = xp.sqrt(p2)
-    small = p < 1e-3
-    ps = xp.where(small, xp.ones_like(p), p)
-    half = 0.5 * ps
-    # gamma = (1 - (p/2) cot(p/2)) / p^2
-    gamma = xp.where(small, 1.0 / 12.0 + p2 / 720.0 + p2 * p2 / 30240.0, (1 - half * xp.cos(half) / xp.sin(half)) / ps**2)
+def dexp_inv(xp, theta, omega, gamma=None):
+    """Solve ``dexp(theta) @ x = omega`` for ``x`` (exactly, by the closed-form inverse);
+    ``gamma`` from :func:`chart_rates` at this ``theta`` when known."""
+    if gamma is None:
+        gamma = chart_coefficients(xp, theta)[4]
     t1 = cross3(xp, theta, omega)
-    return omega + 0.5 * t1 + gamma[..., None] * cross3(xp, theta, t1)
+    return omega + 0.5 * t1 + gamma * cross3(xp, theta, t1)

@@ -21,7 +21,7 @@ import numpy as np
 
 from . import backend as bk
 from . import spatial as sp
-from .aba import aba, articulated_inertias, body_velocities, forward_kinematics, joint_transforms
+from .aba import aba, articulated_inertias, body_velocities, forward_kinematics, joint_transforms, pose_stacks, poses_rows
 from .contact import Contacts
 from .dynamics import _flatten, split_layout, join_velocity_layout
 from .integrate import INTEGRATORS, State, step
@@ -109,7 +109,7 @@ class World:
         self.state = State(z(C, 3), quat, z(M), z(C, 3), z(C, 3), z(M))
         self.tau = z(M)
         self.active_contacts = None
-        self._inertia_q = self._inertia = None
+        self._inertia_q = self._inertia = self._poses_q = self._poses = None
         self.contact_sensors = None
         self._joint_creature = bk.index(xp, m.joint_creature, device=m.device)
 
@@ -144,9 +144,10 @@ class World:
             self._inertia_q, self._inertia = q, articulated_inertias(m, q)
         f_ext = v = None
         if self.active_contacts is not None:  # the step's contacts, followed through this stage
-            Rb, pb = forward_kinematics(m, R, pos, q)
-            v, _ = body_velocities(m, self._inertia[0], xp.concat([omega, vb], axis=1), qd)  # [0]: Xup
-            f_ext = self.contacts.wrench(self.active_contacts, Rb, pb, v)
+            if q is not self._poses_q:  # stages 2 and 3 share positions, hence poses
+                self._poses_q, self._poses = q, forward_kinematics(m, R, pos, q)
+            v = body_velocities(m, self._inertia[0], xp.concat([omega, vb], axis=1), qd)  # [0]: Xup
+            f_ext = self.contacts.wrench(self.active_contacts, *self._poses, v)
         a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping, inertias=self._inertia, v=v)
         lin_acc = sp.mv(R, a0[:, 3:] + sp.cross3(xp, omega, vb))
         return lin_acc, a0[:, :3], qdd
@@ -165,11 +166,16 @@ class World:
     def step(self) -> None:
         """Advance the whole batch by ``dt``."""
         xp, m = self.xp, self.model
-        jfrozen = bk.asarray(xp, self.diverged, dtype=xp.bool, device=m.device)[self._joint_creature]
-        self.tau = xp.where(jfrozen, xp.zeros_like(self.tau), self.tau)
+        if self.diverged.any():  # frozen creatures feel no joint forces
+            jfrozen = xp.take(bk.asarray(xp, self.diverged, dtype=xp.bool, device=m.device), self._joint_creature, axis=0)
+            self.tau = xp.where(jfrozen, xp.zeros_like(self.tau), self.tau)
         for i in range(self.substeps):
             if self.contacts is not None:
-                self.active_contacts, self.contact_sensors = self.contacts.begin(self.state)
+                s = self.state
+                rows = poses_rows(m, sp.quat_to_mat(xp, s.quat), s.pos, s.q) if self.contacts.n_pairs else None
+                self.active_contacts, self.contact_sensors = self.contacts.begin(s, rows)
+                if self.active_contacts is not None:  # the first stage's poses (it passes s.q on)
+                    self._poses_q, self._poses = s.q, pose_stacks(xp, rows)
             prev = self.state
             new = step(xp, prev, self.h, self._accel, self.integrator, self.time + i * self.h)
             self.state = self._guard(prev, new)
@@ -218,8 +224,7 @@ class World:
         xp, m, s = self.xp, self.model, self.state
         R0 = sp.quat_to_mat(xp, s.quat)
         E, r = joint_transforms(m, s.q)
-        v, _ = body_velocities(m, sp.transform_matrix(xp, E, r), xp.concat([s.omega, sp.mv(R0.mT, s.lin)], axis=1), s.qd)
-        return v
+        return body_velocities(m, sp.transform_matrix(xp, E, r), xp.concat([s.omega, sp.mv(R0.mT, s.lin)], axis=1), s.qd)
 
     def centre_of_mass(self) -> np.ndarray:
         """(C, 3) centre of mass of every creature (numpy)."""
