@@ -9,10 +9,11 @@ articulated bodies (joint limits as constraints, no fluid, no contacts). Times a
 window of process CPU time, the engines taking turns window by window (see ``_timed``), so other
 jobs on a shared machine disturb them little and disturb all engines alike.
 
-Our numpy simulator spends much of its time in stacked 6x6 products (``np.matmul`` on stacks): a
-forced ``OPENBLAS_CORETYPE`` (set on some machines to dodge bugs of old OpenBLAS builds) makes
-those several times slower in current numpy; the header prints it. To measure the library as
-users get it there, run ``env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE python benchmarks/swimmers.py``.
+Our numpy step is bound by memory traffic and per-call overhead (see the notes in
+``coursekit/creatures/physics/aba.py``); part of it is stacked 6x6 products, which a forced
+``OPENBLAS_CORETYPE`` (set on some machines to dodge bugs of old OpenBLAS builds) slows down in
+current numpy; the header prints it. To measure the library as users get it there, run
+``env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE python benchmarks/swimmers.py``.
 
     python benchmarks/swimmers.py [--batches 1 30 300] [--seconds 2]
 """
