@@ -200,7 +200,9 @@ def _ufunc(torch_fn, numpy_fn):
     (measured on 256x256 float32: sin 27 vs 73 us, atan 14 vs 148 us, log 17 vs 55 us), and its
     matrix products (OpenBLAS) 1.1-2x faster than torch's (a 768x256 by 256x256 product: 0.49 ms
     vs 1.06 ms; 0.94 ms where ``OPENBLAS_CORETYPE=Haswell`` is forced); both release the GIL
-    like torch. GPU tensors and small ones keep torch's function.
+    like torch. GPU tensors and small ones keep torch's function. (Noise keeps torch's ``bmm``:
+    its small products are sized by the whole batch, and only torch's gave pictures identical
+    to one-by-one rendering, bit for bit.)
     """
     def f(*args):
         if args[0].device.type != "cpu" or max(a.numel() for a in args) < _NUMPY_MIN:
@@ -276,7 +278,7 @@ def _noise(ctx: _Ctx, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
             cols = torch.remainder(lx + torch.arange(kx, device=u.device), T.LATTICE)  # (B, kx)
             rows = torch.remainder(ly + torch.arange(ky, device=u.device), T.LATTICE)  # (B, ky)
             block = res.table[rows.unsqueeze(-1), cols.unsqueeze(1)]  # (B, ky, kx)
-            return _matmul(_matmul(wy, block), wx.transpose(1, 2)).unsqueeze(1)
+            return torch.bmm(torch.bmm(wy, block), wx.transpose(1, 2)).unsqueeze(1)
         j0, sy = _cell(vv)
         i0, sx = _cell(uu)
         table = res.wrapped[0, 0]  # (L + 1, L + 1): index i0 + 1 needs no wrap
