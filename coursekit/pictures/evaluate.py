@@ -42,6 +42,7 @@ image, and a big enough population is split over worker processes (:mod:`.worker
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import threading
@@ -825,6 +826,19 @@ def _groups(trees: list[Node], batch: bool) -> list[list[int]]:
     return list(groups.values())
 
 
+_blas = None
+
+
+def _one_blas_thread():
+    """Context: numpy's BLAS (and any other) limited to one thread (threadpoolctl)."""
+    global _blas
+    if _blas is None:
+        from threadpoolctl import ThreadpoolController
+
+        _blas = ThreadpoolController()
+    return _blas.limit(limits=1, user_api="blas")
+
+
 def _render_into(out: torch.Tensor, trees, groups: list[list[int]], window, time: float, device) -> None:
     """Evaluate decoded ``trees`` in this process into ``out`` (N, H, W, 3): ``trees[i]`` goes
     to ``out[i]``; ``groups`` lists the indices of same-shaped trees, evaluated as one batch."""
@@ -840,13 +854,15 @@ def _render_into(out: torch.Tensor, trees, groups: list[list[int]], window, time
     shared: dict = {}
     batches = [_stack_trees([trees[i] for i in idx], device, shared) for idx in groups]
     saved = torch.get_num_threads()
-    if device.type == "cpu" and (len(groups) > 1 or H * W <= 512 * 512):
-        # small images: single-threaded torch operations (intra-op threads on small images
-        # thrash: measured 10-30x slower on a loaded 2-core machine); one big image (a file
-        # export) keeps torch's threads
+    single = device.type == "cpu" and (len(groups) > 1 or H * W <= 512 * 512)
+    if single:
+        # small images: single-threaded torch and BLAS operations (intra-op threads on small
+        # images thrash: measured 10-30x slower on a loaded 2-core machine, and idle BLAS
+        # threads spin on the cores of the other worker processes); one big image (a file
+        # export) keeps the libraries' threads
         torch.set_num_threads(1)
     try:
-        with torch.inference_mode():
+        with torch.inference_mode(), (_one_blas_thread() if single else contextlib.nullcontext()):
             for idx, tree in zip(groups, batches):
                 v = _eval(tree, ctx)
                 rgb = to_rgb(v, H, W)
