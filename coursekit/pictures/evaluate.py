@@ -36,8 +36,9 @@ the parts that children of one parent share) is one node, evaluated once per coo
 context, and the parts of a batch with the same parameters in every tree run once and
 broadcast. Node values are never modified in place (cached pictures and shared subtrees are
 handed to several parents); only fresh intermediates are. On the CPU, transcendental functions
-go through numpy's ufuncs (several times faster there than torch's), torch runs one thread per
-image, and a big enough population is split over worker processes (:mod:`.workers`).
+and the blurs' matrix products go through numpy (faster there than torch's: :func:`_ufunc`),
+torch and BLAS run one thread per image, and a big enough population is split over worker
+processes (:mod:`.workers`).
 """
 
 from __future__ import annotations
@@ -189,7 +190,7 @@ def to_rgb(v: torch.Tensor, H: int, W: int) -> torch.Tensor:
     return v.expand(v.shape[0], 3, H, W)
 
 
-# ---- transcendental functions ---------------------------------------------------------------
+# ---- numpy's kernels on the CPU -------------------------------------------------------------
 
 _NUMPY_MIN = 4096  # elements from which numpy's ufunc beats torch's on the CPU
 
