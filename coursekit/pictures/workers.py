@@ -32,6 +32,7 @@ from .evaluate import render_chunk
 
 __all__ = ["render_parts", "shutdown"]
 
+_CHUNKS = 3  # chunks per worker
 _lock = threading.Lock()
 _pool: _Pool | None = None
 _unavailable = False
@@ -48,7 +49,7 @@ class _Pool:
             # workers fork from it with both loaded, and share their pages
             ctx.set_forkserver_preload([__name__])
         self.n = n
-        self.executor = ProcessPoolExecutor(n, mp_context=ctx, initializer=_ignore_interrupts)
+        self.executor = ProcessPoolExecutor(n, mp_context=ctx, initializer=_init_worker)
         self.shm: shared_memory.SharedMemory | None = None
 
     def block(self, nbytes: int) -> shared_memory.SharedMemory:
@@ -137,10 +138,10 @@ def render_parts(units: list[tuple[list[int], list]], costs: list[float], shape:
                     _pool.close()
                 _pool = _Pool(workers)
             shm = _pool.block(n * H * W * 3 * 4)
-            # three chunks per worker: a worker that finishes early takes the next one
+            # a few chunks per worker: a worker that finishes early takes the next one
             with _main_hidden():
                 jobs = [_pool.executor.submit(_render_chunk, shm.name, n, H, W, [units[k] for k in chunk],
-                                              options) for chunk in _chunks(costs, 3 * workers)]
+                                              options) for chunk in _chunks(costs, _CHUNKS * workers)]
             for job in jobs:
                 job.result()
         except (OSError, RuntimeError, AssertionError) as e:
@@ -160,7 +161,7 @@ def render_parts(units: list[tuple[list[int], list]], costs: list[float], shape:
 
 # ---- in the worker ---------------------------------------------------------------------------
 
-def _ignore_interrupts() -> None:
+def _init_worker() -> None:
     """Workers leave Ctrl-C (and a Jupyter kernel's interrupt, sent to its process group) to the
     parent, which stops them cleanly."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
