@@ -163,8 +163,13 @@ def render_parts(units: list[tuple[list[int], list]], costs: list[float], shape:
 
 def _init_worker() -> None:
     """Workers leave Ctrl-C (and a Jupyter kernel's interrupt, sent to its process group) to the
-    parent, which stops them cleanly."""
+    parent, which stops them cleanly. Each is one thread for good: torch's and BLAS's thread
+    pools would only compete with the other workers for the cores."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    torch.set_num_threads(1)
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
 
 
 _attached: dict = {}
