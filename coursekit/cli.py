@@ -12,15 +12,19 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def _lab(open_path: Path, no_browser: bool, extra: list[str]) -> int:
-    """JupyterLab serving the whole course (lessons link to ../exercises), opened at ``open_path``."""
-    cmd = [sys.executable, "-m", "jupyterlab", f"--ServerApp.root_dir={ROOT}",
-           f"--LabApp.default_url=/lab/tree/{open_path.relative_to(ROOT).as_posix()}"]
+    """JupyterLab serving the whole course (lessons link to ../exercises), opened at ``open_path``.
+
+    It runs in this process (not a child): stopping ``coursekit lab`` stops the server."""
+    from jupyterlab.labapp import LabApp
+
+    argv = [f"--ServerApp.root_dir={ROOT}", f"--LabApp.default_url=/lab/tree/{open_path.relative_to(ROOT).as_posix()}"]
     if no_browser:
-        cmd.append("--no-browser")
+        argv.append("--no-browser")
     if hasattr(os, "geteuid") and os.geteuid() == 0:  # containers and CI machines run as root
-        cmd.append("--allow-root")
+        argv.append("--allow-root")
     print("coursekit: starting JupyterLab on", open_path)
-    return subprocess.call(cmd + list(extra))
+    LabApp.launch_instance(argv=argv + list(extra))
+    return 0
 
 
 def _cmd_lab(args: argparse.Namespace) -> int:

@@ -78,6 +78,8 @@ def test_lab_serves_the_course_and_opens_the_lessons(tmp_path, command, opens):
     finally:
         proc.terminate()
         proc.wait(timeout=30)
+    with socket.socket() as s:  # stopping `coursekit lab` stopped the server itself (no orphan)
+        assert s.connect_ex(("127.0.0.1", port)) != 0, "JupyterLab still serves after coursekit stopped"
 
 
 def test_swimmers_demo_writes_what_a_lecture_shows(tmp_path):
