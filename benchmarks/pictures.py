@@ -14,7 +14,14 @@ coding nodes, fixed seed), images per second at 128^2 and 256^2 for:
   before each run),
 - the same on a generation as Sims' interactive loop makes it (20 children of one parent, each
   one mutation away: they share most subtrees, which the evaluator computes once),
-- tensorised on CUDA, and a population of 256 on CUDA, when a GPU is present.
+- tensorised in waves (``group=True``: one operation per primitive for the whole population,
+  :mod:`coursekit.pictures.grouped`), in this process,
+- tensorised on CUDA, and a population of 256 on CUDA (per shape and in waves), when a GPU is
+  present.
+
+It also counts the tensor operations that compute (not views) for a population of 256, per
+shape and in waves: on a GPU each is a kernel launch, which bounds the speed there, so the
+count tells on any machine what a GPU will pay.
 
 Times are wall-clock seconds, the best and the median of ``--repeats`` runs (the best is the
 better guide on a machine shared with other work).
@@ -30,6 +37,7 @@ import time
 
 import numpy as np
 import torch
+from torch.utils._python_dispatch import TorchDispatchMode
 
 from coursekit.pictures import Genome, render, render_reference
 from coursekit.pictures import operators as O
@@ -72,6 +80,26 @@ def cold_window():
     return (0.0, 0.0, 1.0, 1.0 + 1e-7 * next(_fresh))
 
 
+class _Operations(TorchDispatchMode):
+    """Counts the tensor operations that compute (views only re-describe memory)."""
+
+    def __init__(self):
+        super().__init__()
+        self.count = 0
+
+    def __torch_dispatch__(self, func, types, args=(), kwargs=None):
+        self.count += not func.is_view
+        return func(*args, **(kwargs or {}))
+
+
+def operations_per_image(genomes, group: bool) -> float:
+    """Computing tensor operations per picture (64^2, in this process; numpy's kernels, which a
+    GPU does not use, are not counted, so the CPU count is a lower bound there)."""
+    with _Operations() as ops:
+        render(genomes, 64, workers=1, group=group)
+    return ops.count / len(genomes)
+
+
 def per_image(times, n):
     return times[0] / n, times[1] / n
 
@@ -95,17 +123,22 @@ def main(argv=None):
     render(pop, max(args.sizes))  # warm-up: worker processes, pixel maps, noise lattice
     print(f"worker processes: {os.cpu_count()}, started (with the first render) in {time.perf_counter() - t:.2f} s")
     render(pop, max(args.sizes), workers=1)
+    big = population(256, seed=7)
+    print("computing tensor operations per picture, population 256 (kernel launches on a GPU): "
+          f"per shape {operations_per_image(big, False):.0f}, in waves {operations_per_image(big, True):.0f}")
     rows = []
     for size in args.sizes:
         sample = pop[: args.reference_sample]
         t_ref = per_image(best_of(lambda: [render_reference(g, size) for g in sample], 1), len(sample))
         t_loop = per_image(best_of(lambda: [render(g, size, workers=1) for g in pop], args.repeats), len(pop))
         t_one = per_image(best_of(lambda: render(pop, size, workers=1), args.repeats), len(pop))
+        t_waves = per_image(best_of(lambda: render(pop, size, workers=1, group=True), args.repeats), len(pop))
         t_tensor = per_image(best_of(lambda: render(pop, size), args.repeats), len(pop))
         t_cold = per_image(best_of(lambda: render(pop, size, window=cold_window()), args.repeats), len(pop))
         rows += [(size, "per-pixel Python (reference)", len(sample), t_ref),
                  (size, "whole-image, one genome per call", len(pop), t_loop),
                  (size, "tensorised render, this process", len(pop), t_one),
+                 (size, "tensorised in waves, this process", len(pop), t_waves),
                  (size, "tensorised render, worker processes", len(pop), t_tensor),
                  (size, "tensorised render, workers, cold cache", len(pop), t_cold)]
         kids = children(pop[0], len(pop))
@@ -114,16 +147,15 @@ def main(argv=None):
                  (size, "children of one parent, tensorised", len(kids),
                   per_image(best_of(lambda: render(kids, size), args.repeats), len(kids)))]
         if cuda:
-            def on_gpu(genomes):
-                render(genomes, size, device="cuda", as_tensor=True)
+            def on_gpu(genomes, group):
+                render(genomes, size, device="cuda", group=group, as_tensor=True)
                 torch.cuda.synchronize()
-            on_gpu(pop)
-            rows.append((size, "tensorised render (CUDA)", len(pop),
-                         per_image(best_of(lambda: on_gpu(pop), args.repeats), len(pop))))
-            big = population(256, seed=7)
-            on_gpu(big)
-            rows.append((size, "tensorised render (CUDA), population 256", 256,
-                         per_image(best_of(lambda: on_gpu(big), args.repeats), 256)))
+            for genomes, group, name in ((pop, True, "tensorised in waves (CUDA)"),
+                                         (big, False, "CUDA, population 256, per shape"),
+                                         (big, True, "CUDA, population 256, in waves")):
+                on_gpu(genomes, group)
+                rows.append((size, name, len(genomes),
+                             per_image(best_of(lambda: on_gpu(genomes, group), args.repeats), len(genomes))))
         ref = t_ref[0]
         print()
         print(f"{'size':>5} | {'evaluator':42} | {'images':>6} | {'images/s':>9} | "

@@ -120,7 +120,7 @@ def render_parts(units: list[tuple[list[int], list]], costs: list[float], shape:
             trees) and their rows in the population; every row appears once.
         costs: estimated cost of each unit (used to balance the workers).
         shape: ``(H, W)``.
-        options: ``window`` (parsed) and ``time``.
+        options: ``window`` (parsed), ``time`` and ``group``.
         workers: number of worker processes.
     Returns:
         ``(N, H, W, 3)`` float32 in population order; ``None`` when worker processes are

@@ -1,0 +1,85 @@
+"""Population-wide evaluation in waves (``render(..., group=True)``, :mod:`coursekit.pictures.grouped`).
+
+It must give the pictures of the per-shape evaluation bit for bit, whatever the population
+(random shapes, clones, children of one parent, warps of every kind), and it must need far fewer
+tensor operations: that count is the number of kernel launches on a GPU, which is what it is for.
+"""
+
+import numpy as np
+import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from torch.utils._python_dispatch import TorchDispatchMode
+
+from coursekit.pictures import operators as O
+from coursekit.pictures.evaluate import render
+from coursekit.pictures.genome import Chromosome, ChromosomeString, Genome
+
+C = Chromosome
+
+
+def _population(seed: int, n: int) -> list[Genome]:
+    rng = np.random.default_rng(seed)
+    pop = [Genome.random(rng, n_strings=int(rng.integers(1, 4)), head_length=int(rng.integers(2, 6)))
+           for _ in range(n)]
+    ops = [O.substitution, O.transposition, O.root_transposition, O.head_tail_rotation]
+    pop += [ops[rng.integers(len(ops))](pop[0], rng) for _ in range(3)]  # children: shared subtrees
+    return pop + [pop[1]]  # a clone
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 12), size=st.sampled_from([(9, 7), (16, 16)]),
+       window=st.sampled_from([(0.0, 0.0, 1.0, 1.0), (-1.5, 0.3, 2.5, 1.9)]), time=st.floats(0.0, 3.0))
+def test_waves_give_the_pictures_of_per_shape_evaluation_bit_for_bit(seed, n, size, window, time):
+    pop = _population(seed, n)
+    per_shape = render(pop, size, window=window, time=time, workers=1, group=False)
+    waves = render(pop, size, window=window, time=time, workers=1, group=True)
+    assert np.array_equal(per_shape, waves)
+
+
+def test_every_warp_and_its_displacement_in_waves():
+    def one(*chroms, h):
+        chroms = list(chroms) + [C("y")] * (2 * h + 1 - len(chroms))
+        return Genome((ChromosomeString(h, tuple(chroms)),))
+
+    noise = C("turbulence", (3.0, 3.0, 5.0, 6.0))
+    pop = [one(C("swirl", (2.0, 0.4)), noise, h=1),
+           one(C("rotate", (0.3,)), C("pixmap", (1.5,)), h=1),
+           one(C("warp-swirl", (1.5,)), C("color-noise", (4.0, 1.0, 2.0)), C("x"), h=2),
+           one(C("warp-by", (0.2,)), C("bw-noise", (6.0, 1.0, 2.0)), C("gradient", (0.1, 0.2, 0.3, 0.9, 0.8, 0.7, 0.25)), h=2),
+           one(C("warp-by", (0.2,)), C("warp-swirl", (1.0,)), noise, C("x"), C("angle"), h=3),  # a warp in a warp
+           one(C("dissolve", (0.5, 0.2, 3.0, 4.0)), noise, C("rotate", (0.1,)), C("x"), h=3)]
+    assert np.array_equal(render(pop, (12, 10), workers=1, group=False),
+                          render(pop, (12, 10), workers=1, group=True))
+
+
+class _Count(TorchDispatchMode):
+    """Tensor operations that compute (views only re-describe memory: no kernel on a GPU)."""
+
+    def __init__(self):
+        super().__init__()
+        self.ops = 0
+
+    def __torch_dispatch__(self, func, types, args=(), kwargs=None):
+        self.ops += not func.is_view
+        return func(*args, **(kwargs or {}))
+
+
+def test_waves_need_several_times_fewer_operations_than_per_shape_evaluation():
+    rng = np.random.default_rng(3)
+    pop = [Genome.random(rng, n_strings=4, head_length=8) for _ in range(256)]
+    counts = {}
+    for group in (False, True):
+        with _Count() as count:
+            render(pop, 8, workers=1, group=group)
+        counts[group] = count.ops
+    assert counts[False] > 3 * counts[True], counts
+
+
+def test_group_is_validated():
+    import pytest
+
+    g = Genome.random(np.random.default_rng(0))
+    with pytest.raises(ValueError, match="group"):
+        render(g, 4, group="yes")
+    assert render(g, 4, group=True, as_tensor=True).dtype == torch.float32
