@@ -83,3 +83,9 @@ def test_group_is_validated():
     with pytest.raises(ValueError, match="group"):
         render(g, 4, group="yes")
     assert render(g, 4, group=True, as_tensor=True).dtype == torch.float32
+
+
+def test_waves_in_worker_processes_and_edge_cases():
+    pop = _population(11, 16)  # 20 genomes at 128^2: enough work for the worker processes
+    assert np.array_equal(render(pop, 128, group=True), render(pop, 128, workers=1, group=False))
+    assert render([], 4, group=True).shape == (0, 4, 4, 3)
