@@ -7,8 +7,9 @@ coding nodes, fixed seed), images per second at 128^2 and 256^2 for:
   sample of the population because it is slow),
 - whole-image, one genome per call (the numpy-style loop: every primitive a whole-image
   array operation, genomes one after the other, one thread),
-- tensorised (:func:`coursekit.pictures.render`: same-shaped genomes batched) in this process,
-  and with the population split over worker processes (one per core; their start-up, paid once
+- tensorised (:func:`coursekit.pictures.render`: the whole population in one call, a subtree
+  that appears anywhere in it computed once) in this process, the same with same-shaped genomes
+  stacked (``batch=True``), and with the population split over worker processes (one per core; their start-up, paid once
   per session, is printed separately), with the workers' cache of unwarped pixel maps warm (as
   in a gallery, which renders every generation at one size and window) and cold (cache emptied
   before each run),
@@ -16,11 +17,11 @@ coding nodes, fixed seed), images per second at 128^2 and 256^2 for:
   one mutation away: they share most subtrees, which the evaluator computes once),
 - tensorised in waves (``group=True``: one operation per primitive for the whole population,
   :mod:`coursekit.pictures.grouped`), in this process,
-- tensorised on CUDA, and a population of 256 on CUDA (per shape and in waves), when a GPU is
-  present.
+- tensorised on CUDA, and a population of 256 on CUDA (genome by genome and in waves), when a
+  GPU is present.
 
-It also counts the tensor operations that compute (not views) for a population of 256, per
-shape and in waves: on a GPU each is a kernel launch, which bounds the speed there, so the
+It also counts the tensor operations that compute (not views) for a population of 256, genome
+by genome and in waves: on a GPU each is a kernel launch, which bounds the speed there, so the
 count tells on any machine what a GPU will pay.
 
 Times are wall-clock seconds, the best and the median of ``--repeats`` runs (the best is the
@@ -125,19 +126,21 @@ def main(argv=None):
     render(pop, max(args.sizes), workers=1)
     big = population(256, seed=7)
     print("computing tensor operations per picture, population 256 (kernel launches on a GPU): "
-          f"per shape {operations_per_image(big, False):.0f}, in waves {operations_per_image(big, True):.0f}")
+          f"genome by genome {operations_per_image(big, False):.0f}, in waves {operations_per_image(big, True):.0f}")
     rows = []
     for size in args.sizes:
         sample = pop[: args.reference_sample]
         t_ref = per_image(best_of(lambda: [render_reference(g, size) for g in sample], 1), len(sample))
         t_loop = per_image(best_of(lambda: [render(g, size, workers=1) for g in pop], args.repeats), len(pop))
         t_one = per_image(best_of(lambda: render(pop, size, workers=1), args.repeats), len(pop))
+        t_stacked = per_image(best_of(lambda: render(pop, size, workers=1, batch=True), args.repeats), len(pop))
         t_waves = per_image(best_of(lambda: render(pop, size, workers=1, group=True), args.repeats), len(pop))
         t_tensor = per_image(best_of(lambda: render(pop, size), args.repeats), len(pop))
         t_cold = per_image(best_of(lambda: render(pop, size, window=cold_window()), args.repeats), len(pop))
         rows += [(size, "per-pixel Python (reference)", len(sample), t_ref),
                  (size, "whole-image, one genome per call", len(pop), t_loop),
                  (size, "tensorised render, this process", len(pop), t_one),
+                 (size, "tensorised, same shapes stacked, this process", len(pop), t_stacked),
                  (size, "tensorised in waves, this process", len(pop), t_waves),
                  (size, "tensorised render, worker processes", len(pop), t_tensor),
                  (size, "tensorised render, workers, cold cache", len(pop), t_cold)]
@@ -151,17 +154,17 @@ def main(argv=None):
                 render(genomes, size, device="cuda", group=group, as_tensor=True)
                 torch.cuda.synchronize()
             for genomes, group, name in ((pop, True, "tensorised in waves (CUDA)"),
-                                         (big, False, "CUDA, population 256, per shape"),
+                                         (big, False, "CUDA, population 256, genome by genome"),
                                          (big, True, "CUDA, population 256, in waves")):
                 on_gpu(genomes, group)
                 rows.append((size, name, len(genomes),
                              per_image(best_of(lambda: on_gpu(genomes, group), args.repeats), len(genomes))))
         ref = t_ref[0]
         print()
-        print(f"{'size':>5} | {'evaluator':42} | {'images':>6} | {'images/s':>9} | "
+        print(f"{'size':>5} | {'evaluator':46} | {'images':>6} | {'images/s':>9} | "
               f"{'s per 20 images':>15} | {'median':>7} | {'vs per-pixel':>12}")
         for s, name, n, (t, med) in [r for r in rows if r[0] == size]:
-            print(f"{s:>4}² | {name:42} | {n:>6} | {1 / t:>9.3g} | {20 * t:>15.3f} | {20 * med:>7.3f} | "
+            print(f"{s:>4}² | {name:46} | {n:>6} | {1 / t:>9.3g} | {20 * t:>15.3f} | {20 * med:>7.3f} | "
                   f"{ref / t:>11.0f}×")
     return rows
 

@@ -126,7 +126,7 @@ def test_children_of_one_parent_render_together_as_one_by_one(seed):
     family = [parent, parent] + [ops[rng.integers(len(ops))](parent, rng) for _ in range(8)]
     family += [O.random_interpolation(parent, family[-1], rng)[0] for _ in range(2)]
     window = (-0.3, 0.2, 1.7, 1.1)
-    together = render(family, (12, 10), window=window, time=0.4)
+    together = render(family, (12, 10), window=window, time=0.4, batch=True)
     apart = np.concatenate([render(g, (12, 10), window=window, time=0.4, batch=False, workers=1)
                             for g in family])
     assert np.array_equal(together, apart)  # batch invariance (module docstring of evaluate)

@@ -1,6 +1,6 @@
 """Population-wide evaluation in waves (``render(..., group=True)``, :mod:`coursekit.pictures.grouped`).
 
-It must give the pictures of the per-shape evaluation bit for bit, whatever the population
+It must give the pictures of genome-by-genome evaluation bit for bit, whatever the population
 (random shapes, clones, children of one parent, warps of every kind), and it must need far fewer
 tensor operations: that count is the number of kernel launches on a GPU, which is what it is for.
 """
@@ -29,12 +29,13 @@ def _population(seed: int, n: int) -> list[Genome]:
 
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 12), size=st.sampled_from([(9, 7), (16, 16)]),
-       window=st.sampled_from([(0.0, 0.0, 1.0, 1.0), (-1.5, 0.3, 2.5, 1.9)]), time=st.floats(0.0, 3.0))
-def test_waves_give_the_pictures_of_per_shape_evaluation_bit_for_bit(seed, n, size, window, time):
+       window=st.sampled_from([(0.0, 0.0, 1.0, 1.0), (-1.5, 0.3, 2.5, 1.9)]), time=st.floats(0.0, 3.0),
+       batch=st.booleans())
+def test_waves_give_the_pictures_of_genome_by_genome_evaluation_bit_for_bit(seed, n, size, window, time, batch):
     pop = _population(seed, n)
-    per_shape = render(pop, size, window=window, time=time, workers=1, group=False)
-    waves = render(pop, size, window=window, time=time, workers=1, group=True)
-    assert np.array_equal(per_shape, waves)
+    one_by_one = render(pop, size, window=window, time=time, workers=1, group=False)
+    waves = render(pop, size, window=window, time=time, workers=1, group=True, batch=batch)
+    assert np.array_equal(one_by_one, waves)
 
 
 def test_every_warp_and_its_displacement_in_waves():
@@ -65,7 +66,7 @@ class _Count(TorchDispatchMode):
         return func(*args, **(kwargs or {}))
 
 
-def test_waves_need_several_times_fewer_operations_than_per_shape_evaluation():
+def test_waves_need_several_times_fewer_operations_than_genome_by_genome_evaluation():
     rng = np.random.default_rng(3)
     pop = [Genome.random(rng, n_strings=4, head_length=8) for _ in range(256)]
     counts = {}

@@ -149,7 +149,7 @@ def test_batched_equals_one_by_one(seed):
     b = Genome.random(rng, n_strings=2, head_length=4)
     # interpolation children share a's tree shape with new parameters: they batch together
     family = [a] + [O.random_interpolation(a, b, rng)[0] for _ in range(4)] + [b]
-    together = render(family, (16, 16))
+    together = render(family, (16, 16), batch=True)
     apart = np.concatenate([render(g, (16, 16), batch=False, workers=1) for g in family])
     assert np.array_equal(together, apart)  # batch invariance (module docstring of evaluate)
 

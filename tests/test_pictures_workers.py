@@ -1,7 +1,7 @@
 """Rendering a population in worker processes (coursekit.pictures.workers, section 3.2).
 
-The pool must give exactly the pictures of in-process rendering, in population order, keep
-same-shaped genomes batched, never run a user's script again in its workers, free its shared
+The pool must give exactly the pictures of in-process rendering, in population order (with
+same-shaped genomes stacked or not), never run a user's script again in its workers, free its shared
 memory, and fall back to in-process rendering where processes cannot be started.
 """
 
@@ -32,18 +32,19 @@ def population(seed, n):
     return [pop[i] for i in order]
 
 
-def test_pool_renders_the_in_process_pictures_in_population_order():
+@pytest.mark.parametrize("batch", [False, True])
+def test_pool_renders_the_in_process_pictures_in_population_order(batch):
     pop = population(3, 12)
     size = (128, 176)
     assert len(pop) * size[0] * size[1] >= _POOL_PIXELS
     window = (-0.4, 0.1, 1.3, 1.2)
-    pooled = render(pop, size, window=window, time=0.7, workers=2)
+    pooled = render(pop, size, window=window, time=0.7, workers=2, batch=batch)
     alone = render(pop, size, window=window, time=0.7, workers=1)
     assert pooled.shape == (12, 128, 176, 3) and pooled.dtype == np.float32
     assert np.array_equal(pooled, alone)
     assert Wk._pool is not None and Wk._pool.n == 2  # the pool really ran
     block = Wk._pool.shm.name
-    again = render(pop[::-1], size, window=window, time=0.7, workers=2)  # reuses pool and block
+    again = render(pop[::-1], size, window=window, time=0.7, workers=2, batch=batch)  # reuses pool and block
     assert Wk._pool.shm.name == block
     assert np.array_equal(again, alone[::-1])
 

@@ -1,9 +1,9 @@
 """Population-wide evaluation of genetic pictures: one operation per primitive and wave, whatever
 the genomes (paper section 3.2, phenotype; for GPUs).
 
-:func:`.evaluate.render` batches genomes whose trees have the same *shape*; random genomes rarely
-share one, so a population of 256 costs 256 evaluations of about 550 tensor operations each,
-measured: on a GPU, about 140,000 kernel launches, each on one small image, and launches, not
+Genome by genome, a population of 256 random genomes costs 256 evaluations of about 550 tensor
+operations each (measured; stacking same-shaped genomes barely helps, random genomes rarely share
+a shape): on a GPU, about 140,000 kernel launches, each on one small image, and launches, not
 arithmetic, bound the speed. Here the whole population is evaluated in *waves*: every node whose
 inputs are ready, in any genome and any coordinate context, joins the wave, and the nodes of a
 wave with the same primitive and the same input types (scalar, colour, pixel map; see
@@ -12,10 +12,15 @@ and parameters. The number of operations then grows with the number of waves (th
 depth) and of distinct primitives, not with the population.
 
 Coordinate transforms re-evaluate their first argument in a new context; ``warp-swirl`` and
-``warp-by`` build it from their second argument, so that subtree joins a later wave. Nodes in
-the unwarped context keep their compact shapes (an expression of ``x`` alone stays one row);
-warped contexts are stacked as full coordinate images. Values are the same as evaluating the
-trees one by one: every primitive treats the images of a batch independently.
+``warp-by`` build it from their second argument, so that subtree joins a later wave; the
+transforms of a wave are grouped too. Values keep their compact shapes (an expression of ``x``
+alone stays one row); the arguments of pointwise functions of two arguments are broadcast to
+one shape first, which leaves their values unchanged and makes fewer, larger groups. Warped
+coordinates are stacked as they are, except a separable context (unwarped, or a warp by a
+uniform displacement), which is used unstacked, since noise and pixel maps sample such
+coordinates by rows and columns. The pictures are bit for bit those of genome-by-genome
+evaluation, because every primitive computes each image of a batch as it would alone (see
+:mod:`.evaluate`, batch invariance; tested).
 """
 
 from __future__ import annotations
