@@ -618,6 +618,19 @@ def _swirl_ctx(ctx, p):
     return _turn(ctx, p[0] * _exp(-r / p[1].clamp(min=1e-3)))
 
 
+def _warp_context(symbol: str, ctx: _Ctx, p: list, b: torch.Tensor | None) -> _Ctx:
+    """The context in which a coordinate transform evaluates its first argument (``b``: the
+    value of its second argument, for ``warp-swirl`` and ``warp-by``)."""
+    if symbol == "swirl":
+        return _swirl_ctx(ctx, p)
+    if symbol == "rotate":
+        return _turn(ctx, TWO_PI * p[0])
+    if symbol == "warp-swirl":
+        return _turn(ctx, p[0] * _grey(b))
+    d0, d1 = (b[:, 0:1], b[:, 1:2]) if b.shape[1] == 3 else (b, b)  # warp-by
+    return ctx.with_coords(ctx.x + p[0] * (d0 - 0.5), ctx.y + p[0] * (d1 - 0.5))
+
+
 _TERMINALS = {
     "const": _const, "color": _color, "x": lambda ctx, p: ctx.x, "y": lambda ctx, p: ctx.y,
     "radius": _radius, "angle": _angle, "ramp": _ramp, "gradient": _gradient,
@@ -730,17 +743,9 @@ def _eval_node(n: _BNode, ctx: _Ctx) -> torch.Tensor:
         a = _eval(n.children[0], ctx)
         sig = p[0][:, 0, 0, 0]
         return 0.5 + _blur_by(a, sig, ctx) - _blur_by(a, 3.0 * sig, ctx)
-    if s == "swirl":
-        return _eval(n.children[0], _swirl_ctx(ctx, p))
-    if s == "rotate":
-        return _eval(n.children[0], _turn(ctx, TWO_PI * p[0]))
-    if s == "warp-swirl":
-        b = _grey(_eval(n.children[1], ctx))
-        return _eval(n.children[0], _turn(ctx, p[0] * b))
-    if s == "warp-by":
-        b = _eval(n.children[1], ctx)
-        d0, d1 = (b[:, 0:1], b[:, 1:2]) if b.shape[1] == 3 else (b, b)
-        return _eval(n.children[0], ctx.with_coords(ctx.x + p[0] * (d0 - 0.5), ctx.y + p[0] * (d1 - 0.5)))
+    if s in _WARPS:
+        b = _eval(n.children[1], ctx) if len(n.children) > 1 else None
+        return _eval(n.children[0], _warp_context(s, ctx, p, b))
     if s == "dissolve":
         a, b = _eval(n.children[0], ctx), _eval(n.children[1], ctx)
         # cell indices per column and per row (per pixel only in a warped context)

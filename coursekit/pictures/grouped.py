@@ -30,11 +30,10 @@ from collections import defaultdict
 import torch
 
 from .evaluate import _NEIGHBOURHOOD as _NEIGHBOURHOOD_FNS
-from .evaluate import _POINTWISE2, TWO_PI, _BNode, _Ctx, _eval_node, _grey, _Memo, _swirl_ctx, _turn
+from .evaluate import _POINTWISE2, _WARPS, _BNode, _Ctx, _eval_node, _Memo, _warp_context
 
 __all__ = ["evaluate_population"]
 
-_WARPS = ("swirl", "rotate", "warp-swirl", "warp-by")
 # pointwise functions of several arguments (an argument broadcast beforehand gives the same
 # values), and functions that broadcast their argument to the whole image first
 _BROADCAST = frozenset(_POINTWISE2) | {"dissolve"}
@@ -82,10 +81,8 @@ class _Waves:
         inst = self.instances.get(key)
         if inst is None:
             inst = self.instances[key] = _Inst(node, ctx)
-            if node.symbol in ("swirl", "rotate"):
-                self._wait(inst, [], "warp")
-            elif node.symbol in _WARPS:  # first the displacement, then the warped subtree
-                self._wait(inst, [self.request(node.children[1], ctx)], "warp")
+            if node.symbol in _WARPS:  # first the displacement (if any), then the warped subtree
+                self._wait(inst, [self.request(c, ctx) for c in node.children[1:]], "warp")
             else:
                 self._wait(inst, [self.request(c, ctx) for c in node.children], "eval")
         return inst
@@ -159,17 +156,8 @@ class _Waves:
             for inst, v in zip(insts, split(value)):
                 self._done(inst, v)
             return
-        if s == "swirl":
-            warped = _swirl_ctx(ctx, p)
-        elif s == "rotate":
-            warped = _turn(ctx, TWO_PI * p[0])
-        elif s == "warp-swirl":
-            warped = _turn(ctx, p[0] * _grey(inputs[0]))
-        else:  # warp-by
-            b = inputs[0]
-            d0, d1 = (b[:, 0:1], b[:, 1:2]) if b.shape[1] == 3 else (b, b)
-            warped = ctx.with_coords(ctx.x + p[0] * (d0 - 0.5), ctx.y + p[0] * (d1 - 0.5))
-        for inst, x, y in zip(insts, split(warped.x), split(warped.y)):
+        w = _warp_context(s, ctx, p, inputs[0] if inputs else None)
+        for inst, x, y in zip(insts, split(w.x), split(w.y)):
             w = _Ctx(x, y, c.H, c.W, c.px, c.py, c.time, c.res, c.memo)
             self._wait(inst, [self.request(inst.node.children[0], w)], "alias")
 
