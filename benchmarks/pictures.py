@@ -38,8 +38,8 @@ import time
 
 import numpy as np
 import torch
-from torch.utils._python_dispatch import TorchDispatchMode
 
+from coursekit.operations import CountOperations
 from coursekit.pictures import Genome, render, render_reference
 from coursekit.pictures import operators as O
 
@@ -81,22 +81,10 @@ def cold_window():
     return (0.0, 0.0, 1.0, 1.0 + 1e-7 * next(_fresh))
 
 
-class _Operations(TorchDispatchMode):
-    """Counts the tensor operations that compute (views only re-describe memory)."""
-
-    def __init__(self):
-        super().__init__()
-        self.count = 0
-
-    def __torch_dispatch__(self, func, types, args=(), kwargs=None):
-        self.count += not func.is_view
-        return func(*args, **(kwargs or {}))
-
-
 def operations_per_image(genomes, group: bool) -> float:
     """Computing tensor operations per picture (64^2, in this process; numpy's kernels, which a
     GPU does not use, are not counted, so the CPU count is a lower bound there)."""
-    with _Operations() as ops:
+    with CountOperations() as ops:
         render(genomes, 64, workers=1, group=group)
     return ops.count / len(genomes)
 

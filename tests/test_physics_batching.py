@@ -3,38 +3,28 @@ or bodies in a step.
 
 The evidence is the number of tensor operations a step dispatches: it depends on the depth
 levels of the packed trees, never on how many creatures share them. Counted on the torch
-backend (the same code path as numpy, through ``backend``) with a dispatch mode that sees
-every ATen operation, so one creature more per level would show up as more operations.
-On a GPU this count is the number of kernel launches per step.
+backend (the same code path as numpy, through ``backend``) with
+:class:`coursekit.operations.CountOperations`, which sees every operation torch runs, so one
+creature more per level would show up as more operations. On a GPU this count is the number of
+kernel launches per step.
 """
 
 import numpy as np
 import pytest
-import torch
-from torch.utils._python_dispatch import TorchDispatchMode
 
 from coursekit.creatures.physics import random_body_tree, random_state
 from coursekit.creatures.physics.world import World
-
-
-class _Count(TorchDispatchMode):
-    def __init__(self):
-        super().__init__()
-        self.ops = 0
-
-    def __torch_dispatch__(self, func, types, args=(), kwargs=None):
-        self.ops += 1
-        return func(*args, **(kwargs or {}))
+from coursekit.operations import CountOperations
 
 
 def _ops_per_step(trees, states, contacts):
     world = World(trees, backend="torch", device="cpu", contacts=contacts)
     world.set_state([s[0] for s in states], [s[1] for s in states])
     world.step()  # first step: lazily built constants are not part of a step
-    with _Count() as count:
+    with CountOperations() as ops:
         world.step()
     assert not world.diverged.any()
-    return count.ops
+    return ops.count
 
 
 @pytest.mark.parametrize("contacts", [False, True])

@@ -6,11 +6,12 @@ tensor operations: that count is the number of kernel launches on a GPU, which i
 """
 
 import numpy as np
+import pytest
 import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from torch.utils._python_dispatch import TorchDispatchMode
 
+from coursekit.operations import CountOperations
 from coursekit.pictures import operators as O
 from coursekit.pictures.evaluate import render
 from coursekit.pictures.genome import Chromosome, ChromosomeString, Genome
@@ -54,32 +55,18 @@ def test_every_warp_and_its_displacement_in_waves():
                           render(pop, (12, 10), workers=1, group=True))
 
 
-class _Count(TorchDispatchMode):
-    """Tensor operations that compute (views only re-describe memory: no kernel on a GPU)."""
-
-    def __init__(self):
-        super().__init__()
-        self.ops = 0
-
-    def __torch_dispatch__(self, func, types, args=(), kwargs=None):
-        self.ops += not func.is_view
-        return func(*args, **(kwargs or {}))
-
-
 def test_waves_need_several_times_fewer_operations_than_genome_by_genome_evaluation():
     rng = np.random.default_rng(3)
     pop = [Genome.random(rng, n_strings=4, head_length=8) for _ in range(256)]
     counts = {}
     for group in (False, True):
-        with _Count() as count:
+        with CountOperations() as ops:
             render(pop, 8, workers=1, group=group)
-        counts[group] = count.ops
+        counts[group] = ops.count
     assert counts[False] > 3 * counts[True], counts
 
 
 def test_group_is_validated():
-    import pytest
-
     g = Genome.random(np.random.default_rng(0))
     with pytest.raises(ValueError, match="group"):
         render(g, 4, group="yes")
