@@ -29,10 +29,18 @@ def _halves(v, axis):
     return (v[:3], v[3:]) if axis == 0 else (v[..., :3], v[..., 3:])
 
 
+# numpy's stacked ``matvec`` hands every small matrix to BLAS (``gemv``) when its rows are
+# contiguous; views with the summed axis reversed (``A[..., ::-1]``, ``x[..., ::-1]``: the same
+# sum, in the opposite order) are not "blasable", and numpy's own inner loop then does 6x6 and
+# 3x3 products 1.5-2.5 times faster than BLAS (measured, numpy 2.4 on x86: a stack of 2,232 6x6
+# ``A x`` 73 -> 39 us, ``A' x`` by ``vecmat`` 58 -> 39 us; 2,000 3x3 78 -> 30 us), with and
+# without a forced ``OPENBLAS_CORETYPE``. No copy is made; ``A'`` is the view ``A.mT``.
+
+
 def mv(A, x, out=None):
     """Stacked matrix-vector product ``A @ x`` for (..., n, m) and (..., m) (into ``out`` if given)."""
     if isinstance(A, np.ndarray):
-        return np.matvec(A, x, out=out)
+        return np.matvec(A[..., ::-1], x[..., ::-1], out=out)  # reversed views: see above
     if out is None:
         return (A @ x[..., None])[..., 0]
     out[...] = (A @ x[..., None])[..., 0]
@@ -43,7 +51,7 @@ def mtv(A, x, out=None):
     """Stacked transposed product ``A' @ x`` for (..., m, n) and (..., m), without a transpose
     (into ``out`` if given)."""
     if isinstance(A, np.ndarray):
-        return np.vecmat(x, A, out=out)
+        return np.matvec(A.mT[..., ::-1], x[..., ::-1], out=out)  # reversed views: see above
     if out is None:
         return (x[..., None, :] @ A)[..., 0, :]
     out[...] = (x[..., None, :] @ A)[..., 0, :]
