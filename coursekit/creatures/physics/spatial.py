@@ -228,6 +228,44 @@ def chart_rates(xp, theta, theta_dot, coefficients=None):
     return omega, curvature, gamma
 
 
+def chart_maps(xp, theta):
+    """What the integrator's stages at one ``theta`` share, as matrices: ``(expm, KK, dinv, coefficients)``.
+
+    ``expm = exp([theta]x) = 1 + (sin p / p) K + alpha K^2`` (``K = [theta]x``, ``K^2 = theta
+    theta' - p^2``, ``sin p / p = 1 - p^2 beta``), ``KK`` (..., 6, 3) stacks ``K`` over ``K^2``,
+    ``dinv = 1 + K / 2 + gamma K^2`` is :func:`dexp_inv` as a matrix, and ``coefficients`` are
+    ``(alpha, beta, dalpha, dbeta)`` of :func:`chart_coefficients`. With them a stage's
+    :func:`chart_rates_at` and ``dexp_inv`` are a handful of operations (the cross products of
+    :func:`chart_rates` become one stacked product), which matters for a batch of small (C, 3)
+    arrays, where every operation costs its call overhead.
+    """
+    alpha, beta, dalpha, dbeta, gamma = chart_coefficients(xp, theta)
+    t0, t1, t2 = theta[..., 0], theta[..., 1], theta[..., 2]
+    z = xp.zeros_like(t0)
+    K = xp.reshape(xp.stack([z, -t2, t1, t2, z, -t0, -t1, t0, z], axis=-1), tuple(theta.shape[:-1]) + (3, 3))
+    p2 = xp.vecdot(theta, theta)[..., None, None]
+    eye = xp.eye(3, dtype=theta.dtype, device=getattr(theta, "device", None))
+    K2 = theta[..., :, None] * theta[..., None, :] - p2 * eye
+    a, b = alpha[..., None], beta[..., None]
+    expm = eye + (1.0 - p2 * b) * K + a * K2
+    dinv = eye + 0.5 * K + gamma[..., None] * K2
+    return expm, xp.concat([K, K2], axis=-2), dinv, (alpha, beta, dalpha, dbeta)
+
+
+def chart_rates_at(xp, theta, theta_dot, maps):
+    """``dexp(theta) theta_dot`` and ``dexp_dot(theta, theta_dot)`` (as :func:`chart_rates`) from
+    the :func:`chart_maps` ``maps`` at ``theta``; ``theta_dot x (theta x theta_dot)`` is written
+    ``theta |theta_dot|^2 - theta_dot (theta . theta_dot)``."""
+    _, KK, _, (alpha, beta, dalpha, dbeta) = maps
+    t = mv(KK, theta_dot)
+    t1, t2 = t[..., :3], t[..., 3:]  # theta x theta_dot, theta x (theta x theta_dot)
+    pdot = xp.sum(theta * theta_dot, axis=-1, keepdims=True)
+    n2 = xp.sum(theta_dot * theta_dot, axis=-1, keepdims=True)
+    omega = theta_dot - alpha * t1 + beta * t2
+    curvature = (dbeta * pdot) * t2 - (dalpha * pdot) * t1 + beta * (theta * n2 - theta_dot * pdot)
+    return omega, curvature
+
+
 def dexp_inv(xp, theta, omega, gamma=None):
     """Solve ``dexp(theta) @ x = omega`` for ``x`` (exactly, by the closed-form inverse);
     ``gamma`` from :func:`chart_rates` at this ``theta`` when known."""
