@@ -194,7 +194,7 @@ def articulated_inertias(model, q):
         j = slice(s - C, e - C)
         IAj, X, Sj = IA[s:e], Xup[j], S[j]
         Uj = sp.mtv(IAj, Sj, out=U[j])
-        dj = xp.vecdot(Sj, Uj)
+        dj = sp.dot(xp, Sj, Uj)
         d[j] = dj
         Wj = sp.mtv(X, Uj, out=W[j])
         Wj /= dj[:, None]
@@ -241,10 +241,10 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
         pA += damping * v
     if f_ext is not None:
         pA -= f_ext
-    Uc = xp.vecdot(U, c)
+    Uc = sp.dot(xp, U, c)
     jl, ji = slice(L - C, None), slice(0, L - C)
     # leaves, all at once (their IA is the diagonal I)
-    ul = tau[jl] - xp.vecdot(S[jl], pA[L:])
+    ul = tau[jl] - sp.dot(xp, S[jl], pA[L:])
     pa = pA[L:] + I[L:] * c[jl] + U[jl] * ((ul - Uc[jl]) / d[jl])[:, None]
     # what does not depend on the sweep -- the leaves' Xup' pa and the inner joints' h -- is
     # summed into the parents at once; the inner levels then pass Z' pA on
@@ -255,13 +255,13 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
     model.joint_segments.add_into(pA, g)
     for s, e, _, seg in reversed(model.levels):
         seg.add_into(pA, sp.mtv(Z[s - C : e - C], pA[s:e]))
-    ud = (tau - xp.vecdot(S, pA[C:]) - Uc) / d  # (u - U'c) / d
+    ud = (tau - sp.dot(xp, S, pA[C:]) - Uc) / d  # (u - U'c) / d
 
     a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
     a = xp.concat([a0, c[ji] + S[ji] * ud[ji][:, None]], axis=0)  # each body then adds Z a_parent
     for s, e, par, _ in model.levels:
         a[s:e] += sp.mv(Z[s - C : e - C], xp.take(a, par, axis=0))
-    qdd = ud - xp.vecdot(W, xp.take(a, model.joint_parent, axis=0))
+    qdd = ud - sp.dot(xp, W, xp.take(a, model.joint_parent, axis=0))
     return a0, qdd, v
 
 

@@ -58,6 +58,14 @@ def mtv(A, x, out=None):
     return out
 
 
+def dot(xp, a, b):
+    """Row-wise dot products ``sum(a * b, -1)`` of (..., n) stacks (numpy: the same reversed
+    views, as a stack of 1 x n products -- about 1.4 times faster than ``np.vecdot``)."""
+    if xp is np:
+        return np.matvec(a[..., None, ::-1], b[..., ::-1])[..., 0]
+    return xp.vecdot(a, b)
+
+
 def outer(xp, a, b):
     """Stacked outer products ``a b'`` of (..., n) and (..., m)."""
     if xp is np:
