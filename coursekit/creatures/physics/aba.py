@@ -18,14 +18,29 @@ or quadratic (prismatic) polynomial of degree two in ``q`` with constant matrix 
 level loops run over the inner bodies only (the model stores leaves after them).
 
 numpy notes (measured at 300 creatures, about 4,500 bodies; the step is bound by memory traffic
-and by per-call overhead, not by arithmetic): stacked ``x' A`` (``np.vecmat``) is about 20 %
-faster than ``A x`` (``np.matvec``), so the symmetric ``IA`` is used from the left; row gathers
-use ``take`` (three times faster than fancy indexing); sums into parents go through scipy's CSR
-kernel in place (:class:`~coursekit.creatures.physics.backend.Segments`); symmetric sums stream
-21 entries, not 36; cross products use whole component-major rows. Tried and not kept: a
-Cholesky root solve (neutral: the factor costs what the solves save), transforms from 18 unique
-entries plus a gather (slower: the gather costs more than the smaller basis saves), and
-component-major 6x6 products (two to three times slower than the stacked ones).
+and by per-call overhead, not by arithmetic): stacked 6x6 (and 3x3) ``A x``, ``A' x`` and row dot
+products go through numpy's own ``matvec`` loop on reversed views (:func:`spatial.mv`,
+:func:`spatial.mtv`, :func:`spatial.dot`): contiguous operands are handed to BLAS one small matrix
+at a time, which is 1.5 to 2.5 times slower (2,232 6x6 products: 73 -> 39 us; 4,184 row dots:
+25 -> 18 us) -- this alone took the step from 8.67 to 8.30 ms, and the dots 7.25 -> 6.91 ms. Row
+gathers use ``take`` (three times faster than fancy indexing); sums into parents go through
+scipy's CSR kernel in place (:class:`~coursekit.creatures.physics.backend.Segments`); symmetric
+sums stream 21 entries, not 36; cross products use whole component-major rows. The two stacked
+6x6 ``matmul`` per inner body of :func:`articulated_inertias` stay with BLAS, whose per-matrix
+cost depends on the machine's ``OPENBLAS_CORETYPE`` (658 products: 40-46 us with the forced
+``Haswell``, 16.5 us without; numpy's own loop 53 us either way).
+
+Tried and not kept: a Cholesky root solve (neutral: the factor costs what the solves save; numpy's
+raw ``solve1`` gufunc is no faster than ``linalg.solve``, 75 vs 78 us, and an inverse shared by
+RKN stages 2 and 3 costs 150 us, more than the two solves); transforms from 18 unique entries
+(a gather, or three block copies into the 6x6 stack: the copies alone take 180-310 us, more than
+the halved basis read saves); ``Xup`` as ``P0 + cos P1 + sin P2`` by broadcasting (230 vs 250 us:
+within noise, one broadcast product costs 81 us); each level's ``Xup`` formed just before the level
+(to find it in cache: 7.40 vs 7.33 ms); the 6x6 ``matmul`` as one broadcast ``matvec`` (153 vs
+75 us) or through reversed views (numpy's loop, slower than BLAS, above); component-major 6x6
+products (two to three times slower than the stacked ones); and, in the contact path, one
+``bincount`` over (row, column) bins for the wrench scatter (74 vs 70 us) and forward kinematics
+with the three terms of each product written out (363 vs 300 us).
 """
 
 from __future__ import annotations
@@ -171,8 +186,7 @@ def articulated_inertias(model, q):
     roots and inner bodies (a leaf's is its rigid inertia), ``U = IA S`` and ``d = S' U`` (M,)
     per joint, ``W = Xup' U / d`` (M, 6) and, for the inner joints, ``Z = Xup - S W'`` and
     ``Yt = IA Xup`` (L - C, 6, 6). Each child passes ``Xup' (IA - U U' / d) Xup = Yt' Z`` to its
-    parent. (``IA`` is symmetric, so ``U = IA S`` is computed as ``S' IA`` and ``Yt`` is the
-    transpose of ``Xup' IA``: numpy's stacked ``x' A`` is faster than its ``A x``.)
+    parent. (``IA`` is symmetric, so ``U = IA S`` is computed as ``S' IA``.)
     They depend on the positions only, so the Nyström stages 2 and 3, which share positions,
     share them.
     """
