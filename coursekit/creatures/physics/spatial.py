@@ -63,7 +63,7 @@ def dot(xp, a, b):
     views, as a stack of 1 x n products -- about 1.4 times faster than ``np.vecdot``)."""
     if xp is np:
         return np.matvec(a[..., None, ::-1], b[..., ::-1])[..., 0]
-    return xp.vecdot(a, b)
+    return (a * b).sum(-1)  # torch: a third of the time of array_api_compat's vecdot wrapper
 
 
 def outer(xp, a, b):
