@@ -22,7 +22,8 @@ and by per-call overhead, not by arithmetic): stacked 6x6 (and 3x3) ``A x``, ``A
 products go through numpy's own ``matvec`` loop on reversed views (:func:`spatial.mv`,
 :func:`spatial.mtv`, :func:`spatial.dot`): contiguous operands are handed to BLAS one small matrix
 at a time, which is 1.5 to 2.5 times slower (2,232 6x6 products: 73 -> 39 us; 4,184 row dots:
-25 -> 18 us) -- this alone took the step from 8.67 to 8.30 ms, and the dots 7.25 -> 6.91 ms. Row
+34 -> 13 us) -- the products took the step from 8.67 to 8.30 ms, the dots 7.84 -> 7.55 ms (A/B in
+one process; the machine's speed drifts between runs). Row
 gathers use ``take`` (three times faster than fancy indexing); sums into parents go through
 scipy's CSR kernel in place (:class:`~coursekit.creatures.physics.backend.Segments`); symmetric
 sums stream 21 entries, not 36; cross products use whole component-major rows. The two stacked

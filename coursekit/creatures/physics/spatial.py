@@ -60,10 +60,9 @@ def mtv(A, x, out=None):
 
 def dot(xp, a, b):
     """Row-wise dot products ``sum(a * b, -1)`` of (..., n) stacks (numpy: ``vecdot`` on the
-    reversed views, numpy's own loop -- 2.5 times faster than on contiguous rows, which go to
-    BLAS's ``ddot`` row by row). A creature's result must not depend on where its rows sit in
-    the batch: ``np.matvec`` with (1, n) matrices was fast too, but changed last bits with the
-    batch's composition (the evolution's fitness then differed from a fresh simulation)."""
+    reversed views, numpy's own loop -- about 2.5 times faster than on contiguous rows, which go
+    to BLAS's ``ddot`` row by row; each row is summed on its own, so a creature's result does not
+    depend on where its rows sit in the batch)."""
     if xp is np:
         return np.vecdot(a[..., ::-1], b[..., ::-1])
     return (a * b).sum(-1)  # torch: a third of the time of array_api_compat's vecdot wrapper
