@@ -23,19 +23,20 @@ products go through numpy's own ``matvec`` loop on reversed views (:func:`spatia
 :func:`spatial.mtv`, :func:`spatial.dot`): contiguous operands are handed to BLAS one small matrix
 at a time, which is 1.5 to 2.5 times slower (2,232 6x6 products: 73 -> 39 us; 4,184 row dots:
 34 -> 13 us) -- the products took the step from 8.67 to 8.30 ms, the dots 7.84 -> 7.55 ms (A/B in
-one process; the machine's speed drifts between runs). Row
-gathers use ``take`` (three times faster than fancy indexing); sums into parents go through
-scipy's CSR kernel in place (:class:`~coursekit.creatures.physics.backend.Segments`); symmetric
-sums stream 21 entries, not 36; cross products use whole component-major rows. The two stacked
+one process; the machine's speed drifts between runs). Row gathers use ``take`` (three times
+faster than fancy indexing); sums into parents go through scipy's CSR kernel in place (:class:`~coursekit.creatures.physics.backend.Segments`); symmetric
+sums stream 21 entries, not 36; the transforms ``Xup`` are formed from the coefficients of their
+18 distinct entries and one ``take`` along the rows (half the basis to stream: 234 -> 188 us per
+build, the step 7.47 -> 7.23 ms); cross products use whole component-major rows. The two stacked
 6x6 ``matmul`` per inner body of :func:`articulated_inertias` stay with BLAS, whose per-matrix
 cost depends on the machine's ``OPENBLAS_CORETYPE`` (658 products: 40-46 us with the forced
 ``Haswell``, 16.5 us without; numpy's own loop 53 us either way).
 
 Tried and not kept: a Cholesky root solve (neutral: the factor costs what the solves save; numpy's
 raw ``solve1`` gufunc is no faster than ``linalg.solve``, 75 vs 78 us, and an inverse shared by
-RKN stages 2 and 3 costs 150 us, more than the two solves); transforms from 18 unique entries
-(a gather, or three block copies into the 6x6 stack: the copies alone take 180-310 us, more than
-the halved basis read saves); ``Xup`` as ``P0 + cos P1 + sin P2`` by broadcasting (230 vs 250 us:
+RKN stages 2 and 3 costs 150 us, more than the two solves); the 18 distinct entries written
+into the 6x6 stack by three block copies (the copies alone take 180-310 us; the ``take`` above is
+what paid off); ``Xup`` as ``P0 + cos P1 + sin P2`` by broadcasting (230 vs 250 us:
 within noise, one broadcast product costs 81 us); each level's ``Xup`` formed just before the level
 (to find it in cache: 7.40 vs 7.33 ms); the 6x6 ``matmul`` as one broadcast ``matvec`` (153 vs
 75 us) or through reversed views (numpy's loop, slower than BLAS, above); component-major 6x6
@@ -127,11 +128,12 @@ def joint_transform_matrices(model, q):
 
 def _transform_matrices(model, b):
     """(M, 6, 6) ``Xup`` from the (M, 5) :func:`joint_basis` ``b``: numpy takes one stacked
-    (1 x 3) @ (3 x 36) product per joint; torch, whose small stacked products are slow on the
-    CPU, two ``addcmul`` over the coefficient rows."""
+    (1 x 3) @ (3 x 19) product per joint for the distinct entries (``E``, ``-E rx``, 0) and
+    gathers the 36 from them; torch, whose small stacked products are slow on the CPU, two
+    ``addcmul`` over the rows of the full coefficients."""
     P = model.X_basis
     if model.xp is np:
-        return (b[:, None, :3] @ P).reshape(-1, 6, 6)
+        return np.take((b[:, None, :3] @ P)[:, 0], model.X_expand, axis=1).reshape(-1, 6, 6)
     return P[0].addcmul(b[:, 1:2], P[1]).addcmul_(b[:, 2:3], P[2]).reshape(-1, 6, 6)
 
 
