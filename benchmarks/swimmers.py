@@ -9,13 +9,20 @@ articulated bodies (joint limits as constraints, no fluid, no contacts). Times a
 window of process CPU time, the engines taking turns window by window (see ``_timed``), so other
 jobs on a shared machine disturb them little and disturb all engines alike.
 
+Every engine first simulates ``--warmup`` seconds (default 2 s, 120 steps) untimed. The random
+creatures start inside their joint limits, and MuJoCo's step cost grows as they reach them and
+its constraint count rises (at batch 300, about 6 ms per step over the first 20 steps, 10 ms from
+about step 60 on, 255 -> 1,200 active constraints by step 240); our limits are springs whose
+cost does not depend on the state. Timing from the first step would measure MuJoCo on that
+transient only (the best window is an early one); ``--warmup 0`` does so.
+
 Our numpy step is bound by memory traffic and per-call overhead (see the notes in
 ``coursekit/creatures/physics/aba.py``); part of it is stacked 6x6 products, which a forced
 ``OPENBLAS_CORETYPE`` (set on some machines to dodge bugs of old OpenBLAS builds) slows down in
 current numpy; the header prints it. To measure the library as users get it there, run
 ``env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE python benchmarks/swimmers.py``.
 
-    python benchmarks/swimmers.py [--batches 1 30 300] [--seconds 2]
+    python benchmarks/swimmers.py [--batches 1 30 300] [--seconds 2] [--warmup 2]
 """
 
 from __future__ import annotations
@@ -100,6 +107,7 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--batches", type=int, nargs="+", default=[1, 30, 300])
     ap.add_argument("--seconds", type=float, default=2.0, help="CPU time per engine and batch")
+    ap.add_argument("--warmup", type=float, default=2.0, help="simulated seconds every engine runs untimed first")
     args = ap.parse_args(argv)
     import torch
 
@@ -112,13 +120,21 @@ def main(argv=None) -> None:
         for backend, device, contacts in [("numpy", None, False), ("numpy", None, True), ("torch", "cpu", False)]:
             name = f"ours {backend}{'/' + device if device else ''} RKN{' +collisions' if contacts else ''}"
             steps[name] = ours(trees, states, backend, device=device, contacts=contacts)
+        warm = round(args.warmup / DT)
+        for step in steps.values():
+            for _ in range(warm):
+                step()
         times = _timed(steps, args.seconds)
         if torch.cuda.is_available():
-            times.update(_timed({"ours torch/cuda RKN": ours(trees, states, "torch", device="cuda")}, args.seconds, clock=time.perf_counter))
+            cuda = ours(trees, states, "torch", device="cuda")
+            for _ in range(warm):
+                cuda()
+            times.update(_timed({"ours torch/cuda RKN": cuda}, args.seconds, clock=time.perf_counter))
         ref = times["mujoco RK4 (1 thread)"]
         rows += [(batch, bodies, name, t, ref) for name, t in times.items()]
     print(f"step dt = {DT:.5f} s, random creatures of 10-20 boxes; ratio = our body-steps/s over MuJoCo's")
-    print(f"numpy {np.__version__}, OPENBLAS_CORETYPE={os.environ.get('OPENBLAS_CORETYPE', '(unset)')}; best-window CPU time per step\n")
+    print(f"numpy {np.__version__}, OPENBLAS_CORETYPE={os.environ.get('OPENBLAS_CORETYPE', '(unset)')}; best-window CPU time per step "
+          f"after {args.warmup:g} s simulated untimed\n")
     print(f"{'batch':>5} {'bodies':>6}  {'engine':<34} {'ms/step':>9} {'body-steps/s':>13} {'creature-steps/s':>17} {'ratio':>6}")
     for batch, bodies, name, t, ref in rows:
         print(f"{batch:>5} {bodies:>6}  {name:<34} {t * 1e3:>9.3f} {bodies / t:>13,.0f} {batch / t:>17,.0f} {ref / t:>6.2f}")

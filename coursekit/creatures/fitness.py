@@ -57,7 +57,7 @@ def swimming_fitness(com: np.ndarray, times: np.ndarray, diverged: np.ndarray | 
     edges = np.linspace(times[0], times[-1], WINDOWS + 1)
     at = np.stack([np.stack([np.interp(edges, times, com[c, :, k]) for k in range(3)], axis=1) for c in range(com.shape[0])])
     speeds = np.diff(np.linalg.norm(at - start, axis=2), axis=1) / np.diff(edges)
-    late = speeds @ window_weights()
+    late = np.sum(speeds * window_weights(), axis=1)  # row by row: a BLAS matrix-vector product rounds differently with the batch size
     fit = DISTANCE_WEIGHT * max_dist + LATE_SPEED_WEIGHT * late
     fit = np.where(np.isfinite(fit), np.maximum(fit, 0.0), 0.0)
     if diverged is not None:

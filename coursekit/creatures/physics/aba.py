@@ -18,14 +18,31 @@ or quadratic (prismatic) polynomial of degree two in ``q`` with constant matrix 
 level loops run over the inner bodies only (the model stores leaves after them).
 
 numpy notes (measured at 300 creatures, about 4,500 bodies; the step is bound by memory traffic
-and by per-call overhead, not by arithmetic): stacked ``x' A`` (``np.vecmat``) is about 20 %
-faster than ``A x`` (``np.matvec``), so the symmetric ``IA`` is used from the left; row gathers
-use ``take`` (three times faster than fancy indexing); sums into parents go through scipy's CSR
-kernel in place (:class:`~coursekit.creatures.physics.backend.Segments`); symmetric sums stream
-21 entries, not 36; cross products use whole component-major rows. Tried and not kept: a
-Cholesky root solve (neutral: the factor costs what the solves save), transforms from 18 unique
-entries plus a gather (slower: the gather costs more than the smaller basis saves), and
-component-major 6x6 products (two to three times slower than the stacked ones).
+and by per-call overhead, not by arithmetic): stacked 6x6 (and 3x3) ``A x``, ``A' x`` and row dot
+products go through numpy's own ``matvec`` loop on reversed views (:func:`spatial.mv`,
+:func:`spatial.mtv`, :func:`spatial.dot`): contiguous operands are handed to BLAS one small matrix
+at a time, which is 1.5 to 2.5 times slower (2,232 6x6 products: 73 -> 39 us; 4,184 row dots:
+34 -> 13 us) -- the products took the step from 8.67 to 8.30 ms, the dots 7.84 -> 7.55 ms (A/B in
+one process; the machine's speed drifts between runs). Row gathers use ``take`` (three times
+faster than fancy indexing); sums into parents go through scipy's CSR kernel in place (:class:`~coursekit.creatures.physics.backend.Segments`); symmetric
+sums stream 21 entries, not 36; the transforms ``Xup`` are formed from the coefficients of their
+18 distinct entries and one ``take`` along the rows (half the basis to stream: 234 -> 188 us per
+build, the step 7.47 -> 7.23 ms); cross products use whole component-major rows. The two stacked
+6x6 ``matmul`` per inner body of :func:`articulated_inertias` stay with BLAS, whose per-matrix
+cost depends on the machine's ``OPENBLAS_CORETYPE`` (658 products: 40-46 us with the forced
+``Haswell``, 16.5 us without; numpy's own loop 53 us either way).
+
+Tried and not kept: a Cholesky root solve (neutral: the factor costs what the solves save; numpy's
+raw ``solve1`` gufunc is no faster than ``linalg.solve``, 75 vs 78 us, and an inverse shared by
+RKN stages 2 and 3 costs 150 us, more than the two solves); the 18 distinct entries written
+into the 6x6 stack by three block copies (the copies alone take 180-310 us; the ``take`` above is
+what paid off); ``Xup`` as ``P0 + cos P1 + sin P2`` by broadcasting (230 vs 250 us:
+within noise, one broadcast product costs 81 us); each level's ``Xup`` formed just before the level
+(to find it in cache: 7.40 vs 7.33 ms); the 6x6 ``matmul`` as one broadcast ``matvec`` (153 vs
+75 us) or through reversed views (numpy's loop, slower than BLAS, above); component-major 6x6
+products (two to three times slower than the stacked ones); and, in the contact path, one
+``bincount`` over (row, column) bins for the wrench scatter (74 vs 70 us) and forward kinematics
+with the three terms of each product written out (363 vs 300 us).
 """
 
 from __future__ import annotations
@@ -111,11 +128,12 @@ def joint_transform_matrices(model, q):
 
 def _transform_matrices(model, b):
     """(M, 6, 6) ``Xup`` from the (M, 5) :func:`joint_basis` ``b``: numpy takes one stacked
-    (1 x 3) @ (3 x 36) product per joint; torch, whose small stacked products are slow on the
-    CPU, two ``addcmul`` over the coefficient rows."""
+    (1 x 3) @ (3 x 19) product per joint for the distinct entries (``E``, ``-E rx``, 0) and
+    gathers the 36 from them; torch, whose small stacked products are slow on the CPU, two
+    ``addcmul`` over the rows of the full coefficients."""
     P = model.X_basis
     if model.xp is np:
-        return (b[:, None, :3] @ P).reshape(-1, 6, 6)
+        return np.take((b[:, None, :3] @ P)[:, 0], model.X_expand, axis=1).reshape(-1, 6, 6)
     return P[0].addcmul(b[:, 1:2], P[1]).addcmul_(b[:, 2:3], P[2]).reshape(-1, 6, 6)
 
 
@@ -171,8 +189,7 @@ def articulated_inertias(model, q):
     roots and inner bodies (a leaf's is its rigid inertia), ``U = IA S`` and ``d = S' U`` (M,)
     per joint, ``W = Xup' U / d`` (M, 6) and, for the inner joints, ``Z = Xup - S W'`` and
     ``Yt = IA Xup`` (L - C, 6, 6). Each child passes ``Xup' (IA - U U' / d) Xup = Yt' Z`` to its
-    parent. (``IA`` is symmetric, so ``U = IA S`` is computed as ``S' IA`` and ``Yt`` is the
-    transpose of ``Xup' IA``: numpy's stacked ``x' A`` is faster than its ``A x``.)
+    parent. (``IA`` is symmetric, so ``U = IA S`` is computed as ``S' IA``.)
     They depend on the positions only, so the Nyström stages 2 and 3, which share positions,
     share them.
     """
@@ -194,7 +211,7 @@ def articulated_inertias(model, q):
         j = slice(s - C, e - C)
         IAj, X, Sj = IA[s:e], Xup[j], S[j]
         Uj = sp.mtv(IAj, Sj, out=U[j])
-        dj = xp.vecdot(Sj, Uj)
+        dj = sp.dot(xp, Sj, Uj)
         d[j] = dj
         Wj = sp.mtv(X, Uj, out=W[j])
         Wj /= dj[:, None]
@@ -241,10 +258,10 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
         pA += damping * v
     if f_ext is not None:
         pA -= f_ext
-    Uc = xp.vecdot(U, c)
+    Uc = sp.dot(xp, U, c)
     jl, ji = slice(L - C, None), slice(0, L - C)
     # leaves, all at once (their IA is the diagonal I)
-    ul = tau[jl] - xp.vecdot(S[jl], pA[L:])
+    ul = tau[jl] - sp.dot(xp, S[jl], pA[L:])
     pa = pA[L:] + I[L:] * c[jl] + U[jl] * ((ul - Uc[jl]) / d[jl])[:, None]
     # what does not depend on the sweep -- the leaves' Xup' pa and the inner joints' h -- is
     # summed into the parents at once; the inner levels then pass Z' pA on
@@ -255,13 +272,13 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
     model.joint_segments.add_into(pA, g)
     for s, e, _, seg in reversed(model.levels):
         seg.add_into(pA, sp.mtv(Z[s - C : e - C], pA[s:e]))
-    ud = (tau - xp.vecdot(S, pA[C:]) - Uc) / d  # (u - U'c) / d
+    ud = (tau - sp.dot(xp, S, pA[C:]) - Uc) / d  # (u - U'c) / d
 
     a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
     a = xp.concat([a0, c[ji] + S[ji] * ud[ji][:, None]], axis=0)  # each body then adds Z a_parent
     for s, e, par, _ in model.levels:
         a[s:e] += sp.mv(Z[s - C : e - C], xp.take(a, par, axis=0))
-    qdd = ud - xp.vecdot(W, xp.take(a, model.joint_parent, axis=0))
+    qdd = ud - sp.dot(xp, W, xp.take(a, model.joint_parent, axis=0))
     return a0, qdd, v
 
 

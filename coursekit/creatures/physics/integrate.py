@@ -91,21 +91,22 @@ def step(xp, state: State, h: float, accel, method="rkn", t: float = 0.0) -> Sta
 
     # what depends on the positions alone, for the last y seen: stages that share positions (RKN
     # 2 and 3) share the unpacked arrays (the same q lets the world reuse its inertias), the root
-    # rotation and the chart's coefficients
+    # rotation and the chart's matrices (spatial.chart_maps)
     last = [None, None, None, None]
+    R0 = sp.quat_to_mat(xp, quat0)
 
     def f(y_flat, yd_flat, start=False):
         if start:  # theta = 0: the chart is the identity map there (and the state's own arrays)
-            return pack(accel(state.pos, sp.quat_to_mat(xp, quat0), state.q, state.lin, state.omega, state.qd))
+            return pack(accel(state.pos, R0, state.q, state.lin, state.omega, state.qd))
         if y_flat is not last[0]:
             y = unpack(y_flat)
-            R = sp.quat_to_mat(xp, sp.quat_mul(xp, quat0, sp.quat_exp(xp, y[1])))
-            last[:] = y_flat, y, R, sp.chart_coefficients(xp, y[1])
-        (pos, theta, q), R, coefficients = last[1:]
+            maps = sp.chart_maps(xp, y[1])
+            last[:] = y_flat, y, xp.matmul(R0, maps[0]), maps  # R = R0 exp(theta)
+        (pos, theta, q), R, maps = last[1:]
         lin, theta_d, qd = unpack(yd_flat)
-        omega, curvature, gamma = sp.chart_rates(xp, theta, theta_d, coefficients)
+        omega, curvature = sp.chart_rates_at(xp, theta, theta_d, maps)
         la, wd, qdd = accel(pos, R, q, lin, omega, qd)
-        return pack((la, sp.dexp_inv(xp, theta, wd - curvature, gamma), qdd))
+        return pack((la, sp.mv(maps[2], wd - curvature), qdd))  # dexp_inv
 
     if callable(method):
         y_new, yd_new = _plugged_step(method, f, t, pack(y), pack(yd), h)

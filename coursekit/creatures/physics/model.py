@@ -161,8 +161,19 @@ class Model:
         pose = fit_joint_basis(rev, consts, lambda E, r: np.concatenate([E.mT.reshape(-1, 9), r], axis=1))
         self.pose_rows_basis = f(np.transpose(pose, (1, 2, 0)))  # (3, 12, M): rows of E' and r
         X_basis = fit_joint_basis(rev, consts, lambda E, r: sp.transform_matrix(np, E, r).reshape(-1, 36))
-        # (M, 3, 36); for torch (3, M, 36), rows for addcmul (see aba._transform_matrices)
-        self.X_basis = f(X_basis if xp is np else np.ascontiguousarray(X_basis.transpose(1, 0, 2)))
+        if xp is np:
+            # Xup = [[E, 0], [-E rx, E]] has 18 distinct entries: numpy streams their coefficients
+            # (M, 3, 19: E, -E rx and a zero column) and gathers the 36 entries from them after
+            # (see aba._transform_matrices); the full basis is twice the memory traffic
+            block = np.arange(36).reshape(6, 6)
+            self.X_basis = np.ascontiguousarray(np.concatenate(
+                [X_basis[:, :, block[:3, :3].reshape(-1)], X_basis[:, :, block[3:, :3].reshape(-1)], np.zeros_like(X_basis[:, :, :1])], axis=2))
+            expand = np.full((6, 6), 18)
+            expand[:3, :3] = expand[3:, 3:] = np.arange(9).reshape(3, 3)
+            expand[3:, :3] = 9 + np.arange(9).reshape(3, 3)
+            self.X_expand = expand.reshape(-1)
+        else:  # torch: (3, M, 36), rows for addcmul (see aba._transform_matrices)
+            self.X_basis = f(np.ascontiguousarray(X_basis.transpose(1, 0, 2)))
         # leaves never change their articulated inertia: U = I S, d = S'U and Ia = I - U U'/d are
         # constants, and what a leaf passes to its parent, Xup' Ia Xup, is a fixed combination of
         # five constant matrices (degree two in aba.joint_basis)

@@ -185,10 +185,11 @@ class World:
         xp, m = self.xp, self.model
         C = m.n_creatures
         vmax, wmax, qmax = self.caps
-        root = xp.concat([new.pos, new.quat, new.lin, new.omega], axis=1)
-        ok = xp.all(xp.isfinite(root), axis=1)
-        ok = ok & (xp.sum(new.lin**2, axis=1) <= vmax**2) & (xp.sum(new.omega**2, axis=1) <= wmax**2)
-        jbad = ~(xp.isfinite(new.q) & xp.isfinite(new.qd) & (xp.abs(new.qd) <= qmax))
+        # a NaN or infinite speed fails its cap (every comparison with NaN is false): only the
+        # positions need their own finiteness test
+        ok = xp.all(xp.isfinite(xp.concat([new.pos, new.quat], axis=1)), axis=1)
+        ok = ok & (xp.sum(new.lin * new.lin, axis=1) <= vmax**2) & (xp.sum(new.omega * new.omega, axis=1) <= wmax**2)
+        jbad = ~(xp.isfinite(new.q) & (xp.abs(new.qd) <= qmax))
         if m.n_joints:
             nbad = xp.zeros((C,), dtype=xp.float64, device=m.device)
             if bk.is_torch(xp):
