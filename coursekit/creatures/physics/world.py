@@ -122,6 +122,8 @@ class World:
         pos, quat, q, lin, omega, qd = split_layout(m, qp, qv)
         f = lambda a: bk.asarray(xp, a, device=m.device)  # noqa: E731
         self.state = State(f(pos), sp.quat_canonical(xp, f(quat)), f(q), f(lin), f(omega), f(qd))
+        if self.contacts is not None:
+            self.contacts.reset()
 
     def get_state(self):
         """``(qpos, qvel)`` as lists of per-creature numpy vectors (MuJoCo layout)."""
