@@ -826,7 +826,7 @@ def render(genomes, size=(128, 128), *, window=(0.0, 0.0, 1.0, 1.0), time: float
             (:mod:`.grouped`: about 5x fewer tensor operations for 256 random genomes, so
             fewer kernel launches on a GPU). Default: on a GPU, and on the CPU for images of at
             most 64 x 64 pixels, where calls cost more than pixels (measured in one process:
-            5-15 % faster for 20 genomes, 25-30 % for 256; equal at 96^2; 15-20 % slower at
+            2-16 % faster for 20 genomes, 20-55 % for 256; equal at 96^2; 15-20 % slower at
             256^2, where stacking copies cost more than the calls they save). The pictures are
             the same either way.
         as_tensor: return the torch tensor (on ``device``) instead of a numpy array.
