@@ -18,10 +18,12 @@ Pairs are detected once per step; a contact is anchored when first found (its sp
 there: ``delta`` is the penetration since first touch) and followed through the integrator's
 stages and the following steps until it releases (:meth:`Contacts.begin`,
 :meth:`Contacts.wrench`), so the force is a smooth function of the state, the gradient of one
-spring energy per contact, and a contact can only take energy. Holding the start-of-step force over the step instead
-(an explicit, first-order treatment) let passive creatures thrown into themselves gain up to 16 %
-energy in 3 s -- an energy leak evolution would find (Sims' "clacking" exploit). Sensors: a face is touching (+1) when it is the face of its box whose outward normal is
-closest to the contact direction, otherwise -1 (Sims' per-face contact sensors).
+spring energy per contact, and a contact can only take energy. Holding the start-of-step force
+over the step instead (an explicit, first-order treatment) let passive creatures thrown into
+themselves gain up to 16 % energy in 3 s -- an energy leak evolution would find (Sims'
+"clacking" exploit). Sensors: a face is touching (+1) when it is the face of its box whose
+outward normal is closest to the contact direction, otherwise -1 (Sims' per-face contact
+sensors).
 """
 
 from __future__ import annotations
@@ -258,9 +260,9 @@ class Contacts:
         ``x_B``, and the normal speed is that of the two boxes' material points at ``x_B``: that
         force is exactly minus the gradient of the spring energy ``k depth^2 / 2`` (the normal's
         turn with A included) and ``vn = -d depth / dt``, so the contact's power is
-        ``-c vn^2 <= 0``: it can only take energy (applying it at the midpoint of the two contact
-        points, as before, let passive creatures gain up to 0.5 %). Linear and angular momentum
-        are conserved exactly (one line of action).
+        ``-c vn^2 <= 0`` (up to the integrator's truncation error): it can only take energy.
+        (Applied at the midpoint of the two contact points, as before, it was not that gradient.)
+        Linear and angular momentum are conserved exactly (one line of action).
 
         Args:
             active: the contact set from :meth:`begin`.
