@@ -22,7 +22,11 @@ Our numpy step is bound by memory traffic and per-call overhead (see the notes i
 current numpy; the header prints it. To measure the library as users get it there, run
 ``env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE python benchmarks/swimmers.py``.
 
-    python benchmarks/swimmers.py [--batches 1 30 300] [--seconds 2] [--warmup 2]
+It also counts the computing tensor operations of one step: on a GPU each is a kernel launch,
+which bounds the speed there, so the count tells on any machine what a GPU will pay. On a GPU,
+``--cuda-batches`` (default 4096 and 16384) are timed on CUDA alone.
+
+    python benchmarks/swimmers.py [--batches 1 30 300] [--seconds 2] [--warmup 2] [--cuda-batches 4096 16384]
 """
 
 from __future__ import annotations
@@ -103,15 +107,38 @@ def mujoco_step(trees, states):
     return lambda: mujoco.mj_step(model, data)
 
 
+def _on_cuda(trees, states, warm: int, seconds: float) -> float:
+    """Wall seconds per step of our torch simulator on CUDA (after ``warm`` untimed steps)."""
+    step = ours(trees, states, "torch", device="cuda")
+    for _ in range(warm):
+        step()
+    return _timed({"cuda": step}, seconds, clock=time.perf_counter)["cuda"]
+
+
+def operations_per_step(trees, states, contacts: bool) -> int:
+    """Computing tensor operations in one step (torch backend): kernel launches on a GPU."""
+    from coursekit.operations import CountOperations
+
+    step = ours(trees, states, "torch", device="cpu", contacts=contacts)
+    step()
+    with CountOperations() as ops:
+        step()
+    return ops.count
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--batches", type=int, nargs="+", default=[1, 30, 300])
     ap.add_argument("--seconds", type=float, default=2.0, help="CPU time per engine and batch")
     ap.add_argument("--warmup", type=float, default=2.0, help="simulated seconds every engine runs untimed first")
+    ap.add_argument("--cuda-batches", type=int, nargs="*", default=[4096, 16384],
+                    help="batches timed on CUDA only, when a GPU is present (the GPU target is at >= 4096)")
     args = ap.parse_args(argv)
     import torch
 
     torch.set_num_threads(1)
+    cuda = torch.cuda.is_available()
+    warm = round(args.warmup / DT)
     rows = []
     for batch in args.batches:
         trees, states = _population(batch)
@@ -120,24 +147,28 @@ def main(argv=None) -> None:
         for backend, device, contacts in [("numpy", None, False), ("numpy", None, True), ("torch", "cpu", False)]:
             name = f"ours {backend}{'/' + device if device else ''} RKN{' +collisions' if contacts else ''}"
             steps[name] = ours(trees, states, backend, device=device, contacts=contacts)
-        warm = round(args.warmup / DT)
         for step in steps.values():
             for _ in range(warm):
                 step()
         times = _timed(steps, args.seconds)
-        if torch.cuda.is_available():
-            cuda = ours(trees, states, "torch", device="cuda")
-            for _ in range(warm):
-                cuda()
-            times.update(_timed({"ours torch/cuda RKN": cuda}, args.seconds, clock=time.perf_counter))
+        if cuda:
+            times["ours torch/cuda RKN"] = _on_cuda(trees, states, warm, args.seconds)
         ref = times["mujoco RK4 (1 thread)"]
         rows += [(batch, bodies, name, t, ref) for name, t in times.items()]
+    for batch in args.cuda_batches if cuda else []:
+        trees, states = _population(batch)
+        rows.append((batch, sum(t.n_bodies for t in trees), "ours torch/cuda RKN",
+                     _on_cuda(trees, states, warm, args.seconds), None))
     print(f"step dt = {DT:.5f} s, random creatures of 10-20 boxes; ratio = our body-steps/s over MuJoCo's")
     print(f"numpy {np.__version__}, OPENBLAS_CORETYPE={os.environ.get('OPENBLAS_CORETYPE', '(unset)')}; best-window CPU time per step "
-          f"after {args.warmup:g} s simulated untimed\n")
+          f"after {args.warmup:g} s simulated untimed")
+    trees, states = _population(max(args.batches))
+    print(f"computing tensor operations per step at batch {max(args.batches)} (kernel launches on a GPU; they grow with the depth of the trees, not with the batch): "
+          f"{operations_per_step(trees, states, False)}, with collisions {operations_per_step(trees, states, True)}\n")
     print(f"{'batch':>5} {'bodies':>6}  {'engine':<34} {'ms/step':>9} {'body-steps/s':>13} {'creature-steps/s':>17} {'ratio':>6}")
     for batch, bodies, name, t, ref in rows:
-        print(f"{batch:>5} {bodies:>6}  {name:<34} {t * 1e3:>9.3f} {bodies / t:>13,.0f} {batch / t:>17,.0f} {ref / t:>6.2f}")
+        ratio = f"{ref / t:>6.2f}" if ref else f"{'-':>6}"
+        print(f"{batch:>5} {bodies:>6}  {name:<34} {t * 1e3:>9.3f} {bodies / t:>13,.0f} {batch / t:>17,.0f} {ratio}")
 
 
 if __name__ == "__main__":
