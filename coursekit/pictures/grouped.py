@@ -30,7 +30,15 @@ from collections import defaultdict
 import torch
 
 from .evaluate import _NEIGHBOURHOOD as _NEIGHBOURHOOD_FNS
-from .evaluate import _POINTWISE2, _WARPS, _BNode, _Ctx, _eval_node, _Memo, _warp_context
+from .evaluate import (
+    _POINTWISE2,
+    _WARPS,
+    _BNode,
+    _Ctx,
+    _eval_node,
+    _Memo,
+    _warp_context,
+)
 
 __all__ = ["evaluate_population"]
 
@@ -55,7 +63,7 @@ def _broadcast(*shapes) -> tuple:
 class _Inst:
     """One node evaluated in one coordinate context (``alias``: its value is ``inputs[0]``'s)."""
 
-    __slots__ = ("node", "ctx", "inputs", "kind", "value", "parents", "waiting")
+    __slots__ = ("ctx", "inputs", "kind", "node", "parents", "value", "waiting")
 
     def __init__(self, node: _BNode, ctx: _Ctx):
         self.node, self.ctx = node, ctx
