@@ -81,6 +81,12 @@ def test_chart_derivatives_are_consistent(seed, scale):
     # dexp_dot is the time derivative of dexp(theta(t)) theta_dot along the same path
     d = lambda t: sp.dexp(np, theta + t * theta_dot, theta_dot)  # noqa: E731
     np.testing.assert_allclose(sp.dexp_dot(np, theta, theta_dot), (d(h) - d(-h)) / (2 * h), atol=1e-7)
+    # the integrator's matrices at theta: exp([theta]x) and dexp^-1
+    expm, _, dinv, _ = sp.chart_maps(np, theta)
+    np.testing.assert_allclose(expm, R(0), atol=1e-12)
+    np.testing.assert_allclose(dinv @ x, sp.dexp_inv(np, theta, x), atol=1e-12)
+    np.testing.assert_allclose(sp.chart_rates_at(np, theta, theta_dot, sp.chart_maps(np, theta))[0],
+                               sp.dexp(np, theta, theta_dot), atol=1e-12)
 
 
 def test_numpy_and_torch_give_identical_spatial_products():

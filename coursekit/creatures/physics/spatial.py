@@ -186,7 +186,7 @@ def mat_to_quat(R: np.ndarray) -> np.ndarray:
 
 
 def chart_coefficients(xp, theta, derivatives=True):
-    """The coefficients of ``dexp`` and its companions at ``theta`` (for :func:`chart_rates`):
+    """The coefficients of ``dexp`` and its companions at ``theta`` (for :func:`chart_maps`):
     alpha = (1 - cos p)/p^2, beta = (p - sin p)/p^3 and (with ``derivatives``) their
     derivatives over p, divided by p, and gamma = (1 - (p/2) cot(p/2)) / p^2 (of ``dexp_inv``);
     each (..., 1)."""
@@ -221,21 +221,7 @@ def dexp(xp, theta, theta_dot):
 
 def dexp_dot(xp, theta, theta_dot):
     """Time derivative of ``dexp(theta)`` applied to ``theta_dot`` (the chart's curvature term)."""
-    return chart_rates(xp, theta, theta_dot)[1]
-
-
-def chart_rates(xp, theta, theta_dot, coefficients=None):
-    """``dexp(theta) theta_dot``, ``dexp_dot(theta, theta_dot)`` and ``gamma`` (for
-    :func:`dexp_inv`), sharing one set of coefficients (:func:`chart_coefficients` at ``theta``,
-    computed here unless given)."""
-    alpha, beta, dalpha, dbeta, gamma = chart_coefficients(xp, theta) if coefficients is None else coefficients
-    pdot = xp.vecdot(theta, theta_dot)[..., None]  # p * dp/dt
-    t1 = cross3(xp, theta, theta_dot)
-    t2 = cross3(xp, theta, t1)
-    omega = theta_dot - alpha * t1 + beta * t2
-    # theta_dot x theta_dot = 0 leaves three terms
-    curvature = (dbeta * pdot) * t2 - (dalpha * pdot) * t1 + beta * cross3(xp, theta_dot, t1)
-    return omega, curvature, gamma
+    return chart_rates_at(xp, theta, theta_dot, chart_maps(xp, theta))[1]
 
 
 def chart_maps(xp, theta):
@@ -245,9 +231,9 @@ def chart_maps(xp, theta):
     theta' - p^2``, ``sin p / p = 1 - p^2 beta``), ``KK`` (..., 6, 3) stacks ``K`` over ``K^2``,
     ``dinv = 1 + K / 2 + gamma K^2`` is :func:`dexp_inv` as a matrix, and ``coefficients`` are
     ``(alpha, beta, dalpha, dbeta)`` of :func:`chart_coefficients`. With them a stage's
-    :func:`chart_rates_at` and ``dexp_inv`` are a handful of operations (the cross products of
-    :func:`chart_rates` become one stacked product), which matters for a batch of small (C, 3)
-    arrays, where every operation costs its call overhead.
+    :func:`chart_rates_at` and ``dexp_inv`` are a handful of operations (the cross products
+    become one stacked product), which matters for a batch of small (C, 3) arrays, where every
+    operation costs its call overhead.
     """
     alpha, beta, dalpha, dbeta, gamma = chart_coefficients(xp, theta)
     t0, t1, t2 = theta[..., 0], theta[..., 1], theta[..., 2]
@@ -263,8 +249,8 @@ def chart_maps(xp, theta):
 
 
 def chart_rates_at(xp, theta, theta_dot, maps):
-    """``dexp(theta) theta_dot`` and ``dexp_dot(theta, theta_dot)`` (as :func:`chart_rates`) from
-    the :func:`chart_maps` ``maps`` at ``theta``; ``theta_dot x (theta x theta_dot)`` is written
+    """``dexp(theta) theta_dot`` and ``dexp_dot(theta, theta_dot)`` from the :func:`chart_maps`
+    ``maps`` at ``theta``; ``theta_dot x (theta x theta_dot)`` is written
     ``theta |theta_dot|^2 - theta_dot (theta . theta_dot)``."""
     _, KK, _, (alpha, beta, dalpha, dbeta) = maps
     t = mv(KK, theta_dot)
@@ -276,10 +262,8 @@ def chart_rates_at(xp, theta, theta_dot, maps):
     return omega, curvature
 
 
-def dexp_inv(xp, theta, omega, gamma=None):
-    """Solve ``dexp(theta) @ x = omega`` for ``x`` (exactly, by the closed-form inverse);
-    ``gamma`` from :func:`chart_rates` at this ``theta`` when known."""
-    if gamma is None:
-        gamma = chart_coefficients(xp, theta)[4]
+def dexp_inv(xp, theta, omega):
+    """Solve ``dexp(theta) @ x = omega`` for ``x`` (exactly, by the closed-form inverse)."""
+    gamma = chart_coefficients(xp, theta)[4]
     t1 = cross3(xp, theta, omega)
     return omega + 0.5 * t1 + gamma * cross3(xp, theta, t1)
