@@ -182,8 +182,8 @@ def body_velocities(model, X, v0, qd):
     return _outward_velocities(model, X, v0, model.S * qd[:, None])
 
 
-def articulated_inertias(model, q):
-    """The velocity-independent half of the ABA: ``(Xup, IA, U, d, W, Z, Yt)`` at ``q``.
+def articulated_inertias(model, q, lock=None):
+    """The velocity-independent half of the ABA: ``(Xup, IA, U, d, W, Z, Yt, V)`` at ``q``.
 
     ``Xup`` (M, 6, 6) are the joint transforms; ``IA`` (L, 6, 6) the articulated inertias of the
     roots and inner bodies (a leaf's is its rigid inertia), ``U = IA S`` and ``d = S' U`` (M,)
@@ -192,6 +192,11 @@ def articulated_inertias(model, q):
     parent. (``IA`` is symmetric, so ``U = IA S`` is computed as ``S' IA``.)
     They depend on the positions only, so the Nyström stages 2 and 3, which share positions,
     share them.
+
+    ``lock`` (M,) bool, optional: joints whose acceleration is *prescribed* (hybrid dynamics,
+    Featherstone 2008 section 9.3; the joint limits of :mod:`limits`). A locked joint passes its
+    whole articulated inertia to its parent (``Xup' IA Xup``: ``W = 0``, ``Z = Xup``), and
+    ``V = Xup' U`` (M, 6) is returned for the bias sweep (``None`` without ``lock``).
     """
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
@@ -205,6 +210,15 @@ def articulated_inertias(model, q):
     U, d = model.U_leaf + 0.0, model.d_leaf + 0.0  # leaf rows are constant; inner rows follow
     W = xp.empty_like(U)
     W[jl] = model.leaf_W[0] + bl[:, 1:2] * model.leaf_W[1] + bl[:, 2:3] * model.leaf_W[2]
+    V = free = None
+    if lock is not None:
+        free = xp.astype(~lock, U.dtype)[:, None]
+        V = xp.empty_like(U)
+        Wl, dl = W[jl], d[jl]
+        V[jl] = Wl * dl[:, None]
+        # a locked leaf passes Xup' I Xup = (its free share) + d W W'
+        model.leaf_segments.add_into(IA, sp.outer(xp, Wl * ((1.0 - free[jl]) * dl[:, None]), Wl))
+        W[jl] = Wl * free[jl]
     Z = xp.empty((L - C, 6, 6), dtype=Xup.dtype, device=model.device)
     Yt = xp.empty_like(Z)
     for s, e, _, seg in reversed(model.levels):
@@ -214,13 +228,16 @@ def articulated_inertias(model, q):
         dj = sp.dot(xp, Sj, Uj)
         d[j] = dj
         Wj = sp.mtv(X, Uj, out=W[j])
+        if lock is not None:
+            V[j] = Wj
+            Wj *= free[j]
         Wj /= dj[:, None]
         Zj = xp.subtract(X, sp.outer(xp, Sj, Wj), out=Z[j])
         seg.add_into(IA, xp.matmul(xp.matmul(IAj, X, out=Yt[j]).mT, Zj))
-    return Xup, IA, U, d, W, Z, Yt
+    return Xup, IA, U, d, W, Z, Yt, V
 
 
-def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None):
+def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None, lock=None, prescribed=None):
     """Forward dynamics of the whole batch.
 
     The bias sweep uses ``u = tau - S'pA`` and ``pa = pA + Ia c + U u / d`` (``Ia = IA - U U'/d``),
@@ -238,19 +255,25 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None):
         damping: optional (N, 6) diagonal of a body-frame damping matrix ``D``; adds ``-D v``.
         inertias: optional result of :func:`articulated_inertias` at this ``q`` (reused).
         v: optional (N, 6) body velocities at this state (:func:`body_velocities`; reused).
+        lock, prescribed: optional (M,) bool and (M,) accelerations: hybrid dynamics -- the
+            locked joints move with the ``prescribed`` accelerations (their ``tau`` is ignored) and
+            the rest of the tree responds; ``inertias`` must then be computed with this ``lock``.
 
     Returns:
         ``(a0, qdd, v)``: root spatial acceleration (C, 6) in root coordinates, joint
-        accelerations (M,) and body velocities (N, 6).
+        accelerations (M,) and body velocities (N, 6); with ``lock``, also the joint forces
+        (M,) the locked joints need (``tau`` for the free ones).
     """
     with np.errstate(over="ignore", invalid="ignore"):  # a diverging creature is the guard's business
-        return _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v)
+        return _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed)
 
 
-def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
+def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed):
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
-    Xup, IA, U, d, W, Z, Yt = articulated_inertias(model, q) if inertias is None else inertias
+    Xup, IA, U, d, W, Z, Yt, V = articulated_inertias(model, q, lock) if inertias is None else inertias
+    if lock is not None:
+        ap = xp.where(lock, prescribed, xp.zeros_like(prescribed))  # locked: qdd = ap; 0 elsewhere
     S = model.S
     v, c, pA = _velocities_and_bias(model, Xup, v0, qd, v)
     I = model.inertia_diag
@@ -262,24 +285,37 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v):
     jl, ji = slice(L - C, None), slice(0, L - C)
     # leaves, all at once (their IA is the diagonal I)
     ul = tau[jl] - sp.dot(xp, S[jl], pA[L:])
-    pa = pA[L:] + I[L:] * c[jl] + U[jl] * ((ul - Uc[jl]) / d[jl])[:, None]
+    ql = (ul - Uc[jl]) / d[jl]
+    if lock is not None:  # a locked joint's acceleration is prescribed: pa = pA + I c + U ap
+        ql = xp.where(lock[jl], ap[jl], ql)
+    pa = pA[L:] + I[L:] * c[jl] + U[jl] * ql[:, None]
     # what does not depend on the sweep -- the leaves' Xup' pa and the inner joints' h -- is
     # summed into the parents at once; the inner levels then pass Z' pA on
     g = xp.empty_like(c)  # h of the inner joints, Xup' pa of the leaves
     h = sp.mtv(Yt, c[ji], out=g[ji])
-    h += W[ji] * (tau[ji] - Uc[ji])[:, None]
+    h += W[ji] * (tau[ji] - Uc[ji])[:, None]  # W = 0 for locked joints, which pass Xup' U ap
+    if lock is not None:
+        h += V[ji] * ap[ji][:, None]
     sp.mtv(Xup[jl], pa, out=g[jl])
     model.joint_segments.add_into(pA, g)
     for s, e, _, seg in reversed(model.levels):
         seg.add_into(pA, sp.mtv(Z[s - C : e - C], pA[s:e]))
-    ud = (tau - sp.dot(xp, S, pA[C:]) - Uc) / d  # (u - U'c) / d
+    SpA = sp.dot(xp, S, pA[C:])
+    ud = (tau - SpA - Uc) / d  # (u - U'c) / d
+    if lock is not None:
+        ud = xp.where(lock, ap, ud)
 
     a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
     a = xp.concat([a0, c[ji] + S[ji] * ud[ji][:, None]], axis=0)  # each body then adds Z a_parent
     for s, e, par, _ in model.levels:
         a[s:e] += sp.mv(Z[s - C : e - C], xp.take(a, par, axis=0))
-    qdd = ud - sp.dot(xp, W, xp.take(a, model.joint_parent, axis=0))
-    return a0, qdd, v
+    a_parent = xp.take(a, model.joint_parent, axis=0)
+    qdd = ud - sp.dot(xp, W, a_parent)
+    if lock is None:
+        return a0, qdd, v
+    # the force a locked joint needs: the free formula qdd = (tau - S'pA - U'(Xup a_p + c)) / d solved for tau
+    need = d * ap + SpA + Uc + sp.dot(xp, V, a_parent)
+    return a0, qdd, v, xp.where(lock, need, tau)
 
 
 def poses_rows(model, R0, p0, q):

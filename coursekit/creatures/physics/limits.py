@@ -1,31 +1,36 @@
-"""Joint mobility limits as stiff spring-dampers (paper section 2.3: "restoring spring forces").
+"""Joint mobility limits that hold: one-sided constraints through the articulated inertia (paper section 2.3).
 
-Beyond a limit the joint feels ``tau = -k (q - limit) - b q'``; inside, nothing. The gains come
-from a natural frequency ``w`` and the joint's *effective inertia* ``m_eff`` in the free-floating
-creature -- the inertia a force on that one coordinate meets when every other coordinate, the
-root included, is free: ``m_eff = 1 / (M^-1)_jj`` with ``M`` the joint-space mass matrix, measured
-at the rest pose with one unit-force probe per joint through the articulated-body algorithm.
-``k = m_eff w^2`` and ``b = 2 zeta m_eff w`` then give each limit mode the rate ``w`` (spring)
-and ``2 zeta w`` (damper), and the simulator keeps ``dt * w =`` :data:`STIFFNESS_PER_STEP` =
-0.25, well inside the RK4/RKN stability interval (about 2.8).
+Sims stops joints at their limits with "restoring spring forces". A spring holds a joint only as
+well as its stiffness beats the forces pushing the joint out, and an explicit integrator caps the
+stiffness at about ``(2.8 / dt)^2`` times the joint's effective inertia: strong effectors on light
+parts went through their limits by many times their range (a revolute joint limited to
+[-1.6, 0.6] rad turned three full times), and evolution bred creatures that used the leak.
 
-The damper is explicit, and ``m_eff`` changes with the pose: a creature folded far from its
-rest pose can meet a joint's force with an inertia tens of times smaller. The damping ratio is
-therefore light, ``zeta =`` :data:`LIMIT_DAMPING_RATIO` = 0.2 (``dt * 2 zeta w = 0.1``): with
-``zeta = 1`` a random 8-part creature thrown against its limits gained 67x its energy in 2 s
-(its ``m_eff`` had dropped over 5x); at 0.2 the margin is 28x. The water does most of the
-damping anyway. (An implicit damper -- ``dt * b`` added to the joint's articulated inertia as
-armature -- removes the bound but breaks momentum conservation: armature carries momentum no
-body has, and the exploit creature above drifted 4 cm in 5 s without water. Not adopted.)
+Here a joint that reaches its limit is *locked* instead (hybrid dynamics, Featherstone, *Rigid
+Body Dynamics Algorithms* (2008) section 9.3; :func:`~coursekit.creatures.physics.aba.aba` with
+``lock``): its acceleration is prescribed and the articulated-body algorithm computes how the
+rest of the creature responds and which joint force that takes. The constraint force is
+whatever it must be -- no stiffness to tune, no dependence on the effector's strength or the
+part's mass -- and, being a joint force, it is internal.
 
-Why not the part's own inertia: in a free-floating chain a light part between light neighbours
-can be far lighter, along its joint, than either box alone suggests (the parent side recoils and
-rotates). Gains from the parts' own inertias made the damper of such a joint explicit-unstable at
-``dt = 1/60`` -- the limit *created* energy and momentum, and evolution found it within ten
-generations (a 3-box creature of 41 g "swimming" 8.7 m/s with drag off). The probes measure what
-the integrator actually sees; configuration changes within the limits move ``m_eff`` by small
-factors, which the margin of 0.25 against 2.8 covers (the dissipation tests check it on random
-creatures).
+Every (sub-)step, for the whole step (:class:`Limits`):
+
+1. *Which joints lock.* A joint locks when, at its rate, it would pass its limit within the step
+   (a speculative contact), when it is beyond its limit, or when it was held at its limit and the
+   lock pushed it inwards in the last evaluation. A lock that had to pull a joint outwards is
+   released: a limit only pushes.
+2. *An impulse.* A locked joint's rate is set, by an impulse through the articulated inertia
+   (the same hybrid sweep with no velocities, :meth:`~coursekit.creatures.physics.world.World.step`),
+   to the rate that ends the step exactly at the limit, ``(limit - q) / h``, if that is slower
+   towards the limit than its own: an inelastic stop, which conserves momentum exactly and only
+   takes energy. A joint that was pushed beyond its limit returns to it the same way, and is
+   stopped there at the next step, so the return gives it no speed of its own.
+3. *The step.* Locked joints keep that rate (prescribed acceleration 0) while the rest of the
+   body moves, so they end the step at their limits; nothing stiff is left for the integrator.
+
+A joint can still pass its limit when its acceleration, not its rate, carries it there within
+one step (``a h^2 / 2``); it is back at the limit the step after. The effectors' maximum sweep
+speed (:func:`~coursekit.creatures.body.effector_strength`) keeps that small.
 """
 
 from __future__ import annotations
@@ -33,24 +38,6 @@ from __future__ import annotations
 import numpy as np
 
 from . import backend as bk
-
-#: Default ``dt * w`` of the joint-limit springs.
-STIFFNESS_PER_STEP = 0.25
-#: Default damping ratio ``zeta`` of the joint-limit dampers (see the module docstring).
-LIMIT_DAMPING_RATIO = 0.2
-
-
-def limit_gains(model, frequency: float, damping_ratio: float = 1.0):
-    """Per-joint stiffness and damping ``(k, b)`` (backend arrays, (M,))."""
-    if not (np.isfinite(frequency) and frequency > 0):
-        raise ValueError(f"limit_frequency: must be a positive number (rad/s), got {frequency}")
-    if not (np.isfinite(damping_ratio) and damping_ratio >= 0):
-        raise ValueError(f"limit_damping_ratio: must be >= 0, got {damping_ratio}")
-    m_eff = effective_inertia(model)
-    k = m_eff * frequency**2
-    b = 2.0 * damping_ratio * m_eff * frequency
-    return bk.asarray(model.xp, k, device=model.device), bk.asarray(model.xp, b, device=model.device)
-
 
 def effective_inertia(model) -> np.ndarray:
     """(M,) effective inertia ``1 / (M^-1)_jj`` of every joint (internal order) at the rest pose (numpy).
@@ -78,13 +65,54 @@ def effective_inertia(model) -> np.ndarray:
     return 1.0 / inv_diag
 
 
-def limit_forces(xp, q, qd, lo, hi, k, b):
-    """Spring-damper joint forces (M,) of joints beyond their limits ``lo``/``hi``."""
-    pen = q - xp.minimum(xp.maximum(q, lo), hi)  # the penetration beyond the limit, 0 inside
-    return -k * pen - xp.where(pen != 0, b * qd, xp.zeros_like(q))
+class Limits:
+    """The lock set of one batch, decided step by step (see the module docstring).
 
+    Args:
+        model: the packed model (its ``limits_np``); h: the (sub-)step (s).
+    """
 
-def limit_energy(xp, q, lo, hi, k):
-    """Potential energy stored in the limit springs, per joint."""
-    pen = q - xp.minimum(xp.maximum(q, lo), hi)
-    return 0.5 * k * pen * pen
+    def __init__(self, model, h: float):
+        xp = self.xp = model.xp
+        f = lambda a: bk.asarray(xp, a, device=model.device)  # noqa: E731
+        self.lo, self.hi = f(model.limits_np[:, 0]), f(model.limits_np[:, 1])
+        self.mid = 0.5 * (self.lo + self.hi)
+        self.tol = 1e-9 * (self.hi - self.lo)  # "at the limit", round-off included
+        self.h = h
+        self.reset(model)
+
+    def reset(self, model) -> None:
+        """Forget the history (after the state was set from outside)."""
+        self.push = self.xp.zeros_like(self.lo)  # the locks' share of the joint forces in the last evaluation
+        self.lock = self.xp.zeros(self.lo.shape, dtype=self.xp.bool, device=model.device)
+        self.back = self.lock
+        self.target = self.hi
+
+    def begin(self, q, qd):
+        """Which joints are locked this step, and the rate each joint starts it with.
+
+        Returns ``(lock, rate)``: a locked joint moves at ``rate`` for the whole step, which ends it
+        exactly at its limit (``(limit - q) / h``), or its own rate if that is slower towards the
+        limit; a free joint keeps ``qd``.
+        """
+        xp = self.xp
+        ahead = q + self.h * qd
+        held = self.lock & xp.where(self.target == self.hi, self.push <= 0, self.push >= 0)
+        out = self.excess(q) > self.tol
+        back = self.back  # joints that returned to their limit last step: stop them there
+        self.lock = held | out | back | (self.excess(ahead) > self.tol)
+        up = xp.where(held | out | back, q, ahead) > self.mid
+        self.target = xp.where(up, self.hi, self.lo)
+        reach = (self.target - q) / self.h
+        rate = xp.where(up, xp.minimum(qd, reach), xp.maximum(qd, reach))
+        rate = xp.where(back, xp.zeros_like(rate), rate)
+        self.back = out & (rate == reach)  # sent back by the impulse, not by their own motion
+        return self.lock, xp.where(self.lock, rate, qd)
+
+    def end(self, force, tau) -> None:
+        """Record the locks' own share of the joint forces (``force - tau``) in a step's last evaluation."""
+        self.push = force - tau
+
+    def excess(self, q):
+        """(M,) how far each joint is beyond its limits (negative inside)."""
+        return self.xp.maximum(q - self.hi, self.lo - q)

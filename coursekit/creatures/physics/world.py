@@ -4,8 +4,9 @@
 :class:`~coursekit.creatures.physics.integrate.State`. Each :meth:`World.step` advances every
 creature by ``dt`` with the chosen integrator (sub-stepped when the water would be too stiff, see
 :mod:`~coursekit.creatures.physics.water`). Joint forces from effectors are held constant over a
-step; self-collisions are detected at the step's start and their forces, like drag and the limit
-springs, are evaluated at every stage.
+step; self-collisions are detected at the step's start and their forces, like drag, are evaluated
+at every stage. Joints at their limits are locked for the step (:mod:`~coursekit.creatures.physics.limits`):
+the articulated-body algorithm prescribes their accelerations and the rest of the body responds.
 
 Guards: after each step a creature whose state is not finite or whose root speed, root spin or
 any joint rate exceeds its cap is flagged ``diverged`` and frozen at its last good state with zero
@@ -25,7 +26,7 @@ from .aba import aba, articulated_inertias, body_velocities, forward_kinematics,
 from .contact import Contacts
 from .dynamics import _flatten, split_layout, join_velocity_layout
 from .integrate import INTEGRATORS, State, step
-from .limits import LIMIT_DAMPING_RATIO, STIFFNESS_PER_STEP, limit_energy, limit_forces, limit_gains
+from .limits import Limits
 from .model import Model
 from .water import DRAG_COEFFICIENT, STABLE_DRAG_STEP, drag_matrix, max_drag_rate
 
@@ -47,8 +48,7 @@ class World:
         drag: water on/off, or a function ``box_drag(half_extents, k) -> (6,)`` giving one box's
             drag diagonal, used for every box instead of the library's (see :mod:`water`);
             drag_coefficient: ``k`` of :mod:`water`.
-        limits: joint-limit springs on/off; limit_frequency (rad/s, default ``STIFFNESS_PER_STEP / substep``)
-            and limit_damping_ratio of :mod:`limits`.
+        limits: joint limits on/off (one-sided constraints, see :mod:`limits`).
         contacts: self-collision penalty forces on/off (see :mod:`contact`).
         max_speed, max_angular_speed, max_joint_speed: divergence caps.
     """
@@ -64,8 +64,6 @@ class World:
         drag=True,
         drag_coefficient: float = DRAG_COEFFICIENT,
         limits: bool = True,
-        limit_frequency: float | None = None,
-        limit_damping_ratio: float = LIMIT_DAMPING_RATIO,
         contacts: bool = True,
         contact_stiffness: float | None = None,
         max_speed: float = MAX_SPEED,
@@ -90,10 +88,9 @@ class World:
         rate = max_drag_rate(m, drag_coefficient, box_drag) if drag else 0.0
         self.substeps = max(1, math.ceil(self.dt * rate / STABLE_DRAG_STEP))
         self.h = self.dt / self.substeps
-        self.limits = limits
+        self.limits = Limits(m, self.h) if limits else None
+        self._lock = None
         f = lambda a: bk.asarray(xp, a, device=m.device)  # noqa: E731
-        self.lo, self.hi = f(m.limits_np[:, 0]), f(m.limits_np[:, 1])
-        self.limit_k, self.limit_b = limit_gains(m, limit_frequency if limit_frequency is not None else STIFFNESS_PER_STEP / self.h, limit_damping_ratio)
         self.strength = f(m.strength_np)
         self.gain = f(m.gain_np)
         self.contacts = None
@@ -124,6 +121,8 @@ class World:
         self.state = State(f(pos), sp.quat_canonical(xp, f(quat)), f(q), f(lin), f(omega), f(qd))
         if self.contacts is not None:
             self.contacts.reset()
+        if self.limits is not None:
+            self.limits.reset(m)
 
     def get_state(self):
         """``(qpos, qvel)`` as lists of per-creature numpy vectors (MuJoCo layout)."""
@@ -140,22 +139,29 @@ class World:
         xp, m = self.xp, self.model
         vb = sp.mv(R.mT, lin)
         tau = self.tau
-        if self.limits:
-            tau = tau + limit_forces(xp, q, qd, self.lo, self.hi, self.limit_k, self.limit_b)
         if q is not self._inertia_q:  # RKN stages 2 and 3 share positions, hence inertias
-            self._inertia_q, self._inertia = q, articulated_inertias(m, q)
+            self._inertia_q, self._inertia = q, articulated_inertias(m, q, self._lock)
         f_ext = v = None
         if self.active_contacts is not None:  # the step's contacts, followed through this stage
             if q is not self._poses_q:  # stages 2 and 3 share positions, hence poses
                 self._poses_q, self._poses = q, forward_kinematics(m, R, pos, q)
             v = body_velocities(m, self._inertia[0], xp.concat([omega, vb], axis=1), qd)  # [0]: Xup
             f_ext = self.contacts.wrench(self.active_contacts, *self._poses, v)
-        a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping, inertias=self._inertia, v=v)
+        if self._lock is None:
+            a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping, inertias=self._inertia, v=v)
+        else:
+            a0, qdd, _, force = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping,
+                                    inertias=self._inertia, v=v, lock=self._lock, prescribed=xp.zeros_like(q))
+            self._force = force  # the step's last evaluation is what the limits remember
         lin_acc = sp.mv(R, a0[:, 3:] + sp.cross3(xp, omega, vb))
         return lin_acc, a0[:, :3], qdd
 
     def set_effectors(self, effector) -> None:
-        """Joint forces from effector outputs (M,) in user joint order: ``clip(gain * e, +-strength)``."""
+        """Joint forces from effector outputs (M,) in user joint order: ``strength * clip(gain * e, -1, 1)``.
+
+        ``gain * e`` is the muscle's activation: at +-1 and beyond the effector pulls with its full
+        strength (:func:`~coursekit.creatures.body.effector_strength`).
+        """
         xp, m = self.xp, self.model
         e = bk.asarray(xp, effector, device=m.device)
         if tuple(e.shape) != (m.n_joints,):
@@ -163,7 +169,7 @@ class World:
         e_int = xp.zeros_like(e)
         e_int[bk.index(xp, m.joint_order, device=m.device)] = e
         e_int = xp.where(xp.isfinite(e_int), e_int, xp.zeros_like(e_int))
-        self.tau = xp.clip(self.gain * e_int, -self.strength, self.strength)
+        self.tau = self.strength * xp.clip(self.gain * e_int, -1.0, 1.0)
 
     def step(self) -> None:
         """Advance the whole batch by ``dt``."""
@@ -179,9 +185,29 @@ class World:
                 if self.active_contacts is not None:  # the first stage's poses (it passes s.q on)
                     self._poses_q, self._poses = s.q, pose_stacks(xp, rows)
             prev = self.state
+            if self.limits is not None and m.n_joints:
+                prev = self._stop_at_limits(prev)
             new = step(xp, prev, self.h, self._accel, self.integrator, self.time + i * self.h)
+            if self._lock is not None:
+                self.limits.end(self._force, self.tau)
             self.state = self._guard(prev, new)
         self.time += self.dt
+
+    def _stop_at_limits(self, s: State) -> State:
+        """Lock the joints at their limits for this step and give them their rates by an impulse.
+
+        The impulse is the hybrid sweep with no velocities and no forces: the locked joints' rates
+        change by the prescribed amounts and the rest of the body responds through the articulated
+        inertia -- exactly momentum-conserving. The inertias are those the step's first stage needs.
+        """
+        xp, m = self.xp, self.model
+        self._lock, rate = self.limits.begin(s.q, s.qd)
+        self._inertia_q, self._inertia = s.q, articulated_inertias(m, s.q, self._lock)
+        zj, zc = xp.zeros_like(s.q), xp.zeros((m.n_creatures, 6), dtype=s.q.dtype, device=m.device)
+        dv0, dqd, _, _ = aba(m, s.q, zj, zc, zj, inertias=self._inertia, v=xp.zeros((m.n_bodies, 6), dtype=s.q.dtype, device=m.device),
+                             lock=self._lock, prescribed=rate - s.qd)
+        R = sp.quat_to_mat(xp, s.quat)
+        return State(s.pos, s.quat, s.q, s.lin + sp.mv(R, dv0[:, 3:]), s.omega + dv0[:, :3], xp.where(self._lock, rate, s.qd + dqd))
 
     def _guard(self, prev: State, new: State) -> State:
         xp, m = self.xp, self.model
@@ -239,12 +265,6 @@ class World:
         """(C,) kinetic energy of every creature (numpy)."""
         v = self.body_velocities()
         return bk.to_numpy(self.model.segment_sum(0.5 * self.xp.sum(v * v * self.model.inertia_diag, axis=1)))
-
-    def potential_energy(self) -> np.ndarray:
-        """(C,) energy stored in the joint-limit springs (numpy)."""
-        m = self.model
-        e = limit_energy(self.xp, self.state.q, self.lo, self.hi, self.limit_k) if self.limits else self.xp.zeros_like(self.state.q)
-        return np.bincount(m.joint_creature, weights=bk.to_numpy(e), minlength=m.n_creatures)
 
     def momentum(self) -> tuple[np.ndarray, np.ndarray]:
         """(C, 3) world linear momentum and (C, 3) angular momentum about the world origin (numpy)."""
