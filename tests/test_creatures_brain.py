@@ -216,5 +216,5 @@ def test_snake_travelling_wave_from_recursive_relative_ids():
         t = bb.time
         eff = bb.step(np.zeros(5), np.zeros(5), -np.ones((6, 6)), dt)
     # joints 0..2 are segments 1..3; segment k has phase -0.8 (k + 1)
-    want = [math.sin(2 * math.pi * 1.0 * t - 0.8 * (k + 1)) for k in (1, 2, 3)]
+    want = [math.sin(2 * math.pi * 3.0 * t - 0.8 * (k + 1)) for k in (1, 2, 3)]  # 3 Hz oscillators
     np.testing.assert_allclose(eff[:3], want, atol=1e-12)

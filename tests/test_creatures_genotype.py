@@ -146,14 +146,28 @@ def test_thin_parts_clamped_to_minimum_thickness():
     assert body.half_extents.min() >= MIN_HALF_EXTENT
 
 
-def test_strength_proportional_to_cross_section():
+def test_strength_follows_sims_area_law_for_large_parts_and_a_sweep_speed_cap_for_small_ones():
+    from coursekit.creatures.body import STRENGTH_PER_AREA, SWEEPS_PER_SECOND
+
     def body(k):
         a = Node(size=(0.2 * k, 0.1 * k, 0.1 * k), children=[ChildLink(1)], effectors=[None])
         b = Node(size=(0.1 * k, 0.1 * k, 0.1 * k), effectors=[None])
         return Creature([a, b]).expand().body
 
-    assert body(2.0).strength[1] == pytest.approx(4.0 * body(1.0).strength[1])
-    assert body(2.0).mass.sum() == pytest.approx(8.0 * body(1.0).mass.sum())
+    big, small = body(2.0), body(0.5)
+    # large parts: Sims' law, the smaller of the two parts' largest cross-sections (0.4 x 0.4 m)
+    assert big.strength[1] == pytest.approx(STRENGTH_PER_AREA * 0.4 * 0.4)
+    assert body(3.0).strength[1] == pytest.approx(2.25 * big.strength[1])  # ~ area
+    # small parts: capped at the force that sweeps the child through the water at
+    # SWEEPS_PER_SECOND ranges per second: the cube's drag about the joint axis through its face
+    # centre (rotational term plus face drag at the lever arm), times the sweep speed
+    h = 0.05
+    area, k = 4 * h * h, 2.0
+    drag = (2 * k / 3) * 2 * area * h * h + 2 * k * area * h * h
+    rng_ = small.limits[1, 1] - small.limits[1, 0]
+    assert small.strength[1] == pytest.approx(drag * SWEEPS_PER_SECOND * rng_)
+    assert small.strength[1] < STRENGTH_PER_AREA * area
+    assert big.mass.sum() == pytest.approx(8.0 * body(1.0).mass.sum())
 
 
 # -------------------------------------------------------------------------------- mirroring

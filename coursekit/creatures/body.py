@@ -56,8 +56,12 @@ PRISMATIC = 2
 JOINT_TYPES = {FREE: "free", REVOLUTE: "revolute", PRISMATIC: "prismatic"}
 
 #: Effector strength per square metre of cross-section (Sims 1994: strength grows with area while
-#: mass grows with volume, so big creatures are not simply stronger).
-STRENGTH_PER_AREA = 0.2
+#: mass grows with volume, so big creatures are not simply stronger); see :func:`effector_strength`.
+STRENGTH_PER_AREA = 2.0
+
+#: The fastest an effector can sweep its joint through the water, in joint ranges per second
+#: (Hill's maximum shortening speed of a muscle); see :func:`effector_strength`.
+SWEEPS_PER_SECOND = 8.0
 
 #: The thinnest a part may be (half extent, metres): paper-thin flippers are stiff for any
 #: explicit integrator and an exploit in the literature (see reference/creatures.md).
@@ -169,17 +173,36 @@ class BodyTree:
             raise ValueError(f"BodyTree.density: must be > 0, got {self.density}")
 
 
-def effector_strength(half_extents: np.ndarray, parent: np.ndarray) -> np.ndarray:
+def effector_strength(half_extents, parent, joint_type, joint_axis, joint_pos_child, limits) -> np.ndarray:
     """(B,) largest force or torque of every joint's effector (0 for the root).
 
-    :data:`STRENGTH_PER_AREA` times the smaller of the two joined parts' largest cross-sectional
-    areas (Sims 1994: "proportional to the maximum cross-sectional area of the two parts").
+    Sims' law: :data:`STRENGTH_PER_AREA` times the smaller of the two joined parts' largest
+    cross-sectional areas. Strength then grows with the square of a part's size while its drag
+    about the joint grows with the fourth power and its inertia with the fifth, so a small part
+    would sweep its joint ever faster: a 5 cm part 64 times faster than a 40 cm one, through its
+    whole range within one 1/60 s step -- motion no fixed-step integrator resolves, and the
+    "invisible flipper" exploit of the literature. Real muscles have a maximum shortening speed
+    (Hill), and so do these effectors: the strength is capped at the force that sweeps the child
+    part alone through still water at :data:`SWEEPS_PER_SECOND` joint ranges per second, i.e.
+    ``c * SWEEPS_PER_SECOND * (hi - lo)`` with ``c`` the child box's drag about (revolute) or along
+    (prismatic) its joint axis (:mod:`~coursekit.creatures.physics.water`, default coefficient).
+    Large parts keep Sims' law; small ones are capped.
     """
+    from .physics.water import DRAG_COEFFICIENT, drag_diagonal  # water's law, the box's drag
+
     h = np.asarray(half_extents, dtype=np.float64)
     parent = np.asarray(parent)
     area = 4.0 * np.max(np.stack([h[:, 1] * h[:, 2], h[:, 0] * h[:, 2], h[:, 0] * h[:, 1]], axis=1), axis=1)
     strength = np.zeros(len(h))
-    strength[1:] = STRENGTH_PER_AREA * np.minimum(area[1:], area[parent[1:]])
+    if len(h) < 2:
+        return strength
+    D = drag_diagonal(h[1:], DRAG_COEFFICIENT)
+    a = np.asarray(joint_axis, dtype=np.float64)[1:]
+    lever = np.cross(a, np.asarray(joint_pos_child, dtype=np.float64)[1:])  # COM speed per unit joint rate
+    revolute = np.asarray(joint_type)[1:] == REVOLUTE
+    c = np.where(revolute, np.sum(D[:, :3] * a * a, axis=1) + np.sum(D[:, 3:] * lever * lever, axis=1), np.sum(D[:, 3:] * a * a, axis=1))
+    lim = np.asarray(limits, dtype=np.float64)[1:]
+    strength[1:] = np.minimum(STRENGTH_PER_AREA * np.minimum(area[1:], area[parent[1:]]), c * SWEEPS_PER_SECOND * (lim[:, 1] - lim[:, 0]))
     return strength
 
 

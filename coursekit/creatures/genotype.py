@@ -18,7 +18,8 @@ describes the joint to its parent: ``joint_type`` (rotational ``"revolute"`` or 
 ``"prismatic"``, 1 DOF each — the design keeps a type name and per-type DOF count so universal or
 spherical joints can be added), ``joint_pos`` (relative to the node's centre of mass, in units
 of its half extents, so ``(-1, 0, 0)`` is the centre of its −x face), ``joint_axis`` (unit, node
-frame), ``limits`` (mobility, ``lo < 0 < hi``) and ``force`` (the signed force coefficient: a
+frame), ``limits`` (mobility, ``lo < 0 < hi``: radians for a revolute joint; for a prismatic joint in
+units of the part's half-width along its axis, so a slide means the same at every scale) and ``force`` (the signed force coefficient: a
 mirrored copy of the node has gain ``force`` and the original ``|force|``, so a positive value
 moves symmetric parts as mirror images — wings — and a negative one in opposition — legs).
 
@@ -78,7 +79,7 @@ SIZES = (0.025, 0.04, 0.06, 0.08, 0.1, 0.125, 0.15, 0.2, 0.25, 0.3)
 COORDS = (-1.0, -0.5, 0.0, 0.5, 1.0)
 FORCES = (-2.0, -1.0, -0.5, -0.25, 0.25, 0.5, 1.0, 2.0)
 REVOLUTE_LIMITS = (0.2, 0.4, 0.6, 0.8, 1.0, 1.3, 1.6)
-PRISMATIC_LIMITS = (0.02, 0.04, 0.06, 0.1)
+PRISMATIC_LIMITS = (0.25, 0.5, 0.75, 1.0)  #: in units of the part's half-width along the joint axis
 SCALES = (0.6, 0.75, 0.9, 1.0, 1.1)
 AXES = tuple(
     tuple(float(v) for v in np.asarray(a, float) / np.linalg.norm(a))
@@ -532,9 +533,11 @@ class Creature:
             symmetry=[Symmetry(1, axis=1)],
             # A travelling wave: neuron 0 accumulates a phase along the spine (its parent's
             # phase minus 0.8 rad; the root has no parent and reads 0), neuron 1 oscillates at
-            # 1 Hz with that phase and drives the segment's joint.
+            # 3 Hz with that phase and drives the segment's joint. Slender-body theory puts the
+            # speed of such a wave in proportion to its frequency (reference/creatures.md
+            # section 7): within the paper's +-0.6 rad it takes about 3 Hz, not 1, to swim.
             neurons=[Neuron("sum", [Input(-1, N_SENSORS, 1.0), Input(None, 0, -0.8)]),
-                     Neuron("oscillate_wave", [Input(0, N_SENSORS, 1.0)], 1.0)],
+                     Neuron("oscillate_wave", [Input(0, N_SENSORS, 1.0)], 3.0)],
             effectors=[Input(0, N_SENSORS + 1, 1.0)],
         )
         leg = Node(

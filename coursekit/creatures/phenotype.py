@@ -25,11 +25,11 @@ gives the mirror-image motion. The gain is ``|force|`` for unmirrored instances
 whether symmetric parts move alike (mirror images) or opposite.
 
 Sizes: an instance's half extents are ``size * scale`` clamped to ``[MIN_HALF_EXTENT,
-MAX_HALF_EXTENT]``; prismatic limits scale too. Strength is ``body.STRENGTH_PER_AREA`` times the
-smaller of the two joined parts' largest cross-sections (Sims: strength ∝ area).
+MAX_HALF_EXTENT]``; prismatic limits are in units of the part's half-width along the joint axis. Strength follows Sims' law (∝ the joined parts'
+cross-section), capped for small parts by a maximum sweep speed (:func:`body.effector_strength`).
 
 Part cap: expansion stops creating parts once :data:`MAX_PARTS` (default 64) exist; later links
-are dropped in pre-order and ``body.meta["truncated"]`` is set, so fitness can penalise it.
+are dropped in pre-order and ``body.meta["truncated"]`` is set; :func:`~coursekit.creatures.simulate.simulate` scores such a body 0.
 """
 
 from __future__ import annotations
@@ -156,7 +156,6 @@ def _body_tree(nodes, insts, halves, truncated) -> BodyTree:
     rot = np.tile(np.eye(3), (B, 1, 1))
     limits = np.zeros((B, 2))
     gain = np.zeros(B)
-    strength = effector_strength(half, parent)
     for b in range(1, B):
         inst = insts[b]
         node = nodes[inst.node]
@@ -170,12 +169,13 @@ def _body_tree(nodes, insts, halves, truncated) -> BodyTree:
         else:
             jtype[b] = PRISMATIC
             axis[b] = F * a
-            limits[b] = np.asarray(node.limits, dtype=np.float64) * inst.scale
+            limits[b] = np.asarray(node.limits, dtype=np.float64) * np.sum(np.abs(a) * half[b])  # half-widths along the axis
         axis[b] /= np.linalg.norm(axis[b])
         jpp[b] = inst.anchor
         jpc[b] = F * (np.asarray(node.joint_pos, dtype=np.float64) * half[b])
         rot[b] = inst.rot
         gain[b] = abs(node.force) if det > 0 else node.force
+    strength = effector_strength(half, parent, jtype, axis, jpc, limits)
     return BodyTree(parent, half, jtype, axis, jpp, jpc, rot, limits, gain, strength,
                     node_id=np.array([i.node for i in insts], dtype=np.int64), meta={"truncated": truncated})
 

@@ -94,7 +94,7 @@ def random_body_tree(
             jtype[i] = REVOLUTE
             limits[i] = [-rng.uniform(0.4, 1.5), rng.uniform(0.4, 1.5)]
         gain[i] = rng.choice([-1.0, 1.0]) * rng.uniform(0.5, 1.5)
-    return BodyTree(parent, half, jtype, axis, jpp, jpc, rot, limits, gain, effector_strength(half, parent))
+    return BodyTree(parent, half, jtype, axis, jpp, jpc, rot, limits, gain, effector_strength(half, parent, jtype, axis, jpc, limits))
 
 
 def random_state(rng: np.random.Generator, tree: BodyTree, *, speed: float = 1.0, inside: float = 0.9):
