@@ -6,8 +6,9 @@ motion from the initial pose does not count), resets the brains (so oscillator p
 depend on the settle length), then runs ``seconds`` of swimming. The brains tick twice per
 physics step on the sensors (joint angles, wrapped to (-pi, pi] for revolute joints; joint
 rates; per-face contact sensors) and the last tick's effector outputs become joint forces
-``clip(gain * e, -strength, strength)``. The centre of mass of every creature is recorded after
-every step and scored with :func:`coursekit.creatures.fitness.swimming_fitness`.
+``strength * clip(gain * e, -1, 1)``. The centre of mass of every creature is recorded after
+every step and scored with :func:`coursekit.creatures.fitness.swimming_fitness`. Creatures are
+validated again before they are expanded, and one whose body was cut off at the part cap scores 0.
 """
 
 from __future__ import annotations
@@ -54,6 +55,11 @@ def _brains(creatures):
     seq = creatures if isinstance(creatures, (list, tuple)) else [creatures]
     if not all(hasattr(c, "expand") for c in seq):
         return None, as_trees(creatures)
+    for i, c in enumerate(seq):  # a creature may have been changed since it was built
+        try:
+            c.validate()
+        except (TypeError, ValueError) as e:
+            raise type(e)(f"creatures[{i}]: {e}") from None
     phenotypes = [c.expand() for c in seq]
     return BrainBatch([p.brain for p in phenotypes]), [p.body for p in phenotypes]
 
@@ -152,7 +158,9 @@ def simulate(
     if bar:
         bar.close()
     times = np.arange(n_steps + 1) * dt
-    fitness = swimming_fitness(com, times, world.diverged)
+    # a body cut off at the part cap is not the creature its genotype describes: it scores 0
+    truncated = np.array([bool(b.meta.get("truncated", False)) for b in m.trees])
+    fitness = swimming_fitness(com, times, world.diverged | truncated)
     qpos, qvel = world.get_state()
     trajectory = frame_times = None
     if record_every:
