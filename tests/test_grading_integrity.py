@@ -28,11 +28,11 @@ EXERCISES = {"01_selection": (10.0, 5), "02_picture_mutations": (10.0, 5), "03_p
              "05_creature_operators": (12.0, 3), "07_swimming_physics": (10.0, 2)}
 
 
-def grade(paths, out, *extra):
+def grade(paths, out, *extra, status=0):
     cmd = [sys.executable, "-m", "coursekit", "grade", *map(str, paths), "--json", str(out), *extra]
     proc = subprocess.run(cmd, cwd=out.parent, capture_output=True, text=True, timeout=900,
                           env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(ROOT), "COURSEKIT_PROFILE": "ci"})
-    assert proc.returncode == 0, proc.stderr
+    assert proc.returncode == status, (proc.stdout[-3000:], proc.stderr)
     return proc.stdout, json.loads(out.read_text())
 
 
@@ -64,7 +64,7 @@ def test_solution_gets_full_marks(solutions_and_exercises, stem):
     assert_gradescope_shape(results)
     points, _ = EXERCISES[stem]
     sol = by_path[f"solutions/{stem}.ipynb"]
-    assert sol["score"] == sol["max_score"] == points
+    assert sol["score"] == sol["max_score"] == points and sol["graded"] and sol["not_graded"] == []
     assert f"solutions/{stem}.ipynb: {points:g} / {points:g} points" in stdout
 
 
@@ -86,7 +86,8 @@ def test_untouched_exercise_gets_zero_with_not_attempted(solutions_and_exercises
 def adversarial(tmp_path_factory):
     out = tmp_path_factory.mktemp("adversarial") / "results.json"
     paths = [ADV / f"{name}.ipynb" for name in NOTEBOOKS]
-    stdout, results = grade(paths, out, "--exercise", "01_selection", "--timeout", "3", "--cell-timeout", "10")
+    # notebooks with cells skipped (a loop past the cell timeout, os._exit, a segfault) are not graded: status 3
+    stdout, results = grade(paths, out, "--exercise", "01_selection", "--timeout", "3", "--cell-timeout", "10", status=3)
     time.sleep(1.5)  # a surviving daemon from write_output.ipynb would overwrite the file within 0.05 s
     return results, json.loads(out.read_text())
 
@@ -98,6 +99,21 @@ def test_adversarial_notebook_gets_exactly_its_honest_score(adversarial, name):
     sabotaged = set(NOTEBOOKS[name]["sabotaged"])
     expected = {CHECK_OF[f]: (0.0 if f in sabotaged else 2.0) for f in HONEST}
     assert {c: t["score"] for c, t in tests.items()} == expected, {c: t["output"][:300] for c, t in tests.items()}
+
+
+#: adversarial notebooks some of whose top-level cells had to be skipped, and why
+SKIPPED = {"infinite_loop": "did not finish within 10 s", "exits": "stopped the kernel",
+           "crash_and_memory": "stopped the kernel"}
+
+
+@pytest.mark.parametrize("name", list(NOTEBOOKS))
+def test_a_notebook_with_skipped_cells_is_reported_not_graded_with_the_reason(adversarial, name):
+    results, _ = adversarial
+    nb = next(n for n in results["extra_data"]["notebooks"] if Path(n["path"]).name == f"{name}.ipynb")
+    assert nb["graded"] == (name not in SKIPPED), nb
+    if name in SKIPPED:
+        assert any("skipped: " + SKIPPED[name] in why for why in nb["not_graded"]), nb
+        assert f"{name}.ipynb: NOT GRADED: " in results["output"]
 
 
 def test_results_file_is_the_graders_and_survives_the_notebooks(adversarial):
