@@ -226,6 +226,38 @@ def read_report(path: Path) -> tuple[list, list]:
     return notes, problems
 
 
+# -- which exercise a notebook is --------------------------------------------------------------
+
+MAX_NOTEBOOK_BYTES = 64 * 2**20
+
+
+def exercise_of(path, override=None) -> str:
+    """The exercise a notebook answers: ``override`` (``--exercise``), else the notebook's metadata
+    field ``coursekit.exercise`` (so a renamed file still grades), else the file stem.
+
+    Raises ``ValueError`` naming the field when the metadata names no registered exercise. A file
+    that cannot be read or parsed falls back to its stem (grading then reports it).
+    """
+    if override:
+        registry.for_notebook(override)
+        return override
+    path = Path(path)
+    try:
+        data = _read_untrusted(path, MAX_NOTEBOOK_BYTES)
+        meta = json.loads(data)["metadata"]["coursekit"] if data else None
+    except (ValueError, RecursionError, KeyError, TypeError):
+        meta = None
+    if type(meta) is not dict or "exercise" not in meta:
+        registry.for_notebook(path.stem)
+        return path.stem
+    name = meta["exercise"]
+    known = ", ".join(sorted(registry.EXERCISES))
+    if type(name) is not str or name not in registry.EXERCISES:
+        raise ValueError(f"{path}: metadata field coursekit.exercise is {clean(repr(name))[:80]}, which names no exercise; "
+                         f"known: {known} (or pass --exercise)")
+    return name
+
+
 # -- running the child and cleaning up after it --------------------------------------------------
 
 
@@ -331,13 +363,14 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         memory_mb: memory (proportional set size, not address space) the notebook's processes
             may hold together; over it the largest is killed and the notebook is not graded.
         seed: seed of the grading cases.
-        exercise: exercise stem (default: the notebook's file stem, e.g. ``01_selection``).
+        exercise: exercise stem (default: :func:`exercise_of`: the notebook's metadata field
+            ``coursekit.exercise``, else its file stem, e.g. ``01_selection``).
         user: account the child runs as when grading as root ("" keeps root).
     Returns:
         a :class:`NotebookResult`; ``not_graded`` lists why its score does not stand, if it does not.
     """
     path = Path(path)
-    checks = registry.for_notebook(exercise or path.stem)
+    checks = registry.for_notebook(exercise_of(path, exercise))
     rng = np.random.default_rng(seed)
     cases = {c.name: c.cases(rng) for c in checks}
     spec = {"timeout": float(timeout), "memory_mb": int(memory_mb),
@@ -521,8 +554,7 @@ def main(args) -> int:
             print(f"coursekit grade: --{name.replace('_', '-')} must be positive, got {v}", file=sys.stderr)
             return 2
     try:
-        for nb in args.notebooks:
-            registry.for_notebook(getattr(args, "exercise", None) or Path(nb).stem)
+        exercises = [exercise_of(nb, getattr(args, "exercise", None)) for nb in args.notebooks]
     except ValueError as exc:
         print(f"coursekit grade: {exc}", file=sys.stderr)
         return 2
@@ -538,10 +570,10 @@ def main(args) -> int:
               "processes a notebook daemonises may outlive grading", file=sys.stderr)
     results = []
     try:
-        for nb in args.notebooks:
+        for nb, exercise in zip(args.notebooks, exercises):
             t0 = time.monotonic()
             results.append(grade_notebook(nb, timeout=args.timeout, cell_timeout=getattr(args, "cell_timeout", 300.0),
-                                          memory_mb=getattr(args, "memory_mb", 4096), exercise=getattr(args, "exercise", None)))
+                                          memory_mb=getattr(args, "memory_mb", 4096), exercise=exercise))
             results[-1].notes.append(f"graded in {time.monotonic() - t0:.1f} s")
     except supervisor.Terminated as exc:  # the notebook's processes and private folder are gone already
         print(f"coursekit grade: {exc}; no results written", file=sys.stderr)
