@@ -17,7 +17,7 @@ from nbclient import NotebookClient
 ROOT = Path(__file__).resolve().parent.parent
 ADV = ROOT / "tests" / "adversarial"
 sys.path.insert(0, str(ADV))
-from make_notebooks import HONEST, NOTEBOOKS  # noqa: E402
+from make_notebooks import DO_NOTHING, HONEST, NOTEBOOKS  # noqa: E402
 
 sys.path.pop(0)
 
@@ -148,3 +148,30 @@ def test_usage_errors_exit_2_and_write_nothing(tmp_path):
         proc = subprocess.run([sys.executable, "-m", "coursekit", "grade", *args, "--json", str(out)],
                               capture_output=True, text=True, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
         assert proc.returncode == 2 and "coursekit grade:" in proc.stderr and not out.exists()
+
+
+@pytest.fixture(scope="module")
+def do_nothing_and_renamed(tmp_path_factory):
+    """The do-nothing notebooks (named do_nothing_<stem>) and a renamed solution, graded by their metadata."""
+    tmp = tmp_path_factory.mktemp("do_nothing")
+    renamed = tmp / "my homework (final).ipynb"
+    renamed.write_bytes((ROOT / "solutions" / "01_selection.ipynb").read_bytes())
+    paths = [ADV / f"do_nothing_{stem}.ipynb" for stem in DO_NOTHING] + [renamed]
+    _, results = grade(paths, tmp / "results.json", "--timeout", "20", "--cell-timeout", "120")
+    return {Path(nb["path"]).name: nb for nb in results["extra_data"]["notebooks"]}, results
+
+
+@pytest.mark.parametrize("stem", list(DO_NOTHING))
+def test_do_nothing_answers_score_zero_when_graded(do_nothing_and_renamed, stem):
+    by_name, results = do_nothing_and_renamed
+    nb = by_name[f"do_nothing_{stem}.ipynb"]
+    tests = [t for t in results["tests"] if t["name"].startswith(f"do_nothing_{stem}.ipynb: ")]
+    assert nb["graded"] and nb["max_score"] == EXERCISES[stem][0] and len(tests) == EXERCISES[stem][1]
+    assert nb["score"] == 0.0, {t["name"]: t["output"][:300] for t in tests if t["score"]}
+    assert all("Nothing else is judged" in t["output"] for t in tests)
+
+
+def test_a_renamed_submission_is_graded_by_its_metadata(do_nothing_and_renamed):
+    by_name, _ = do_nothing_and_renamed
+    nb = by_name["my homework (final).ipynb"]
+    assert nb["graded"] and nb["score"] == nb["max_score"] == 10.0
