@@ -98,8 +98,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--json", dest="json_out", help="write Gradescope-format results here")
     s.add_argument("--timeout", type=float, default=60.0, help="seconds allowed per student call (default 60)")
     s.add_argument("--cell-timeout", type=float, default=300.0, help="seconds allowed per notebook cell (default 300)")
-    s.add_argument("--memory-mb", type=int, default=4096, help="memory limit of the notebook's processes in MiB (default 4096)")
-    s.add_argument("--exercise", help="grade as this exercise (default: each notebook's file stem, e.g. 01_selection)")
+    s.add_argument("--memory-mb", type=int, default=4096, help="memory the notebook's processes may hold together, in MiB of resident memory "
+                   "(not address space; default 4096); over it the notebook is reported as not graded")
+    s.add_argument("--exercise", help="grade as this exercise (default: each notebook's metadata field coursekit.exercise, "
+                   "else its file stem, e.g. 01_selection)")
     s.set_defaults(func=_cmd_grade)
 
     s = sub.add_parser("exercises", help="build exercises/ from solutions/, or check they are in sync")

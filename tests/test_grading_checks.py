@@ -192,9 +192,9 @@ def roulette_proportional_to_rank(fitness, k, rng):
 def test_roulette_detects_wrong_proportions_beyond_zero_handling():
     j = evaluate("ga.roulette", roulette_proportional_to_rank)
     assert {v.prop: v.passed for v in j.verdicts} == {
-        "runs": True, "returns k valid indices": True, "never picks zero fitness": True,
+        "runs": True, "returns k valid indices": True, "prefers fitter individuals": True, "never picks zero fitness": True,
         "proportional to fitness": False, "deterministic for a seed": True, "inputs unchanged": True}
-    assert j.score == round(2.0 * 5 / 6, 4)  # partial credit: 5 of 6 properties hold
+    assert j.score == round(2.0 * 6 / 7, 4)  # partial credit: it does the job, 6 of 7 properties hold
 
 
 # -- formative messages ---------------------------------------------------------------------------

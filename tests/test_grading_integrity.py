@@ -17,7 +17,7 @@ from nbclient import NotebookClient
 ROOT = Path(__file__).resolve().parent.parent
 ADV = ROOT / "tests" / "adversarial"
 sys.path.insert(0, str(ADV))
-from make_notebooks import HONEST, NOTEBOOKS  # noqa: E402
+from make_notebooks import DO_NOTHING, HONEST, NOTEBOOKS  # noqa: E402
 
 sys.path.pop(0)
 
@@ -28,11 +28,11 @@ EXERCISES = {"01_selection": (10.0, 5), "02_picture_mutations": (10.0, 5), "03_p
              "05_creature_operators": (12.0, 3), "07_swimming_physics": (10.0, 2)}
 
 
-def grade(paths, out, *extra):
+def grade(paths, out, *extra, status=0):
     cmd = [sys.executable, "-m", "coursekit", "grade", *map(str, paths), "--json", str(out), *extra]
     proc = subprocess.run(cmd, cwd=out.parent, capture_output=True, text=True, timeout=900,
                           env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(ROOT), "COURSEKIT_PROFILE": "ci"})
-    assert proc.returncode == 0, proc.stderr
+    assert proc.returncode == status, (proc.stdout[-3000:], proc.stderr)
     return proc.stdout, json.loads(out.read_text())
 
 
@@ -64,7 +64,7 @@ def test_solution_gets_full_marks(solutions_and_exercises, stem):
     assert_gradescope_shape(results)
     points, _ = EXERCISES[stem]
     sol = by_path[f"solutions/{stem}.ipynb"]
-    assert sol["score"] == sol["max_score"] == points
+    assert sol["score"] == sol["max_score"] == points and sol["graded"] and sol["not_graded"] == []
     assert f"solutions/{stem}.ipynb: {points:g} / {points:g} points" in stdout
 
 
@@ -86,7 +86,8 @@ def test_untouched_exercise_gets_zero_with_not_attempted(solutions_and_exercises
 def adversarial(tmp_path_factory):
     out = tmp_path_factory.mktemp("adversarial") / "results.json"
     paths = [ADV / f"{name}.ipynb" for name in NOTEBOOKS]
-    stdout, results = grade(paths, out, "--exercise", "01_selection", "--timeout", "3", "--cell-timeout", "10")
+    # notebooks with cells skipped (a loop past the cell timeout, os._exit, a segfault) are not graded: status 3
+    stdout, results = grade(paths, out, "--exercise", "01_selection", "--timeout", "3", "--cell-timeout", "10", status=3)
     time.sleep(1.5)  # a surviving daemon from write_output.ipynb would overwrite the file within 0.05 s
     return results, json.loads(out.read_text())
 
@@ -98,6 +99,21 @@ def test_adversarial_notebook_gets_exactly_its_honest_score(adversarial, name):
     sabotaged = set(NOTEBOOKS[name]["sabotaged"])
     expected = {CHECK_OF[f]: (0.0 if f in sabotaged else 2.0) for f in HONEST}
     assert {c: t["score"] for c, t in tests.items()} == expected, {c: t["output"][:300] for c, t in tests.items()}
+
+
+#: adversarial notebooks some of whose top-level cells had to be skipped, and why
+SKIPPED = {"infinite_loop": "did not finish within 10 s", "exits": "stopped the kernel",
+           "crash_and_memory": "stopped the kernel"}
+
+
+@pytest.mark.parametrize("name", list(NOTEBOOKS))
+def test_a_notebook_with_skipped_cells_is_reported_not_graded_with_the_reason(adversarial, name):
+    results, _ = adversarial
+    nb = next(n for n in results["extra_data"]["notebooks"] if Path(n["path"]).name == f"{name}.ipynb")
+    assert nb["graded"] == (name not in SKIPPED), nb
+    if name in SKIPPED:
+        assert any("skipped: " + SKIPPED[name] in why for why in nb["not_graded"]), nb
+        assert f"{name}.ipynb: NOT GRADED: " in results["output"]
 
 
 def test_results_file_is_the_graders_and_survives_the_notebooks(adversarial):
@@ -132,3 +148,30 @@ def test_usage_errors_exit_2_and_write_nothing(tmp_path):
         proc = subprocess.run([sys.executable, "-m", "coursekit", "grade", *args, "--json", str(out)],
                               capture_output=True, text=True, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
         assert proc.returncode == 2 and "coursekit grade:" in proc.stderr and not out.exists()
+
+
+@pytest.fixture(scope="module")
+def do_nothing_and_renamed(tmp_path_factory):
+    """The do-nothing notebooks (named do_nothing_<stem>) and a renamed solution, graded by their metadata."""
+    tmp = tmp_path_factory.mktemp("do_nothing")
+    renamed = tmp / "my homework (final).ipynb"
+    renamed.write_bytes((ROOT / "solutions" / "01_selection.ipynb").read_bytes())
+    paths = [ADV / f"do_nothing_{stem}.ipynb" for stem in DO_NOTHING] + [renamed]
+    _, results = grade(paths, tmp / "results.json", "--timeout", "20", "--cell-timeout", "120")
+    return {Path(nb["path"]).name: nb for nb in results["extra_data"]["notebooks"]}, results
+
+
+@pytest.mark.parametrize("stem", list(DO_NOTHING))
+def test_do_nothing_answers_score_zero_when_graded(do_nothing_and_renamed, stem):
+    by_name, results = do_nothing_and_renamed
+    nb = by_name[f"do_nothing_{stem}.ipynb"]
+    tests = [t for t in results["tests"] if t["name"].startswith(f"do_nothing_{stem}.ipynb: ")]
+    assert nb["graded"] and nb["max_score"] == EXERCISES[stem][0] and len(tests) == EXERCISES[stem][1]
+    assert nb["score"] == 0.0, {t["name"]: t["output"][:300] for t in tests if t["score"]}
+    assert all("Nothing else is judged" in t["output"] for t in tests)
+
+
+def test_a_renamed_submission_is_graded_by_its_metadata(do_nothing_and_renamed):
+    by_name, _ = do_nothing_and_renamed
+    nb = by_name["my homework (final).ipynb"]
+    assert nb["graded"] and nb["score"] == nb["max_score"] == 10.0

@@ -396,7 +396,45 @@ SHARED = [(n, make(n), prop) for n in MUTATIONS + RECOMBINATIONS for make, prop 
     (_drops_strings, "returns a valid genome of the same shape" if n in MUTATIONS
      else "returns two valid genomes of the parents' shape"))]
 
-WRONG = SHARED + [
+def decode_root_only(symbols):  # do-nothing: the root alone
+    return symbols[0]
+
+
+def identity(genome, rng):  # do-nothing mutation
+    return genome
+
+
+def parents_back(a, b, rng):  # do-nothing recombination
+    return a, b
+
+
+def parents_copied(a, b, rng):
+    return Genome.from_json(a.to_json()), Genome.from_json(b.to_json())
+
+
+DO_NOTHING = [
+    ("decode", decode_root_only, "builds a tree below the root"),
+    ("transposition", identity, "changes the genome"),
+    ("root_transposition", identity, "changes the genome"),
+    ("substitution", identity, "changes a chromosome"),
+    ("head_tail_rotation", identity, "changes the genome"),
+    ("crossover", parents_back, "children hold material of both parents"),
+    ("random_copy", parents_copied, "children hold material of both parents"),
+    ("random_interpolation", parents_copied, "blends a pair"),
+]
+
+
+@pytest.mark.parametrize("name,fn,prop", DO_NOTHING, ids=[f"{n}-{f.__name__}" for n, f, _ in DO_NOTHING])
+def test_do_nothing_scores_zero_and_nothing_passes_vacuously(name, fn, prop):
+    j = evaluate(f"pictures.{name}", fn)
+    assert j.score == 0.0, j.verdicts
+    failed = [v for v in j.verdicts if not v.passed]
+    assert failed[0].prop == prop, failed  # the job gate is the first thing that fails
+    after = j.verdicts[[v.prop for v in j.verdicts].index(prop) + 1:]
+    assert after and all(not v.passed and v.message.startswith("not checked until") for v in after)
+
+
+WRONG = SHARED + DO_NOTHING + [
     ("decode", decode_flat, "every node has its arity's children"),
     ("decode", decode_depth_first, "reads breadth-first (Karva)"),
     ("decode", decode_sexpr_text, "returns a nested-list tree"),

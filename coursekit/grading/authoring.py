@@ -4,7 +4,9 @@
 ``# BEGIN SOLUTION`` and ``# END SOLUTION`` are the answer; the generated
 ``exercises/NN_topic.ipynb`` keeps everything else (signature, docstring, narrative, check
 cells) and replaces each block with ``raise NotImplementedError`` at the marker's indentation.
-Outputs and execution counts are dropped. ``check`` rebuilds in memory and fails when any
+Outputs and execution counts are dropped; the notebook metadata field ``coursekit.exercise``
+(the solution's file stem unless the solution sets it) names the exercise, so that ``coursekit
+grade`` still knows a renamed submission. ``check`` rebuilds in memory and fails when any
 exercise file differs byte for byte, is missing, or has no solution.
 """
 
@@ -52,6 +54,8 @@ def strip_solutions(source: str, where: str = "cell") -> str:
 def exercise_notebook(nb, name: str = "notebook"):
     """The exercise version of a solution notebook (a new object; ``nb`` is not modified)."""
     ex = copy.deepcopy(nb)
+    if name.endswith(".ipynb"):  # the exercise's identity travels with the file: a renamed submission still grades
+        ex.metadata.setdefault("coursekit", {}).setdefault("exercise", name[:-len(".ipynb")])
     for i, cell in enumerate(ex.cells):
         if cell.cell_type == "code":
             cell.source = strip_solutions(cell.source, f"{name}, cell {i + 1}")

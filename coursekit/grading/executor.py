@@ -13,7 +13,8 @@ drives an IPython kernel through nbclient.
    :mod:`coursekit.grading.runner` executed in a fresh namespace (not the kernel's possibly
    patched ``coursekit``), which calls the student's function on the spec's cases in forked,
    bounded workers and appends raw outputs to the channel file.
-3. Write a small execution report (which cells failed and why) for the grader's summary.
+3. Write a small execution report (which cells failed or were skipped and why, and whether the
+   harvest completed) for the grader, which reports a notebook with skipped cells as not graded.
 
 Nothing the kernel prints is read. The channel holds raw outputs only; verdicts and points are
 computed by the grader from its own copy of the cases.
@@ -65,6 +66,7 @@ def execute(nb, spec: dict, channel: str, cwd: str, cell_timeout: float) -> dict
     skip: dict[int, str] = {}
     harvest_timeout = 4 * spec["timeout"] + 90  # the runner stops each check after 4 * timeout + 30 s
     harvested = False
+    harvest_problem = None
     cells: dict[int, str] = {}
     for _attempt in range(MAX_RESTARTS + 1):
         run = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(nb.cells[i].source) for i in code])
@@ -89,8 +91,9 @@ def execute(nb, spec: dict, channel: str, cwd: str, cell_timeout: float) -> dict
                     client.timeout = harvest_timeout
                     try:
                         client.execute_cell(run.cells[-1], len(run.cells) - 1)
-                    except CellTimeoutError:
-                        break  # the kernel is wedged: remaining checks get no output
+                    except CellTimeoutError:  # the kernel is wedged: remaining checks get no output
+                        harvest_problem = f"calling {check['function']} did not finish within {harvest_timeout:g} s"
+                        break
                 harvested = True
         except CellTimeoutError:
             if current is None:
@@ -98,13 +101,14 @@ def execute(nb, spec: dict, channel: str, cwd: str, cell_timeout: float) -> dict
             skip[current] = f"did not finish within {cell_timeout:g} s"
             continue
         except DeadKernelError:
-            if current is None:
-                break  # died during harvesting: what reached the channel counts
+            if current is None:  # died during harvesting: what reached the channel counts
+                harvest_problem = "the kernel stopped while the graded functions were being called"
+                break
             skip[current] = "stopped the kernel (os._exit, a crash or out of memory)"
             continue
         break
     cells.update({i: f"skipped: {why}" for i, why in skip.items()})
-    return {"format": REPORT_FORMAT, "harvested": harvested,
+    return {"format": REPORT_FORMAT, "harvested": harvested, "harvest_problem": harvest_problem,
             "cells": [{"index": i, "status": cells.get(i, "not run")} for i in code]}
 
 

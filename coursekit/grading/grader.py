@@ -3,17 +3,25 @@
 Integrity model. This process computes and writes scores and never imports or runs student code:
 
 - It makes the test cases itself (seeded), writes them into a private box directory and starts
-  :mod:`coursekit.grading.executor` as a child -- in a new session, with ``RLIMIT_AS``, and as an
-  unprivileged user (``nobody``) when running as root, as autograders such as Gradescope do. The
-  child executes the notebook in a fresh kernel and harvests *raw outputs* of the student's
-  functions into one channel file.
+  :mod:`coursekit.grading.executor` as a child -- in a new session and as an unprivileged user
+  (``nobody``) when running as root, as autograders such as Gradescope do. The child executes
+  the notebook in a fresh kernel and harvests *raw outputs* of the student's functions into one
+  channel file. Memory is bounded by what the notebook's processes hold, never by address space
+  (a CUDA build of torch reserves ~3 GB of it on import): :mod:`.supervisor` polls them and
+  kills the largest when they pass ``--memory-mb``.
+- A notebook part of which could not run -- a cell skipped for time, memory or a crash, a
+  harvest that did not finish, no execution report -- is reported **not graded**, with the
+  reasons, and ``coursekit grade`` exits with status 3: an instructor never gets a silent 0.
+  The ``--json`` path is checked before grading starts; every message is stripped of terminal
+  escapes and control characters (:func:`clean`).
 - It reads only that channel (and a small execution report), refusing anything that is not a
   regular file below a size cap, and validates every record strictly (schema, types, lengths).
   It then judges with its own copy of the checks and cases; points come from the registry.
 - It is a child subreaper (Linux): processes the notebook forked, even double-forked daemons,
   become its children when their parents die, and are killed before any result is written.
   Results are written atomically after that, so nothing the notebook started can overwrite them.
-  (``COURSEKIT_GRADE_KEEP=1`` keeps the private directory, with the child's log, for debugging.)
+  (``COURSEKIT_GRADE_KEEP=1`` keeps the private directory, with the child's log, for debugging;
+  otherwise it is removed, after ``SIGTERM`` too, and by the next run after a ``SIGKILL``.)
 
 What the kernel can still do is choose the raw outputs its functions return -- exactly what a
 student's function can do anyway. Without root, the kernel runs as the grader's own user and
@@ -29,6 +37,7 @@ import ctypes
 import json
 import os
 import pwd
+import re
 import resource
 import shutil
 import signal
@@ -37,7 +46,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +54,7 @@ import numpy as np
 import coursekit
 
 from coursekit.grading import checks as registry
+from coursekit.grading import supervisor
 from coursekit.grading.checks import STATUSES, Judgement, Verdict
 
 RESULTS_FORMAT = "coursekit.grade/1"
@@ -61,6 +71,12 @@ class NotebookResult:
     path: str
     judgements: list
     notes: list
+    not_graded: list = field(default_factory=list)  # why the score does not stand (cells skipped...)
+
+    @property
+    def graded(self) -> bool:
+        """False when part of the notebook could not run (time, memory, crash): see ``not_graded``."""
+        return not self.not_graded
 
     @property
     def score(self) -> float:
@@ -182,23 +198,64 @@ def read_channel(path: Path, checks: list, cases: dict) -> tuple[dict, int]:
     return records, rejected
 
 
-def read_report(path: Path) -> list:
-    """Human notes from the execution report (which cells failed); [] when absent or malformed."""
+def read_report(path: Path) -> tuple[list, list]:
+    """``(notes, problems)`` from the execution report: which cells failed, and which were skipped.
+
+    A *problem* means part of the notebook never ran (a cell skipped for time, memory or a crash,
+    or no report at all), so its score cannot stand; an error raised by a cell is only a note.
+    """
     try:
         data = _read_untrusted(path, MAX_REPORT_BYTES)
         rep = json.loads(data) if data else None
     except (ValueError, RecursionError):
-        return ["the execution report was unreadable"]
+        return [], ["the execution report was unreadable"]
     if type(rep) is not dict or rep.get("format") != "coursekit.execution/1":
-        return ["no execution report (the notebook run was stopped)"]
-    notes = []
+        return [], ["no execution report (the notebook run was stopped)"]
+    notes, problems = [], []
     if type(rep.get("error")) is str:
         notes.append(rep["error"][:400])
+    elif rep.get("harvested") is not True and type(rep.get("harvest_problem")) is not str:
+        problems.append("the graded functions were never called (the kernel did not get that far)")
+    if type(rep.get("harvest_problem")) is str:
+        problems.append(rep["harvest_problem"][:300])
     cells = rep.get("cells") if type(rep.get("cells")) is list else []
     for c in cells[:200]:
         if type(c) is dict and type(c.get("status")) is str and type(c.get("index")) is int and c["status"] != "ok":
-            notes.append(f"cell {c['index'] + 1}: {c['status'][:200]}")
-    return notes
+            line = f"cell {c['index'] + 1}: {c['status'][:200]}"
+            (problems if c["status"].startswith(("skipped", "not run")) else notes).append(line)
+    return notes, problems
+
+
+# -- which exercise a notebook is --------------------------------------------------------------
+
+MAX_NOTEBOOK_BYTES = 64 * 2**20
+
+
+def exercise_of(path, override=None) -> str:
+    """The exercise a notebook answers: ``override`` (``--exercise``), else the notebook's metadata
+    field ``coursekit.exercise`` (so a renamed file still grades), else the file stem.
+
+    Raises ``ValueError`` naming the field when the metadata names no registered exercise. A file
+    that cannot be read or parsed falls back to its stem (grading then reports it).
+    """
+    if override:
+        registry.for_notebook(override)
+        return override
+    path = Path(path)
+    try:
+        data = _read_untrusted(path, MAX_NOTEBOOK_BYTES)
+        meta = json.loads(data)["metadata"]["coursekit"] if data else None
+    except (ValueError, RecursionError, KeyError, TypeError):
+        meta = None
+    if type(meta) is not dict or "exercise" not in meta:
+        registry.for_notebook(path.stem)
+        return path.stem
+    name = meta["exercise"]
+    known = ", ".join(sorted(registry.EXERCISES))
+    if type(name) is not str or name not in registry.EXERCISES:
+        raise ValueError(f"{path}: metadata field coursekit.exercise is {clean(repr(name))[:80]}, which names no exercise; "
+                         f"known: {known} (or pass --exercise)")
+    return name
 
 
 # -- running the child and cleaning up after it --------------------------------------------------
@@ -275,12 +332,24 @@ def grading_user(user: str):
     return _USABLE[user]
 
 
-def _limits(memory_mb):
+def _limits():
     def apply():
-        resource.setrlimit(resource.RLIMIT_AS, (memory_mb * 2**20, memory_mb * 2**20))
+        # No address-space limit: a CUDA build of torch reserves ~3 GB of it on import. Memory is
+        # bounded by what the processes hold (supervisor.MemoryWatch); core dumps are off.
         resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
 
     return apply
+
+
+def _stop(child) -> None:
+    """Kill the child's process group and every process this one adopted; reap them."""
+    try:
+        os.killpg(child.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    child.wait()
+    if _SUBREAPER:  # orphans of this notebook (kernel, daemons) are our children now: none survives
+        sweep()
 
 
 def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, seed=GRADING_SEED,
@@ -291,22 +360,27 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         path: the submitted notebook.
         timeout: seconds per call of a student function.
         cell_timeout: seconds per notebook cell.
-        memory_mb: address-space limit of the child and its kernel.
+        memory_mb: memory (proportional set size, not address space) the notebook's processes
+            may hold together; over it the largest is killed and the notebook is not graded.
         seed: seed of the grading cases.
-        exercise: exercise stem (default: the notebook's file stem, e.g. ``01_selection``).
+        exercise: exercise stem (default: :func:`exercise_of`: the notebook's metadata field
+            ``coursekit.exercise``, else its file stem, e.g. ``01_selection``).
         user: account the child runs as when grading as root ("" keeps root).
+    Returns:
+        a :class:`NotebookResult`; ``not_graded`` lists why its score does not stand, if it does not.
     """
     path = Path(path)
-    checks = registry.for_notebook(exercise or path.stem)
+    checks = registry.for_notebook(exercise_of(path, exercise))
     rng = np.random.default_rng(seed)
     cases = {c.name: c.cases(rng) for c in checks}
     spec = {"timeout": float(timeout), "memory_mb": int(memory_mb),
             "checks": [{"name": c.name, "function": c.function, "output": c.output, "cases": cases[c.name]} for c in checks]}
     ids = grading_user(user)
-    private = Path(tempfile.mkdtemp(prefix="coursekit-grade-"))
+    private = supervisor.private_dir()
+    child = None
     try:
         box = private / "box"
-        for d in ("", "work", "home", "runtime"):
+        for d in ("", "work", "home", "runtime", "tmp"):
             (box / d).mkdir(exist_ok=True)
             if ids:
                 os.chown(box / d, *ids)
@@ -315,45 +389,47 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         try:
             nb_bytes = path.read_bytes()
         except OSError as exc:
-            return NotebookResult(str(path), _zero(checks, f"could not read {path}: {exc.strerror}"), [])
+            return NotebookResult(str(path), _zero(checks, f"could not read {path}: {exc.strerror}"), [],
+                                  [f"could not read {path}: {exc.strerror}"])
         (box / "submission.ipynb").write_bytes(nb_bytes)
         (box / "spec.json").write_text(json.dumps(spec), encoding="utf-8")
         channel, report = box / "channel.jsonl", box / "report.json"
         env = {k: v for k, v in os.environ.items() if k in ("PATH", "LANG", "LC_ALL", "TZ", "COURSEKIT_PROFILE")}
         env.update(PYTHONPATH=str(_PKG_ROOT), HOME=str(box / "home"), JUPYTER_RUNTIME_DIR=str(box / "runtime"),
                    IPYTHONDIR=str(box / "home" / ".ipython"), MPLCONFIGDIR=str(box / "home" / ".mpl"),
-                   MPLBACKEND="Agg", PYTHONNOUSERSITE="1", COURSEKIT_PROFILE=env.get("COURSEKIT_PROFILE", "ci"))
+                   TMPDIR=str(box / "tmp"), MPLBACKEND="Agg", PYTHONNOUSERSITE="1",
+                   COURSEKIT_PROFILE=env.get("COURSEKIT_PROFILE", "ci"))
         cmd = [sys.executable, "-m", "coursekit.grading.executor", "--notebook", str(box / "submission.ipynb"),
                "--spec", str(box / "spec.json"), "--channel", str(channel), "--report", str(report),
                "--cwd", str(box / "work"), "--cell-timeout", str(cell_timeout)]
         # Backstop only: the child bounds every cell and call itself.
         wall = 2 * cell_timeout * (min(nb_bytes.count(b'"cell_type"'), 500) + 2) + (4 * timeout + 60) * len(checks)
         notes = [] if ids or os.geteuid() != 0 else [f"ran as root: user {user!r} could not run this Python, so privileges were not dropped"]
+        problems = []
+        watch = supervisor.MemoryWatch(memory_mb)
         with open(private / "child.log", "wb") as log:
             child = subprocess.Popen(cmd, cwd=box / "work", env=env, stdin=subprocess.DEVNULL, stdout=log,
-                                     stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_limits(memory_mb),
+                                     stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_limits(),
                                      user=ids[0] if ids else None, group=ids[1] if ids else None,
                                      extra_groups=[] if ids else None)
-            try:
-                child.wait(timeout=wall)
-            except subprocess.TimeoutExpired:
-                notes.append(f"grading stopped after {wall:.0f} s")
-            try:
-                os.killpg(child.pid, signal.SIGKILL)
-            except (ProcessLookupError, PermissionError):
-                pass
-            child.wait()
-            if _SUBREAPER:  # orphans of this notebook (kernel, daemons) are our children now: none survives
-                sweep()
+            if not watch.wait(child, wall):
+                problems.append(f"grading stopped after {wall:.0f} s")
+            _stop(child)
+            child = None
+        problems += watch.events
         records, rejected = read_channel(channel, checks, cases)
-        notes += read_report(report)
+        more_notes, more_problems = read_report(report)
+        notes += more_notes
+        problems += more_problems
         if rejected:
             notes.append(f"{rejected} malformed result line(s) were ignored")
         judgements = [registry.judge(c, cases[c.name], records[c.name]) if records[c.name] else
                       _zero([c], f"no results: {c.function} could not be called (the notebook stopped before grading; see the notes)")[0]
                       for c in checks]
-        return NotebookResult(str(path), judgements, notes)
+        return NotebookResult(str(path), judgements, notes, problems)
     finally:
+        if child is not None:  # interrupted (Terminated, KeyboardInterrupt): nothing of the notebook survives
+            _stop(child)
         if not os.environ.get("COURSEKIT_GRADE_KEEP"):
             shutil.rmtree(private, ignore_errors=True)
 
@@ -365,27 +441,58 @@ def _zero(checks, why):
 # -- reporting -----------------------------------------------------------------------------------
 
 
+_ESCAPES = re.compile(r"(?:\x1b\[|\x9b)[0-?]*[ -/]*[@-~]"  # CSI (7- and 8-bit): colours, cursor moves, screen clears
+                      r"|\x9d[^\x07\x9c]*[\x07\x9c]?"  # 8-bit OSC
+                      r"|\x1b\][^\x07\x1b]*(?:\x07|\x1b\\)?"  # OSC: titles, hyperlinks, clipboard (OSC 52)
+                      r"|\x1b[P^_X][^\x1b]*(?:\x1b\\)?"  # DCS, PM, APC, SOS strings
+                      r"|\x1b.?")  # any other escape
+_CONTROLS = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u200b-\u200f\u202a-\u202e\u2066-\u2069]")
+
+
+def clean(text) -> str:
+    """``text`` without terminal escapes and control characters (newlines and tabs stay).
+
+    Everything the grader prints or writes passes through here: a message may quote a student's
+    exception text, and an ANSI or OSC escape in it could clear the instructor's screen, fake a
+    line of the summary or set the clipboard.
+    """
+    return _CONTROLS.sub("", _ESCAPES.sub("", str(text))).replace("\r", "")
+
+
 def _messages(j: Judgement) -> str:
-    return "\n".join(f"{'PASS' if v.passed else 'FAIL'} {v.prop}: {v.message}" for v in j.verdicts)
+    return "\n".join(f"{'PASS' if v.passed else 'FAIL'} {v.prop}: {clean(v.message)}" for v in j.verdicts)
+
+
+def _headline(r: NotebookResult) -> str:
+    if r.graded:
+        return f"{r.score:g} / {r.max_score:g} points"
+    return (f"NOT GRADED: {clean(r.not_graded[0])}"
+            + (f" (+{len(r.not_graded) - 1} more, below)" if len(r.not_graded) > 1 else "")
+            + f"; the parts that ran scored {r.score:g} / {r.max_score:g}")
 
 
 def gradescope(results: list) -> dict:
-    """Results in Gradescope's results.json format (plus ``extra_data`` with our format tag)."""
+    """Results in Gradescope's results.json format (plus ``extra_data`` with our format tag).
+
+    A notebook that was not graded keeps the points its parts that ran earned, and says so in
+    ``output`` and in ``extra_data.notebooks[*].graded`` / ``not_graded`` (the reasons).
+    """
     tests = []
     for r in results:
-        stem = Path(r.path).name
+        stem = clean(Path(r.path).name)
         for j in r.judgements:
             tests.append({"name": f"{stem}: {j.check.name} ({j.check.title})", "score": j.score,
                           "max_score": j.check.points, "output": _messages(j)})
     return {
         "score": round(sum(r.score for r in results), 4),
-        "output": "\n".join(f"{Path(r.path).name}: {r.score:g} / {r.max_score:g}" + "".join(f"\n  {n}" for n in r.notes)
-                            for r in results),
+        "output": "\n".join(f"{clean(Path(r.path).name)}: {_headline(r)}"
+                            + "".join(f"\n  {clean(n)}" for n in r.not_graded + r.notes) for r in results),
         "visibility": "visible",
         "stdout_visibility": "hidden",
         "tests": tests,
         "extra_data": {"format": RESULTS_FORMAT,
-                       "notebooks": [{"path": r.path, "score": r.score, "max_score": r.max_score} for r in results]},
+                       "notebooks": [{"path": clean(r.path), "score": r.score, "max_score": r.max_score, "graded": r.graded,
+                                      "not_graded": [clean(n) for n in r.not_graded]} for r in results]},
     }
 
 
@@ -393,12 +500,16 @@ def summary(results: list) -> str:
     """The readable summary printed by ``coursekit grade``."""
     lines = []
     for r in results:
-        lines.append(f"{r.path}: {r.score:g} / {r.max_score:g} points")
+        lines.append(f"{clean(r.path)}: {_headline(r)}")
         for j in r.judgements:
             first = next((v for v in j.verdicts if not v.passed), None)
             lines.append(f"  {j.check.name:<24} {j.score:>6.2f} / {j.check.points:g}   "
-                         + ("all properties hold" if first is None else f"{first.prop}: {first.message}"))
-        lines += [f"  note: {n}" for n in r.notes]
+                         + ("all properties hold" if first is None else f"{first.prop}: {clean(first.message)}"))
+        lines += [f"  not graded: {clean(n)}" for n in r.not_graded]
+        lines += [f"  note: {clean(n)}" for n in r.notes]
+    bad = [r for r in results if not r.graded]
+    if bad:
+        lines.append(f"{len(bad)} of {len(results)} notebook(s) NOT GRADED: their scores do not stand; see the reasons above")
     return "\n".join(lines)
 
 
@@ -407,31 +518,74 @@ def write_json_atomic(path, obj) -> None:
     atomic_write(path, json.dumps(obj, indent=1))
 
 
+def check_results_path(path) -> str | None:
+    """Why ``--json path`` cannot be written (checked before any grading starts), or None."""
+    p = Path(path)
+    if p.is_dir():
+        return f"--json {path}: is a directory; give a file name, e.g. {p / 'results.json'}"
+    parent = p.parent
+    if not parent.is_dir():
+        return f"--json {path}: the folder {parent} does not exist"
+    if p.exists() and not p.is_file():
+        return f"--json {path}: is not a regular file"
+    try:
+        fd, probe = tempfile.mkstemp(dir=parent, prefix=f".{p.name}.", suffix=".probe")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        return f"--json {path}: cannot write in the folder {parent} ({exc.strerror})"
+    return None
+
+
+#: Exit status of ``coursekit grade`` when a notebook could not be graded (2 is a usage error).
+EXIT_NOT_GRADED = 3
+
+
 def main(args) -> int:
-    """``coursekit grade``: grade each notebook in isolation, print a summary, write Gradescope JSON."""
+    """``coursekit grade``: grade each notebook in isolation, print a summary, write Gradescope JSON.
+
+    Exits 0 when every notebook was graded, 2 on a usage error (nothing graded, nothing written),
+    3 when a notebook was not graded (its cells were skipped for time, memory or a crash) and
+    1 when the results file could not be written.
+    """
     for name in ("timeout", "cell_timeout", "memory_mb"):
         v = getattr(args, name, None)
         if v is not None and not v > 0:
             print(f"coursekit grade: --{name.replace('_', '-')} must be positive, got {v}", file=sys.stderr)
             return 2
     try:
-        for nb in args.notebooks:
-            registry.for_notebook(getattr(args, "exercise", None) or Path(nb).stem)
+        exercises = [exercise_of(nb, getattr(args, "exercise", None)) for nb in args.notebooks]
     except ValueError as exc:
         print(f"coursekit grade: {exc}", file=sys.stderr)
         return 2
+    if args.json_out:
+        why = check_results_path(args.json_out)
+        if why:
+            print(f"coursekit grade: {why}", file=sys.stderr)
+            return 2
+    supervisor.remove_stale()
+    supervisor.handle_termination()
     if not become_subreaper():
         print("coursekit grade: warning: cannot adopt orphaned processes (no PR_SET_CHILD_SUBREAPER); "
               "processes a notebook daemonises may outlive grading", file=sys.stderr)
     results = []
-    for nb in args.notebooks:
-        t0 = time.monotonic()
-        results.append(grade_notebook(nb, timeout=args.timeout, cell_timeout=getattr(args, "cell_timeout", 300.0),
-                                      memory_mb=getattr(args, "memory_mb", 4096), exercise=getattr(args, "exercise", None)))
-        results[-1].notes.append(f"graded in {time.monotonic() - t0:.1f} s")
-    if _SUBREAPER:
-        sweep()
+    try:
+        for nb, exercise in zip(args.notebooks, exercises):
+            t0 = time.monotonic()
+            results.append(grade_notebook(nb, timeout=args.timeout, cell_timeout=getattr(args, "cell_timeout", 300.0),
+                                          memory_mb=getattr(args, "memory_mb", 4096), exercise=exercise))
+            results[-1].notes.append(f"graded in {time.monotonic() - t0:.1f} s")
+    except supervisor.Terminated as exc:  # the notebook's processes and private folder are gone already
+        print(f"coursekit grade: {exc}; no results written", file=sys.stderr)
+        return 128 + exc.signum
+    finally:
+        if _SUBREAPER:
+            sweep()
     print(summary(results))
     if args.json_out:
-        write_json_atomic(args.json_out, gradescope(results))
-    return 0
+        try:
+            write_json_atomic(args.json_out, gradescope(results))
+        except OSError as exc:
+            print(f"coursekit grade: could not write the results to {args.json_out}: {exc.strerror}", file=sys.stderr)
+            return 1
+    return 0 if all(r.graded for r in results) else EXIT_NOT_GRADED

@@ -9,7 +9,9 @@ self-contained (standard library and numpy only) and produces only raw observati
 verdicts.
 
 Isolation: each batch of calls runs in a ``fork()`` of the current process (copy-on-write: it
-sees every name the notebook defined), with its own memory limit (``RLIMIT_AS``), its ``print``
+sees every name the notebook defined), with a cap on the address space it may *add* (``RLIMIT_AS``
+set to its size at the fork plus ``memory_mb``, so reservations made before, such as a CUDA
+torch's, do not count; the summative grader bounds resident memory from outside), its ``print``
 captured, and a watchdog in the calling process that ``SIGKILL``s it when a call does not finish
 within ``timeout`` seconds. An infinite loop, ``sys.exit``, ``os._exit``, a segfault or a huge
 allocation therefore costs one case, never the kernel, and the next case runs in a fresh fork.

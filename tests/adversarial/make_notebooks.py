@@ -1,8 +1,12 @@
 """Regenerate the adversarial notebooks: ``python tests/adversarial/make_notebooks.py``.
 
-Each notebook is graded as exercise ``01_selection``. Its honest functions are correct; the
-functions named in ``SABOTAGED`` (and some top-level cells) attack the grader. The grader must
-give exactly the honest part's points: 2 per honest function, 0 per sabotaged one.
+Each notebook of ``NOTEBOOKS`` is graded as exercise ``01_selection``. Its honest functions are
+correct; the functions named in ``SABOTAGED`` (and some top-level cells) attack the grader. The
+grader must give exactly the honest part's points: 2 per honest function, 0 per sabotaged one.
+
+``DO_NOTHING`` holds one notebook per exercise (``do_nothing_<stem>.ipynb``) of lazy answers:
+identity mutations, ``return a, b`` crossovers, deep copies, an ``expand`` that returns only the
+root, zero drag, an explicit Euler step in place of Runge-Kutta-Nystrom. Each must score 0.
 """
 
 from pathlib import Path
@@ -173,6 +177,49 @@ def one_point_crossover(a, b, rng):
 }
 
 
+DO_NOTHING = {
+    "01_selection": ["import copy\n\nimport numpy as np", '''def truncation(fitness, k, rng, survival=0.2):
+    return np.arange(k) % len(fitness)  # the first individuals, whatever their fitness''', '''def tournament(fitness, k, rng, size=3):
+    return rng.integers(0, len(fitness), size=k)  # random picks: no tournament''', '''def roulette(fitness, k, rng):
+    return rng.integers(0, len(fitness), size=k)  # random picks: fitness ignored''', '''def one_point_crossover(a, b, rng):
+    return a.copy(), b.copy()''', '''def point_mutation(genome, rng, rate=None):
+    return copy.deepcopy(genome)'''],
+    "02_picture_mutations": ["import copy", '''def decode(symbols):
+    return symbols[0]  # the root alone''', '''def transposition(genome, rng):
+    return copy.deepcopy(genome)''', '''def root_transposition(genome, rng):
+    return genome''', '''def substitution(genome, rng):
+    return copy.deepcopy(genome)''', '''def head_tail_rotation(genome, rng):
+    return copy.deepcopy(genome)'''],
+    "03_picture_recombination": ["import copy", '''def crossover(a, b, rng):
+    return a, b''', '''def random_copy(a, b, rng):
+    return copy.deepcopy(a), copy.deepcopy(b)''', '''def random_interpolation(a, b, rng):
+    return copy.deepcopy(a), copy.deepcopy(b)'''],
+    "05_creature_operators": ["import copy", '''def expand(creature, max_parts=64):
+    root = creature.nodes[0]
+    return [{"node": 0, "parent": -1, "depth": 0, "scale": 1.0, "mirrored": False, "gain": abs(root.force)}]''',
+                              '''def crossover(a, b, rng):
+    return copy.deepcopy(a)''', '''def mutate(c, rng, rate=1.0):
+    return copy.deepcopy(c)'''],
+    "07_swimming_physics": ["import numpy as np", '''def box_drag(half_extents, k):
+    return np.zeros(6)  # no water''', '''def rkn_step(f, t, y, v, h):
+    a = f(t, y, v)  # explicit Euler, first order
+    return y + h * v, v + h * a'''],
+}
+
+
+def build_do_nothing(stem, sources):
+    cells = [new_markdown_cell(f"# Do-nothing answers to {stem}\n\nEvery function returns its input, a copy, "
+                               "or something that does not do the job. Each must score 0.")]
+    cells += [new_code_cell(src) for src in sources]
+    nb = new_notebook(cells=cells)
+    for i, cell in enumerate(nb.cells):
+        cell.id = f"nothing-{stem[:2]}-{i}"
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nb.metadata["coursekit"] = {"exercise": stem}  # the file name is not the exercise's: the metadata tells
+    nbformat.validate(nb)
+    nbformat.write(nb, HERE / f"do_nothing_{stem}.ipynb")
+
+
 def build(name, spec):
     cells = [new_markdown_cell(f"# Adversarial notebook: {name}\n\n{spec['about']}"),
              new_code_cell("import json, math, os, sys\n\nimport numpy as np\n\nfrom coursekit.grading import check")]
@@ -190,3 +237,5 @@ def build(name, spec):
 if __name__ == "__main__":
     for name, spec in NOTEBOOKS.items():
         build(name, spec)
+    for stem, sources in DO_NOTHING.items():
+        build_do_nothing(stem, sources)

@@ -53,8 +53,13 @@ class Check:
         title: human name for messages.
         output: runner conversion kind for one call's result (``"indices"``, ``"array"``, ``"array_pair"``).
         cases: ``cases(rng) -> list[dict]`` of plain JSON case descriptions (see the runner module).
-        props: ``[(property, fn)]`` with ``fn(ctx: Context) -> (passed, message)``; the first one is
-            the validity gate: when it fails the check scores 0.
+        props: ``[(property, fn)]`` with ``fn(ctx: Context) -> (passed, message)``.
+        gates: how many leading properties are *gates*: the validity of the result, then that the
+            function does its job at all (the genome changes, the child holds material of both
+            parents, more than the root is expanded, drag opposes the motion, the step is of fourth
+            order). When a gate fails the check scores 0 and the later properties are not
+            judged, so no property can pass vacuously: a do-nothing, identity or copy
+            implementation keeps inputs unchanged and is deterministic, and earns nothing for it.
     """
 
     name: str
@@ -65,6 +70,12 @@ class Check:
     output: str
     cases: Callable[[np.random.Generator], list]
     props: tuple
+    gates: int = 1
+
+    def __post_init__(self):
+        if type(self.gates) is not int or not 1 <= self.gates <= max(1, len(self.props)):
+            raise ValueError(f"check {self.name!r}: gates must be an int in 1..{max(1, len(self.props))} "
+                             f"(at most the number of props), got {self.gates!r}")
 
 
 @dataclass
@@ -180,9 +191,10 @@ def judge(check: Check, cases: list, records: dict) -> Judgement:
         calls = sum(len(c["seeds"]) for c in cases)
         verdicts.append(Verdict("runs", True, f"ran on {len(cases)} test inputs ({calls} calls)"))
     ctx = Context(cases, records)
+    closed = None  # the first gate that failed: nothing after it is judged
     for i, (prop, fn) in enumerate(check.props):
-        if i > 0 and not verdicts[1].passed:
-            ok, msg = False, f"not checked until {check.props[0][0]!r} holds"
+        if closed is not None:
+            ok, msg = False, f"not checked until {closed!r} holds"
         else:
             try:
                 ok, msg = fn(ctx)
@@ -190,8 +202,10 @@ def judge(check: Check, cases: list, records: dict) -> Judgement:
                 ok, msg = False, f"not checked: it needs the result for test input {exc.args[0]!r}, which failed"
             except Exception as exc:  # a malformed output the property did not foresee: fail, never crash grading
                 ok, msg = False, f"could not be checked on this output ({type(exc).__name__})"
+            if not ok and i < check.gates:
+                closed = prop
         verdicts.append(Verdict(prop, bool(ok), msg))
-    score = 0.0 if not verdicts[1].passed else check.points * sum(v.passed for v in verdicts) / len(verdicts)
+    score = 0.0 if closed is not None else check.points * sum(v.passed for v in verdicts) / len(verdicts)
     return Judgement(check, True, verdicts, round(score, 4))
 
 

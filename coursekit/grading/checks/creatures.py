@@ -17,6 +17,12 @@ reference output:
   scaled by the creature's size and by ``rate``, all six modification steps plus deletion and
   addition seen over many calls.
 
+Each check's second property is its *job*, a gate: more than the root is expanded wherever the
+genotype has links; in at least a quarter of the calls the child of a recombination holds nodes
+found only in ``a`` and nodes found only in ``b``; at least a quarter of the mutations at rate 1
+change the creature. Until it holds nothing else is judged, so an expansion that returns the
+root alone and deep copies score 0.
+
 All three also check determinism for a seed and that inputs stay unmodified. Expansion and
 recombination are checked exactly. The mutation statistics (changed nodes per call at rate 1
 and 0.1, over 160 calls each, and every kind of change at least once) use wide bounds, set out
@@ -222,6 +228,16 @@ def _expand_valid(ctx):
     return True, "returns a list of part records"
 
 
+def _expand_grows(ctx):
+    for cid in _EXPAND_CASES:
+        full, cap = _full_count(ctx.arg(cid, 0)), ctx.arg(cid, 1)
+        n = len(_parts(ctx, cid))
+        if min(full, cap) > 1 and n <= 1:
+            return False, (f"on test input {cid!r} returned {n} part(s), but the genotype's links make it grow into more "
+                           "than the root; expansion follows the links from the root. Nothing else is judged until it does")
+    return True, "expands more than the root wherever the genotype has links"
+
+
 def _expand_order(ctx):
     for cid in _EXPAND_CASES:
         parts = _parts(ctx, cid)
@@ -336,9 +352,10 @@ def _expand_cap(ctx):
 
 register(Check(
     name="creatures.expand", function="expand", params=("creature", "max_parts"), points=4.0,
-    title="phenotype expansion", output="json", cases=_expand_cases,
+    title="phenotype expansion", output="json", cases=_expand_cases, gates=2,
     props=(
         ("returns a list of part records", _expand_valid),
+        ("expands more than the root", _expand_grows),
         ("parents precede children", _expand_order),
         ("children match the genotype (links, symmetry, recursion)", _expand_counts),
         ("recursion depth and limit", _expand_depth),
@@ -488,6 +505,20 @@ def _links_kept(ctx):
     return True, "links between taken positions are kept with their attributes"
 
 
+def _cross_mixes(ctx):
+    n = mixed = 0
+    for cid, _, a, b, child in _each_child(ctx, _CROSS_CASES):
+        only_a = set(map(body_signature, a.nodes)) - set(map(body_signature, b.nodes))
+        only_b = set(map(body_signature, b.nodes)) - set(map(body_signature, a.nodes))
+        mine = set(map(body_signature, child.nodes))
+        n += 1
+        mixed += bool(mine & only_a) and bool(mine & only_b)
+    if mixed >= n / 4:
+        return True, f"in {mixed} of {n} calls the child holds nodes of both parents"
+    return False, (f"in only {mixed} of {n} calls did the child hold nodes of both parents; recombination takes "
+                   "alternating blocks from a and b. Nothing else is judged until it does")
+
+
 def _random_blocks(ctx):
     a, b = ctx.arg("many", 0), ctx.arg("many", 1)
     sets = []
@@ -505,9 +536,10 @@ def _random_blocks(ctx):
 
 register(Check(
     name="creatures.crossover", function="crossover", params=("a", "b", "rng"), points=4.0,
-    title="LR recombination", output="json", cases=_crossover_cases,
+    title="LR recombination", output="json", cases=_crossover_cases, gates=2,
     props=(
         ("returns a valid creature", _valid_creatures(_CROSS_CASES)),
+        ("the child holds nodes of both parents", _cross_mixes),
         ("nodes from alternating LR blocks at their positions", _blocks),
         ("every taken node is kept", _kept),
         ("links between taken nodes are kept", _links_kept),
@@ -598,6 +630,19 @@ def _mean_changed(ctx, cids):
     vals = [_changed_nodes(ctx.arg(cid, 0), _parse(t)) for cid in cids for t in ctx.out(cid)]
     sizes = [len(ctx.arg(cid, 0).nodes) for cid in cids]
     return float(np.mean(vals)), float(np.mean(sizes))
+
+
+def _mutate_changes(ctx):
+    n = changed = 0
+    for cid in _RATE1:
+        parent = json.loads(ctx.case(cid)["args"][0]["json"])
+        for text in ctx.out(cid):
+            n += 1
+            changed += json.loads(text) != parent
+    if changed >= n / 4:
+        return True, f"{changed} of {n} calls at rate=1 changed the creature"
+    return False, (f"only {changed} of {n} calls at rate=1 changed the creature; on average a mutation changes about "
+                   "one node per call. Nothing else is judged until it does")
 
 
 def _in_lists(ctx):
@@ -691,9 +736,10 @@ def _all_kinds(ctx):
 
 register(Check(
     name="creatures.mutate", function="mutate", params=("c", "rng"), points=4.0,
-    title="creature mutation", output="json", cases=_mutation_cases,
+    title="creature mutation", output="json", cases=_mutation_cases, gates=2,
     props=(
         ("returns a valid creature", _valid_creatures(_MUT_CASES)),
+        ("changes the creature", _mutate_changes),
         ("values from the predefined lists", _in_lists),
         ("about one node changes per call", _frequency),
         ("honours rate", _rate),

@@ -7,6 +7,11 @@ what the operators promise: the shape and type of the result, exact invariants (
 from the survivors, children made of their parents' genes), the distribution over many seeded
 calls (chi-square / binomial tests from :mod:`coursekit.grading.stats`, each with a false-failure
 rate below 1e-8), determinism for a given seed, and that inputs are left unmodified.
+
+Each check's second property is its *job*, a gate: selection prefers fitter individuals (mean
+fitness rank of the picks above 0.6, where chance gives 0.5 and the operators give 0.78-0.89),
+a crossover's children hold genes of both parents, a mutation changes the genome. Until it holds
+nothing else is judged, so copies and random picks score 0.
 """
 
 from __future__ import annotations
@@ -72,6 +77,22 @@ def _indices_valid(case_ids):
                 if bad:
                     return False, f"returned index {bad[0]}, out of range for a population of {n} (valid: 0..{n - 1})"
         return True, "returns k valid indices"
+
+    return prop
+
+
+def _prefers_fit(cid):
+    """Job gate of a selection operator: the picks' mean fitness rank is well above chance."""
+    def prop(ctx):
+        fitness = ctx.arg(cid, 0)
+        rank = _ranks(fitness) / (len(fitness) - 1)  # 0 for the worst, 1 for the best
+        picks = np.asarray(ctx.out(cid)[0])
+        mean = float(rank[picks].mean())
+        if mean > 0.6:
+            return True, f"prefers fitter individuals (mean fitness rank of {len(picks)} picks: {mean:.2f}, chance: 0.50)"
+        return False, (f"over {len(picks)} picks from {len(fitness)} individuals the mean fitness rank (0 = worst, "
+                       f"1 = best) was {mean:.2f}; picking at random gives 0.50. Selection must prefer fitter "
+                       "individuals: that is its job. Nothing else is judged until it does")
 
     return prop
 
@@ -144,9 +165,10 @@ def _truncation_uniform(ctx):
 
 register(Check(
     name="ga.truncation", function="truncation", params=("fitness", "k", "rng"), points=2.0,
-    title="truncation selection", output="indices", cases=_truncation_cases,
+    title="truncation selection", output="indices", cases=_truncation_cases, gates=2,
     props=(
         ("returns k valid indices", _indices_valid(["basic", "survival", "ceil", "uniform"])),
+        ("prefers fitter individuals", _prefers_fit("uniform")),
         ("only the best survive", _truncation_survivors),
         ("rounds the survivor count up", _truncation_ceil),
         ("uniform among survivors", _truncation_uniform),
@@ -194,9 +216,10 @@ def _tournament_rates(cid):
 
 register(Check(
     name="ga.tournament", function="tournament", params=("fitness", "k", "rng"), points=2.0,
-    title="tournament selection", output="indices", cases=_tournament_cases,
+    title="tournament selection", output="indices", cases=_tournament_cases, gates=2,
     props=(
         ("returns k valid indices", _indices_valid(["basic", "size3", "size2"])),
+        ("prefers fitter individuals", _prefers_fit("size3")),
         ("fitter individuals win at the expected rate (size=3)", _tournament_rates("size3")),
         ("honours the size parameter (size=2)", _tournament_rates("size2")),
         ("deterministic for a seed", _deterministic("basic")),
@@ -247,9 +270,10 @@ def _roulette_proportional(ctx):
 
 register(Check(
     name="ga.roulette", function="roulette", params=("fitness", "k", "rng"), points=2.0,
-    title="roulette-wheel selection", output="indices", cases=_roulette_cases,
+    title="roulette-wheel selection", output="indices", cases=_roulette_cases, gates=2,
     props=(
         ("returns k valid indices", _indices_valid(["basic", "dist"])),
+        ("prefers fitter individuals", _prefers_fit("dist")),
         ("never picks zero fitness", _roulette_zero),
         ("proportional to fitness", _roulette_proportional),
         ("deterministic for a seed", _deterministic("basic")),
@@ -296,6 +320,16 @@ def _crossover_valid(ctx):
     return True, "returns two arrays of the parents' length"
 
 
+def _crossover_mixes(ctx):
+    a, b = ctx.arg("cuts", 0).tolist(), ctx.arg("cuts", 1).tolist()
+    outs = ctx.out("cuts")
+    mixed = sum(c1 not in (a, b) and c2 not in (a, b) for c1, c2 in outs)
+    if mixed >= len(outs) / 2:
+        return True, f"in {mixed} of {len(outs)} calls both children hold genes of both parents"
+    return False, (f"in {len(outs) - mixed} of {len(outs)} calls a child was a copy of a parent; a crossover's children "
+                   "hold genes of both parents. Nothing else is judged until they do")
+
+
 def _crossover_one_point(ctx):
     for cid in ("basic", "mixed", "cuts"):
         a, b = ctx.arg(cid, 0).tolist(), ctx.arg(cid, 1).tolist()
@@ -325,9 +359,10 @@ def _crossover_uniform(ctx):
 
 register(Check(
     name="ga.one_point_crossover", function="one_point_crossover", params=("a", "b", "rng"), points=2.0,
-    title="one-point crossover", output="array_pair", cases=_crossover_cases,
+    title="one-point crossover", output="array_pair", cases=_crossover_cases, gates=2,
     props=(
         ("returns two children of the right length", _crossover_valid),
+        ("children hold genes of both parents", _crossover_mixes),
         ("children are one-point crossovers", _crossover_one_point),
         ("cut point uniform", _crossover_uniform),
         ("deterministic for a seed", _deterministic("basic")),
@@ -375,6 +410,15 @@ def _mutation_valid(ctx):
     return True, "returns a 0/1 genome of the same length"
 
 
+def _mutation_changes(ctx):
+    f = _flips(ctx, "default")
+    changed = int(f.any(axis=1).sum())
+    if changed >= len(f) / 3:  # a correct mutation changes 1 - (1 - 1/40)^40 = 64 % of them
+        return True, f"changed {changed} of {len(f)} genomes at the default rate"
+    return False, (f"changed {changed} of {len(f)} genomes of length {f.shape[1]} at the default rate; a mutation "
+                   "flips each bit with probability 1/len, so most genomes change. Nothing else is judged until it does")
+
+
 def _mutation_default_rate(ctx):
     f = _flips(ctx, "default")
     calls, L = f.shape
@@ -419,9 +463,10 @@ def _mutation_rate(ctx):
 
 register(Check(
     name="ga.point_mutation", function="point_mutation", params=("genome", "rng"), points=2.0,
-    title="point mutation", output="array", cases=_mutation_cases,
+    title="point mutation", output="array", cases=_mutation_cases, gates=2,
     props=(
         ("returns a 0/1 genome of the same length", _mutation_valid),
+        ("changes the genome", _mutation_changes),
         ("default rate is 1/len", _mutation_default_rate),
         ("bits flip independently", _mutation_independent),
         ("honours rate", _mutation_rate),

@@ -9,12 +9,15 @@ checks derive every expected value independently, in the grader's own process:
   ``-k (n . v(x)) n`` over the six faces for each unit body velocity (exact for the quadratic
   integrands, so it equals the closed form to round-off without using it); magnitudes, the sign
   (dissipation), linearity in ``k`` and unmodified inputs are separate properties, so one
-  mistake costs one property.
+  mistake costs one property. The job comes first, as a gate: the sliding entries are not zero (a
+  zero drag, no water at all, scores 0); that the force *opposes* the motion is the sign property.
 - ``rkn_step(f, t, y, v, h)``: the one-step error against the exact solutions of
   :mod:`coursekit.creatures.physics.odes` -- zero when ``y''`` depends on ``t`` only (``y`` quartic
   in ``t``), and shrinking about 32x per halving of ``h`` (local order 5, i.e. a fourth-order
   method) for position-only and velocity-only forces; the number of ``f`` evaluations per step
-  comes from a :class:`~coursekit.creatures.physics.odes.CountingODE` argument.
+  comes from a :class:`~coursekit.creatures.physics.odes.CountingODE` argument. The job comes
+  first, as a gate: the step is of higher order than explicit Euler (error ratio above
+  :data:`BEYOND_EULER`), so an Euler step in place of RKN scores 0.
 """
 
 from __future__ import annotations
@@ -120,6 +123,18 @@ def _drag_shape(ctx):
     return True, "returns the 6 diagonal entries"
 
 
+def _drag_resists(ctx):
+    for cid in UNIT:
+        out = ctx.out(cid)[0]
+        zero = [i for i in range(3, 6) if out[i] == 0]
+        if zero:
+            i = zero[0]
+            return False, (f"for a box with half_extents={np.round(ctx.arg(cid, 0), 4).tolist()} in water (k=1), "
+                           f"{COMPONENTS[i]} = 0: nothing would resist {MEANING[i]}. Water resists a box sliding in any "
+                           "direction. Nothing else is judged until it does")
+    return True, f"D_vx, D_vy, D_vz are not 0 on {len(UNIT)} boxes in water: something resists sliding"
+
+
 def _drag_values(part):
     idx = range(3, 6) if part == "linear" else range(3)
 
@@ -169,9 +184,10 @@ def _drag_dissipative(ctx):
 
 register(Check(
     name="physics.box_drag", function="box_drag", params=("half_extents", "k"), points=4.0,
-    title="Sims' water drag on a box", output="array", cases=_drag_cases,
+    title="Sims' water drag on a box", output="array", cases=_drag_cases, gates=2,
     props=(
         ("returns the 6 diagonal entries", _drag_shape),
+        ("the water resists sliding", _drag_resists),
         ("sliding drag matches the face integral (k = 1)", _drag_values("linear")),
         ("turning drag matches the face integral (k = 1)", _drag_values("angular")),
         ("proportional to k", _drag_linear_in_k),
@@ -257,6 +273,23 @@ def _rkn_order(ode, what):
     return prop
 
 
+#: Job gate of the step: per halving of h the one-step error must shrink more than this. Explicit
+#: Euler (first order, local error O(h^2)) shrinks it 4 times, any second-order step 8 times.
+BEYOND_EULER = 6.0
+
+
+def _rkn_beats_euler(ctx):
+    for s in range(2):
+        errs = [_error(ctx, f"harmonic{s}_{j}", "harmonic")[0] for j in range(len(ORDER_STEPS))]
+        ratios = [a / b if b > 0 else math.inf for a, b in zip(errs, errs[1:])]
+        if not all(r > BEYOND_EULER for r in ratios):
+            halved = " and ".join(f"{r:.3g}" for r in ratios)
+            return False, (f"for a spring (y'' = -omega^2 y) the one-step error shrinks only {halved} times per halving "
+                           f"of h; an explicit Euler step shrinks it 4 times, a fourth-order Runge-Kutta-Nystrom step "
+                           "about 32 times. Nothing else is judged until the step is of higher order than Euler's")
+    return True, "of higher order than explicit Euler (the one-step error shrinks more than 6x per halving of h)"
+
+
 def _rkn_calls(ctx):
     ctx.out("count")
     after = (ctx.record("count").get("inputs_after") or [None])[0]
@@ -271,9 +304,10 @@ def _rkn_calls(ctx):
 
 register(Check(
     name="physics.rkn_step", function="rkn_step", params=("f", "t", "y", "v", "h"), points=6.0,
-    title="one Runge-Kutta-Nystrom step", output="array_pair", cases=_rkn_cases,
+    title="one Runge-Kutta-Nystrom step", output="array_pair", cases=_rkn_cases, gates=2,
     props=(
         ("returns (y_next, v_next) shaped like y and v", _rkn_shape),
+        ("of higher order than explicit Euler", _rkn_beats_euler),
         ("exact for forces that depend only on time", _rkn_polynomial),
         ("fourth order for position-dependent forces", _rkn_order("harmonic", "y'' = -omega^2 y (a spring)")),
         ("fourth order for velocity-dependent forces", _rkn_order("drag", "y'' = -c y' (water drag)")),

@@ -14,6 +14,12 @@ change something where a correct operator changes more than 90 %; "random" prope
 variety (8 of the 42 primitives over ~90 substitutions, 3 cut positions, u on both sides of
 1/2) that a uniform random choice misses with probability far below 1e-8.
 
+Each check's second property is its *job*, a gate (see :class:`~coursekit.grading.checks.Check`):
+decoding builds a tree below a function root, a mutation changes the genome in at least half of
+the calls, a recombination's children hold material of both parents in at least half of the
+calls (correct operators: every call), interpolation blends a pair. Until it holds nothing else
+is judged, so identity mutations, ``return a, b`` and deep copies score 0.
+
 Genomes travel as JSON text (``Genome.to_json``) and come back as JSON text; every property
 parses them with the grader's own import of the library and judges plain data. Properties are
 the paper's definitions, never a comparison with one reference output: what may change and how
@@ -227,6 +233,38 @@ def _one_string(parent, child):
     return None
 
 
+def _changes(cids):
+    """Job gate of a mutation: at least half of the calls change the genome (a correct one: all)."""
+    def prop(ctx):
+        n = changed = 0
+        for cid in cids:
+            for _, parent, child in _results(ctx, cid):
+                n += 1
+                changed += bool(_diff(parent, child))
+        if changed >= n / 2:
+            return True, f"{changed} of {n} calls changed the genome"
+        return False, (f"only {changed} of {n} calls changed the genome; a mutation's job is to change it (the case "
+                       "genomes are built so that every mutation is visible). Nothing else is judged until it does")
+
+    return prop
+
+
+def _mixes(cids):
+    """Job gate of a recombination: in at least half of the calls both children hold material of both parents."""
+    def prop(ctx):
+        n = mixed = 0
+        for cid in cids:
+            for _, a, b, c1, c2 in _pair_results(ctx, cid):
+                n += 1
+                mixed += all(_diff(a, c) and _diff(b, c) for c in (c1, c2))
+        if mixed >= n / 2:
+            return True, f"in {mixed} of {n} calls both children hold material of both parents"
+        return False, (f"in {n - mixed} of {n} calls a child was a copy of a parent; a recombination's children hold "
+                       "material of both parents. Nothing else is judged until they do")
+
+    return prop
+
+
 def _both_occur(ctx, cids, classify, kinds, what):
     seen = {k: 0 for k in kinds}
     n = 0
@@ -325,6 +363,17 @@ def _decode_form(ctx):
     return True, "returns a nested-list tree of primitive names"
 
 
+def _decode_builds(ctx):
+    _, P = _lib()
+    for cid in ctx.cases:
+        syms, tree = ctx.case(cid)["symbols"], _tree(ctx, cid)
+        if P.arity(syms[0]) > 0 and not (isinstance(tree, list) and len(tree) > 1):
+            return False, (f"decode({syms}) returned {json.dumps(tree)[:80]}, with nothing below the root; the root "
+                           f"{syms[0]!r} takes {P.arity(syms[0])} argument(s), so the tree goes on. Nothing else is "
+                           "judged until it does")
+    return True, "builds a tree below every function root"
+
+
 def _decode_arity(ctx):
     _, P = _lib()
     for cid in ctx.cases:
@@ -356,9 +405,10 @@ def _decode_karva(ctx):
 
 register(Check(
     name="pictures.decode", function="decode", params=("symbols",), points=2.0,
-    title="Karva decoding of a chromosome string", output="json", cases=_decode_cases,
+    title="Karva decoding of a chromosome string", output="json", cases=_decode_cases, gates=2,
     props=(
         ("returns a nested-list tree", _decode_form),
+        ("builds a tree below the root", _decode_builds),
         ("every node has its arity's children", _decode_arity),
         ("the root is the first chromosome", _decode_root),
         ("reads breadth-first (Karva)", _decode_karva),
@@ -444,9 +494,10 @@ def _transposition_both(ctx):
 
 register(Check(
     name="pictures.transposition", function="transposition", params=("genome", "rng"), points=2.0,
-    title="transposition", output="json", cases=_mutation_cases,
+    title="transposition", output="json", cases=_mutation_cases, gates=2,
     props=(
         ("returns a valid genome of the same shape", _valid(MUT_CASES)),
+        ("changes the genome", _changes(MUT_CASES)),
         ("changes one string only", _each(MUT_CASES, _one_string, "only one string changes")),
         ("never moves the root", _each(MUT_CASES, _no_root, "the root of every string stays")),
         ("both chromosomes in the same region", _each(MUT_CASES, _same_region, "both chromosomes lie in the head or both in the tail")),
@@ -499,9 +550,10 @@ def _root_both(ctx):
 
 register(Check(
     name="pictures.root_transposition", function="root_transposition", params=("genome", "rng"), points=2.0,
-    title="root transposition", output="json", cases=_mutation_cases,
+    title="root transposition", output="json", cases=_mutation_cases, gates=2,
     props=(
         ("returns a valid genome of the same shape", _valid(MUT_CASES)),
+        ("changes the genome", _changes(MUT_CASES)),
         ("changes one string only", _each(MUT_CASES, _one_string, "only one string changes")),
         ("changes the root and one head chromosome", _each(MUT_CASES, _root_only, "only the root and one head chromosome change")),
         ("interchange or clone", _each(MUT_CASES, _root_swap_or_clone, "each result is an interchange or a clone")),
@@ -537,7 +589,7 @@ def _substitution_changes(ctx):
     changed = len(_substituted(ctx))
     if changed < n / 2:
         return False, (f"only {changed} of {n} calls changed a chromosome; substitution replaces one by a new "
-                       f"random chromosome, which almost always differs")
+                       f"random chromosome, which almost always differs. Nothing else is judged until it does")
     return True, f"{changed} of {n} calls replaced a chromosome"
 
 
@@ -568,11 +620,11 @@ def _substitution_anywhere(ctx):
 
 register(Check(
     name="pictures.substitution", function="substitution", params=("genome", "rng"), points=2.0,
-    title="substitution", output="json", cases=_mutation_cases,
+    title="substitution", output="json", cases=_mutation_cases, gates=2,
     props=(
         ("returns a valid genome of the same shape", _valid(MUT_CASES)),
-        ("changes at most one chromosome", _each(MUT_CASES, _at_most_one, "at most one chromosome changes")),
         ("changes a chromosome", _substitution_changes),
+        ("changes at most one chromosome", _each(MUT_CASES, _at_most_one, "at most one chromosome changes")),
         ("the new chromosome is random", _substitution_random),
         ("any position can be replaced", _substitution_anywhere),
         ("deterministic for a seed", _deterministic("basic")),
@@ -620,9 +672,10 @@ def _rotation_varies(ctx):
 
 register(Check(
     name="pictures.head_tail_rotation", function="head_tail_rotation", params=("genome", "rng"), points=2.0,
-    title="head/tail rotation", output="json", cases=_mutation_cases,
+    title="head/tail rotation", output="json", cases=_mutation_cases, gates=2,
     props=(
         ("returns a valid genome of the same shape", _valid(MUT_CASES)),
+        ("changes the genome", _changes(MUT_CASES)),
         ("changes one string only", _each(MUT_CASES, _one_string, "only one string changes")),
         ("a cyclic shift of exactly one region", _each(MUT_CASES, _rotation_shift, "each result rotates the head or the tail of one string")),
         ("head and tail, several steps", _rotation_varies),
@@ -725,9 +778,10 @@ def _split_varies(ctx):
 
 register(Check(
     name="pictures.crossover", function="crossover", params=("a", "b", "rng"), points=2.0,
-    title="crossover", output="json_pair", cases=_recombination_cases,
+    title="crossover", output="json_pair", cases=_recombination_cases, gates=2,
     props=(
         ("returns two valid genomes of the parents' shape", _valid(REC_CASES, pair=True)),
+        ("children hold material of both parents", _mixes(REC_CASES)),
         ("only the parents' material at the same positions", _each_pair(REC_CASES, _same_positions, "children hold only the parents' chromosomes at the same positions")),
         ("complementary children", _each_pair(REC_CASES, _complementary, "the children are complementary")),
         ("one string pair cut at one position", _each_pair(REC_CASES, _one_split, "one pair of strings is cut at one position")),
@@ -794,9 +848,10 @@ def _copy_arbitrary(ctx):
 
 register(Check(
     name="pictures.random_copy", function="random_copy", params=("a", "b", "rng"), points=2.0,
-    title="random copy", output="json_pair", cases=_recombination_cases,
+    title="random copy", output="json_pair", cases=_recombination_cases, gates=2,
     props=(
         ("returns two valid genomes of the parents' shape", _valid(REC_CASES, pair=True)),
+        ("children hold material of both parents", _mixes(REC_CASES)),
         ("only the parents' material", _each_pair(REC_CASES, _copy_material, "each child is its parent plus chromosomes of the other parent")),
         ("a copy into every string", _each_pair(REC_CASES, _copy_every_string, "every string of each child receives a copy")),
         ("arbitrary positions", _copy_arbitrary),
@@ -836,7 +891,8 @@ def _interp_changes(ctx):
             changed += bool(_changed_positions(a, b, c1, c2))
     if changed < n / 2:
         return False, (f"only {changed} of {n} calls on parents with the same primitives and different parameters "
-                       f"changed anything; the children should get interpolated parameters")
+                       f"changed anything; the children should get interpolated parameters. Nothing else is judged "
+                       "until they do")
     return True, f"{changed} of {n} calls blended a pair of chromosomes"
 
 
@@ -916,11 +972,11 @@ def _u_random(ctx):
 
 register(Check(
     name="pictures.random_interpolation", function="random_interpolation", params=("a", "b", "rng"), points=2.0,
-    title="random interpolation", output="json_pair", cases=_interpolation_cases,
+    title="random interpolation", output="json_pair", cases=_interpolation_cases, gates=2,
     props=(
         ("returns two valid genomes of the parents' shape", _valid(INTERP_CASES, pair=True)),
-        ("one aligned pair of chromosomes", _each_pair(INTERP_CASES, _one_position, "at most one aligned position changes")),
         ("blends a pair", _interp_changes),
+        ("one aligned pair of chromosomes", _each_pair(INTERP_CASES, _one_position, "at most one aligned position changes")),
         ("stays between the parents' values", _each_pair(INTERP_CASES, _between, "every value lies between the parents'")),
         ("one u per chromosome", _one_u),
         ("complementary children", _complementary_u),

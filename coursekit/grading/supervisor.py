@@ -1,0 +1,166 @@
+"""Watching a graded notebook's processes from outside: resident memory, wall time, leftovers.
+
+Part of the summative grader (seed paper section 4, exercises graded; see
+:mod:`coursekit.grading.grader`). The grader runs each notebook in a child process tree (the
+executor, its IPython kernel, the kernel's forked workers, and any orphan the grader adopts as a
+child subreaper). This module bounds that tree by what it really uses:
+
+- **Memory is resident memory, not address space.** A CUDA build of torch reserves about 3 GB of
+  address space on import and touches little of it, so an ``RLIMIT_AS`` starves a kernel that
+  uses a few hundred MiB. :class:`MemoryWatch` polls the proportional set size (PSS: shared pages
+  split between the processes sharing them, so the kernel and its copy-on-write forks are not
+  counted twice; RSS where PSS cannot be read) of every process of the tree, and when the total
+  passes the limit it ``SIGKILL``s the largest one and records why. The executor then sees a dead
+  kernel (the cell is skipped) or the runner a dead worker, and the grader reports the notebook
+  as not graded, with the reason. Measured on this project's CI container: cgroup v2 offers no
+  memory controller there (``cgroup.controllers`` lists only ``hugetlb``), so polling is the
+  mechanism that works on every Linux, with or without cgroups.
+- **Private folders are removed even after a kill.** Each is named
+  ``coursekit-grade-<pid>-*`` after the grading process; :func:`remove_stale` deletes those of
+  grading processes that are gone (a ``SIGKILL`` leaves no chance to clean up), and
+  :func:`handle_termination` turns ``SIGTERM``/``SIGHUP`` into an exception so that ``finally``
+  blocks kill the notebook's processes and delete the folder.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import signal
+import tempfile
+import time
+from pathlib import Path
+
+import psutil
+
+PREFIX = "coursekit-grade-"
+_OWN = re.compile(rf"^{re.escape(PREFIX)}(\d+)-")
+
+
+def private_dir() -> Path:
+    """A new private folder for one notebook, named after this grading process."""
+    return Path(tempfile.mkdtemp(prefix=f"{PREFIX}{os.getpid()}-"))
+
+
+def remove_stale(parent=None) -> list[str]:
+    """Delete the private folders of grading processes that no longer run; return their names.
+
+    Only folders named ``coursekit-grade-<pid>-*`` owned by this user are considered, and only
+    when no process ``<pid>`` exists (a live process keeps its folders, whoever it is).
+    """
+    parent = Path(parent or tempfile.gettempdir())
+    removed = []
+    try:
+        entries = list(parent.iterdir())
+    except OSError:
+        return removed
+    for entry in entries:
+        m = _OWN.match(entry.name)
+        if not m or int(m.group(1)) == os.getpid():
+            continue
+        try:
+            st = entry.lstat()
+        except OSError:
+            continue
+        if not entry.is_dir() or entry.is_symlink() or st.st_uid != os.geteuid() or psutil.pid_exists(int(m.group(1))):
+            continue
+        shutil.rmtree(entry, ignore_errors=True)
+        removed.append(entry.name)
+    return removed
+
+
+class Terminated(Exception):
+    """The grading process was asked to stop (``SIGTERM``, ``SIGHUP``)."""
+
+    def __init__(self, signum):
+        super().__init__(f"stopped by signal {signal.Signals(signum).name}")
+        self.signum = signum
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated(signum)
+
+
+def handle_termination() -> None:
+    """Turn ``SIGTERM`` and ``SIGHUP`` into :class:`Terminated` so that cleanup code runs."""
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, _raise_terminated)
+
+
+def _memory(proc: psutil.Process) -> int:
+    """Bytes ``proc`` holds in memory: PSS when readable, else RSS; 0 when it is gone."""
+    try:
+        try:
+            return int(proc.memory_full_info().pss)
+        except (AttributeError, psutil.AccessDenied):
+            return int(proc.memory_info().rss)
+    except (psutil.NoSuchProcess, psutil.ZombieProcess, psutil.AccessDenied):
+        return 0
+
+
+def _role(proc: psutil.Process) -> str:
+    try:
+        cmd = " ".join(proc.cmdline())
+    except (psutil.Error, OSError):
+        return "a process"
+    if "ipykernel" in cmd:
+        return "the notebook's kernel"
+    if "coursekit.grading.executor" in cmd:
+        return "the grading child"
+    return "a process the notebook ran (a forked call or a program it started)"
+
+
+class MemoryWatch:
+    """Bound the resident memory of this process's descendants (the notebook's processes).
+
+    Args:
+        limit_mb: MiB the descendants may hold together.
+        interval: seconds between polls.
+        root: the process whose descendants are watched (default: this process). As a child
+            subreaper the grader adopts orphans, so daemons the notebook started are included.
+    """
+
+    def __init__(self, limit_mb: int, interval: float = 0.1, root: int | None = None):
+        self.limit = int(limit_mb) * 2**20
+        self.interval = float(interval)
+        self.root = psutil.Process(root or os.getpid())
+        self.events: list[str] = []
+        self.peak = 0
+
+    def poll(self) -> int:
+        """Measure once; kill the largest process when the total is over the limit. Returns the total."""
+        try:
+            procs = self.root.children(recursive=True)
+        except psutil.Error:
+            return 0
+        sizes = [(_memory(p), p) for p in procs]
+        total = sum(s for s, _ in sizes)
+        self.peak = max(self.peak, total)
+        if total > self.limit and sizes:
+            size, victim = max(sizes, key=lambda sp: sp[0])
+            role = _role(victim)
+            try:
+                victim.kill()
+            except psutil.Error:
+                return total
+            self.events.append(f"{role} was stopped: the notebook's processes held {total / 2**20:.0f} MiB of memory, "
+                               f"over the limit of {self.limit / 2**20:.0f} MiB (--memory-mb); it held {size / 2**20:.0f} MiB")
+        return total
+
+    def wait(self, child, timeout: float) -> bool:
+        """Poll until ``child`` (a ``subprocess.Popen``) exits or ``timeout`` s pass; True when it exited."""
+        end = time.monotonic() + timeout
+        while True:
+            if child.poll() is not None:
+                return True
+            left = end - time.monotonic()
+            if left <= 0:
+                return False
+            self.poll()
+            try:
+                child.wait(timeout=min(self.interval, left))
+                return True
+            except Exception as exc:  # subprocess.TimeoutExpired
+                if type(exc).__name__ != "TimeoutExpired":
+                    raise

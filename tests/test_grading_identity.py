@@ -1,0 +1,73 @@
+"""Which exercise a notebook answers (issue 13, part 7): its metadata, so renamed files still grade.
+
+``coursekit grade`` reads the notebook metadata field ``coursekit.exercise``; ``--exercise``
+overrides it; a notebook without it is known by its file stem. Exercises generated from the
+solutions carry the field. (A renamed solution graded end to end: tests/test_grading_integrity.py.)
+"""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import nbformat
+import pytest
+
+from coursekit.grading.authoring import exercise_notebook
+from coursekit.grading.grader import exercise_of
+
+ROOT = Path(__file__).resolve().parent.parent
+STEMS = sorted(p.stem for p in (ROOT / "solutions").glob("*.ipynb"))
+
+
+def with_metadata(path, meta):
+    nb = json.loads((ROOT / "solutions" / "01_selection.ipynb").read_text())
+    nb["metadata"].pop("coursekit", None)
+    if meta is not None:
+        nb["metadata"]["coursekit"] = meta
+    path.write_text(json.dumps(nb))
+    return path
+
+
+def test_metadata_names_the_exercise_whatever_the_file_name(tmp_path):
+    assert exercise_of(with_metadata(tmp_path / "homework.ipynb", {"exercise": "01_selection"})) == "01_selection"
+    assert exercise_of(with_metadata(tmp_path / "02_picture_mutations.ipynb", {"exercise": "01_selection"})) == "01_selection"
+
+
+def test_exercise_option_overrides_the_metadata(tmp_path):
+    nb = with_metadata(tmp_path / "homework.ipynb", {"exercise": "01_selection"})
+    assert exercise_of(nb, "07_swimming_physics") == "07_swimming_physics"
+
+
+def test_without_metadata_the_file_stem_names_it(tmp_path):
+    assert exercise_of(with_metadata(tmp_path / "03_picture_recombination.ipynb", None)) == "03_picture_recombination"
+    truncated = tmp_path / "05_creature_operators.ipynb"
+    truncated.write_text('{"cells": [')
+    assert exercise_of(truncated) == "05_creature_operators"
+    with pytest.raises(ValueError, match="no exercise is registered for notebook 'homework'"):
+        exercise_of(with_metadata(tmp_path / "homework.ipynb", None))
+
+
+@pytest.mark.parametrize("value", [42, "99_unknown", None, ["01_selection"]])
+def test_bad_metadata_is_refused_naming_the_field(tmp_path, value):
+    nb = with_metadata(tmp_path / "01_selection.ipynb", {"exercise": value})
+    with pytest.raises(ValueError, match=r"metadata field coursekit\.exercise is .*names no exercise; known: 01_selection"):
+        exercise_of(nb)
+    proc = subprocess.run([sys.executable, "-m", "coursekit", "grade", str(nb)], capture_output=True, text=True,
+                          env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(ROOT)})
+    assert proc.returncode == 2 and "coursekit.exercise" in proc.stderr and proc.stdout == ""
+
+
+@pytest.mark.parametrize("stem", STEMS)
+def test_solutions_and_generated_exercises_carry_their_identity(stem):
+    for folder in ("solutions", "exercises"):
+        nb = nbformat.read(ROOT / folder / f"{stem}.ipynb", as_version=4)
+        assert nb.metadata["coursekit"]["exercise"] == stem
+        assert exercise_of(ROOT / folder / f"{stem}.ipynb") == stem
+
+
+def test_a_generated_exercise_is_named_after_its_solution_file():
+    nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("x = 1")])
+    assert exercise_notebook(nb, "04_new_topic.ipynb").metadata["coursekit"] == {"exercise": "04_new_topic"}
+    nb.metadata["coursekit"] = {"exercise": "01_selection"}  # a solution that sets it keeps it
+    assert exercise_notebook(nb, "renamed.ipynb").metadata["coursekit"] == {"exercise": "01_selection"}

@@ -1,0 +1,186 @@
+"""Grading works on any install and says so when it cannot (issue 13, part 0).
+
+- Memory is bounded by what the notebook's processes hold, not by address space: a notebook
+  that reserves 3.5 GiB of address space it never touches (what a CUDA build of torch does on
+  import) grades normally under the default ``--memory-mb 4096``; one that really fills memory
+  is reported NOT GRADED, with the reason, and ``coursekit grade`` exits with status 3.
+- Private ``coursekit-grade-*`` folders are removed after a ``SIGTERM``, and after a
+  ``SIGKILL`` by the next run; nothing the notebook started survives.
+- The ``--json`` path is refused before anything is graded.
+- Terminal escapes never reach the summary or the results.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import nbformat
+import psutil
+import pytest
+from nbformat.v4 import new_code_cell, new_notebook
+
+from coursekit.grading import supervisor
+from coursekit.grading.grader import clean
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests" / "adversarial"))
+from make_notebooks import HONEST  # noqa: E402
+
+sys.path.pop(0)
+
+RESERVE = '''import ctypes
+libc = ctypes.CDLL(None, use_errno=True)
+libc.mmap.restype = ctypes.c_void_p
+libc.mmap.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_long]
+# 3.5 GiB of address space: 2 GiB PROT_NONE (a reservation) and 1.5 GiB read-write never touched
+none = libc.mmap(None, 2048 * 2**20, 0, 0x22, -1, 0)        # PROT_NONE, MAP_PRIVATE | MAP_ANONYMOUS
+untouched = libc.mmap(None, 1536 * 2**20, 0x3, 0x22, -1, 0)  # PROT_READ | PROT_WRITE
+assert none not in (None, 2**64 - 1) and untouched not in (None, 2**64 - 1), f"mmap failed: errno {ctypes.get_errno()}"
+'''
+
+
+def notebook(path, *cells):
+    nb = new_notebook(cells=[new_code_cell("import json, math, os, sys\nimport numpy as np"), *map(new_code_cell, cells)])
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nbformat.write(nb, path)
+    return path
+
+
+def env(tmp):
+    (tmp / "tmp").mkdir(exist_ok=True)
+    return {"PATH": "/usr/bin:/bin", "PYTHONPATH": str(ROOT), "COURSEKIT_PROFILE": "ci", "TMPDIR": str(tmp / "tmp")}
+
+
+def grade(tmp, paths, *extra):
+    cmd = [sys.executable, "-m", "coursekit", "grade", *map(str, paths), *extra]
+    return subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=900, env=env(tmp))
+
+
+def leftovers(tmp):
+    return sorted(p.name for p in (tmp / "tmp").glob("coursekit-grade-*"))
+
+
+@pytest.mark.slow
+def test_reserved_address_space_is_not_memory_use(tmp_path):
+    # the functions are defined in the cell that reserves: under an address-space limit the mmap
+    # fails, the cell stops and everything scores 0 (measured before this change: 0 / 10)
+    nb = notebook(tmp_path / "01_selection.ipynb", RESERVE + "\n\n" + "\n\n".join(HONEST.values()))
+    proc = grade(tmp_path, [nb], "--json", "r.json", "--timeout", "20", "--cell-timeout", "120")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    results = json.loads((tmp_path / "r.json").read_text())
+    assert results["score"] == 10.0 and results["extra_data"]["notebooks"][0]["graded"], results["output"]
+    assert "error" not in results["output"] and leftovers(tmp_path) == []
+
+
+@pytest.mark.slow
+def test_a_notebook_that_fills_memory_is_not_graded_and_the_command_fails(tmp_path):
+    hog = "hog = bytearray(1536 * 2**20)  # zero-filled: every page touched\nhog[::4096] = b'x' * len(hog[::4096])"
+    nb = notebook(tmp_path / "hog.ipynb", hog, *HONEST.values())
+    ok = notebook(tmp_path / "ok.ipynb", *HONEST.values())
+    proc = grade(tmp_path, [nb, ok], "--exercise", "01_selection", "--json", "r.json", "--memory-mb", "700",
+                 "--timeout", "20", "--cell-timeout", "120")
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    assert "hog.ipynb: NOT GRADED: " in proc.stdout and "over the limit of 700 MiB (--memory-mb)" in proc.stdout
+    assert "ok.ipynb: 10 / 10 points" in proc.stdout  # the rest of the batch is graded as usual
+    results = json.loads((tmp_path / "r.json").read_text())  # results are written for every notebook
+    hog_nb, ok_nb = results["extra_data"]["notebooks"]
+    assert not hog_nb["graded"] and any("memory" in why for why in hog_nb["not_graded"])
+    assert any("cell 2: skipped" in why for why in hog_nb["not_graded"])
+    assert ok_nb["graded"] and ok_nb["not_graded"] == []
+    assert leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("where, why", [("dir", "is a directory"), ("missing/r.json", "does not exist"),
+                                        ("file/r.json", "does not exist")])
+def test_an_unusable_results_path_is_refused_before_grading(tmp_path, where, why):
+    (tmp_path / "dir").mkdir()
+    (tmp_path / "file").write_text("")
+    nb = notebook(tmp_path / "01_selection.ipynb", "import time\ntime.sleep(3600)")  # would take an hour to grade
+    proc = grade(tmp_path, [nb], "--json", where)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr.startswith(f"coursekit grade: --json {where}: ") and why in proc.stderr
+
+
+def _wait_for_kernel(grader: subprocess.Popen):
+    for _ in range(6000):  # the kernel starts within seconds; the loop only bounds a broken run
+        try:
+            kids = psutil.Process(grader.pid).children(recursive=True)
+            if any("ipykernel" in " ".join(k.cmdline()) for k in kids):
+                return kids
+        except psutil.Error:
+            pass
+        assert grader.poll() is None, grader.communicate()
+        time.sleep(0.1)
+    raise AssertionError("no kernel started")
+
+
+@pytest.mark.slow
+def test_sigterm_removes_the_private_folder_and_every_process(tmp_path):
+    nb = notebook(tmp_path / "01_selection.ipynb", "import time\ntime.sleep(3600)")
+    grader = subprocess.Popen([sys.executable, "-m", "coursekit", "grade", str(nb), "--json", "r.json"], cwd=tmp_path,
+                              env=env(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    kids = _wait_for_kernel(grader)
+    assert len(leftovers(tmp_path)) == 1
+    grader.send_signal(signal.SIGTERM)
+    _, err = grader.communicate(timeout=300)
+    assert grader.returncode == 128 + signal.SIGTERM and "stopped by signal SIGTERM" in err
+    assert leftovers(tmp_path) == [] and not (tmp_path / "r.json").exists()
+    assert not [k for k in kids if k.is_running() and k.status() != psutil.STATUS_ZOMBIE]
+
+
+@pytest.mark.slow
+def test_after_a_sigkill_the_next_run_removes_the_folder(tmp_path):
+    nb = notebook(tmp_path / "01_selection.ipynb", "import time\ntime.sleep(3600)")
+    grader = subprocess.Popen([sys.executable, "-m", "coursekit", "grade", str(nb)], cwd=tmp_path,
+                              env=env(tmp_path), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    kids = _wait_for_kernel(grader)
+    grader.kill()
+    grader.wait()
+    for k in kids:  # a SIGKILL leaves the notebook's processes behind: the test ends them itself
+        try:
+            k.kill()
+        except psutil.Error:
+            pass
+    stale = leftovers(tmp_path)
+    assert len(stale) == 1 and stale[0].startswith(f"coursekit-grade-{grader.pid}-")
+    bad = tmp_path / "02_picture_mutations.ipynb"
+    bad.write_text('{"cells": [')  # graded in a moment: no kernel starts
+    proc = grade(tmp_path, [bad])
+    assert proc.returncode == 0, proc.stderr
+    assert leftovers(tmp_path) == []
+
+
+def test_remove_stale_spares_live_processes_and_foreign_names(tmp_path):
+    done = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    dead = int(done.stdout)
+    alive = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
+    try:
+        for name in (f"coursekit-grade-{dead}-abc", f"coursekit-grade-{alive.pid}-abc", "coursekit-grade-xyz", "other"):
+            (tmp_path / name).mkdir()
+        (tmp_path / f"coursekit-grade-{dead}-file").write_text("not a folder")
+        removed = supervisor.remove_stale(tmp_path) if not psutil.pid_exists(dead) else pytest.skip("pid reused")
+        assert removed == [f"coursekit-grade-{dead}-abc"]
+        assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+            [f"coursekit-grade-{alive.pid}-abc", "coursekit-grade-xyz", "other", f"coursekit-grade-{dead}-file"])
+    finally:
+        alive.kill()
+        alive.wait()
+
+
+@pytest.mark.parametrize("attack", [
+    "\x1b[2J\x1b[H",  # clear the screen, cursor home
+    "\x1b]52;c;Y3VybCBldmlsLnNo\x07",  # OSC 52: set the clipboard
+    "\x1b]0;owned\x1b\\",  # OSC window title, ST-terminated
+    "\x1b[1A\r\x1b[2K",  # cursor up, return, erase line: overwrite the previous line
+    "\x9b31m",  # 8-bit CSI
+    "\x1bP1$r\x1b\\",  # DCS
+    "\u202e",  # right-to-left override
+])
+def test_clean_strips_terminal_escapes_and_control_characters(attack):
+    text = clean(f"before {attack}ga.tournament 2.00 / 2 all properties hold\tafter\nnext")
+    assert text == "before ga.tournament 2.00 / 2 all properties hold\tafter\nnext"
+    assert all(ch in "\n\t" or (ord(ch) >= 32 and not 0x7f <= ord(ch) <= 0x9f) for ch in text)
