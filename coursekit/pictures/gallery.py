@@ -10,6 +10,10 @@ autosaved atomically to a JSON file (``coursekit.gallery/1``) when a path is giv
 
 Operators are parameters: pass your own ``transposition(genome, rng)`` (or any of the seven)
 in ``mutations=`` / ``recombinations=`` and the gallery breeds with it.
+
+No slot is wasted (:mod:`.variety`): a random population is never flat or black, and a child
+whose 32 x 32 preview looks like a parent's or another child's (mean difference below 1/255)
+is bred again (a bounded number of times, from the session's ``rng``).
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ import numpy as np
 from . import operators as O
 from .evaluate import render
 from .genome import Genome
+from .variety import distinct_children, random_population
 
 __all__ = ["GalleryState", "Evolution", "Gallery", "GALLERY_FORMAT", "png_bytes"]
 
@@ -126,10 +131,15 @@ class Evolution:
         if not parents:
             return "select at least one picture to mutate"
         op = self.mutations[name]
-        pop = list(parents)
+
+        def children():
+            k = len(parents)
+            while True:
+                yield op(parents[k % len(parents)], self.rng)
+                k += 1
         try:
-            while len(pop) < self.size:
-                pop.append(op(parents[len(pop) % len(parents)], self.rng))
+            pop = list(parents) + distinct_children(parents, children(), self.size - len(parents),
+                                                    again=lambda c, kept: op(c, self.rng))
         except Exception as e:  # a student's operator: report, keep the gallery alive
             return f"{name} failed: {type(e).__name__}: {e}"
         return self._commit(pop, f"generation {self.state.generation + 1}: {name} of {len(parents)} parent(s)")
@@ -140,11 +150,18 @@ class Evolution:
         if len(parents) < 2:
             return "select at least two pictures to recombine"
         op = self.recombinations[name]
-        pop = list(parents)
-        try:
-            while len(pop) < self.size:
+
+        def children():
+            while True:
                 i, j = self.rng.choice(len(parents), size=2, replace=False)
-                pop.extend(op(parents[i], parents[j], self.rng))
+                yield from op(parents[i], parents[j], self.rng)
+
+        def again(child, kept):  # crossed once more, with a parent or a sibling kept so far
+            mates = list(parents) + kept
+            return op(child, mates[int(self.rng.integers(len(mates)))], self.rng)[0]
+        try:
+            pop = list(parents) + distinct_children(parents, children(), self.size - len(parents),
+                                                    again=again)
         except Exception as e:
             return f"{name} failed: {type(e).__name__}: {e}"
         return self._commit(pop[: self.size], f"generation {self.state.generation + 1}: {name} of "
@@ -155,25 +172,33 @@ class Evolution:
         parents = self._parents()
         if not parents:
             return "select at least one picture"
-        pop = list(parents)
         ops = [(name, op, False) for name, op in self.mutations.items()]
         if len(parents) > 1:
             ops += [(name, op, True) for name, op in self.recombinations.items()]
-        try:
-            while len(pop) < self.size:
+        name = ops[0][0]
+
+        def children():
+            nonlocal name
+            while True:
                 name, op, pair = ops[int(self.rng.integers(len(ops)))]
                 if pair:
                     i, j = self.rng.choice(len(parents), size=2, replace=False)
-                    pop.append(op(parents[i], parents[j], self.rng)[int(self.rng.integers(2))])
+                    yield op(parents[i], parents[j], self.rng)[int(self.rng.integers(2))]
                 else:
-                    pop.append(op(parents[int(self.rng.integers(len(parents)))], self.rng))
+                    yield op(parents[int(self.rng.integers(len(parents)))], self.rng)
+
+        def again(child, kept):  # one more mutation
+            return list(self.mutations.values())[int(self.rng.integers(len(self.mutations)))](child, self.rng)
+        try:
+            pop = list(parents) + distinct_children(parents, children(), self.size - len(parents),
+                                                    again=again if self.mutations else None)
         except Exception as e:
             return f"{name} failed: {type(e).__name__}: {e}"
         return self._commit(pop, f"generation {self.state.generation + 1}: mixed operators")
 
     def randomize(self) -> str:
-        """A new random population (the old one goes to the history)."""
-        pop = [Genome.random(self.rng, **self.genome_params) for _ in range(self.size)]
+        """A new random population (the old one goes to the history), none flat or black."""
+        pop = random_population(self.rng, self.size, **self.genome_params)
         return self._commit(pop, "new random population")
 
     def undo(self) -> str:
@@ -201,7 +226,8 @@ class Gallery:
 
     Args:
         rng: the random generator (the session is reproducible from its seed).
-        population: starting genomes (default: ``n`` random ones).
+        population: starting genomes (default: ``n`` random ones, none flat or black:
+            :func:`~coursekit.pictures.variety.random_population`).
         n: number of pictures (default 20, Sims' 4 x 5).
         columns: thumbnails per row.
         size: thumbnail size in pixels.
@@ -223,7 +249,7 @@ class Gallery:
         if population is None:
             if isinstance(n, bool) or not isinstance(n, int) or n < 2:
                 raise ValueError(f"n: {n!r} must be an integer >= 2")
-            population = [Genome.random(rng, **genome_params) for _ in range(n)]
+            population = random_population(rng, n, **genome_params)
         state = population if isinstance(population, GalleryState) else GalleryState(list(population))
         self.evolution = Evolution(state, rng, mutations=mutations, recombinations=recombinations,
                                    genome_params=genome_params, autosave=autosave)

@@ -141,12 +141,14 @@ class ChromosomeString:
 
     @classmethod
     def random(cls, rng: np.random.Generator, head_length: int, symbols: Sequence[str] | None = None,
-               function_rate: float = 0.75) -> "ChromosomeString":
-        """A random string (see :meth:`Genome.random` for the arguments)."""
+               function_rate: float = 0.75, root: str = "head") -> "ChromosomeString":
+        """A random string (see :meth:`Genome.random` for the arguments); ``root`` is the
+        place (:func:`random_chromosome`) its first chromosome is drawn for."""
         if isinstance(head_length, bool) or not isinstance(head_length, (int, np.integer)) or head_length < 1:
             raise ValueError(f"head_length: {head_length!r} must be an integer >= 1")
         t = head_length * (P.max_arity() - 1) + 1
-        head = [random_chromosome(rng, "head", symbols, function_rate) for _ in range(head_length)]
+        head = [random_chromosome(rng, root if i == 0 else "head", symbols, function_rate)
+                for i in range(head_length)]
         tail = [random_chromosome(rng, "tail", symbols) for _ in range(t)]
         return cls(head_length, tuple(head + tail))
 
@@ -164,6 +166,16 @@ def _symbol_pools(symbols):
     return funcs, terms
 
 
+def _weighted(rng: np.random.Generator, pool: Sequence[str], weights: Sequence[float]) -> str:
+    """One of ``pool`` with probability proportional to ``weights`` (uniform when all equal)."""
+    w = np.asarray(weights, dtype=float)
+    if not np.any(w > 0):
+        w = np.ones(len(pool))
+    if np.all(w == w[0]):
+        return pool[int(rng.integers(len(pool)))]
+    return pool[int(rng.choice(len(pool), p=w / w.sum()))]
+
+
 def random_chromosome(rng: np.random.Generator, place: str, symbols: Sequence[str] | None = None,
                       function_rate: float = 0.75) -> Chromosome:
     """A random chromosome valid for ``place``.
@@ -171,9 +183,12 @@ def random_chromosome(rng: np.random.Generator, place: str, symbols: Sequence[st
     Args:
         rng: the random generator.
         place: ``'tail'`` (ZeroArgChrom only), ``'head'`` (a function with probability
-            ``function_rate``, else a terminal) or ``'pre'`` (PreHeader: functions only when
-            the set has any).
-        symbols: primitive names to draw from (default: all primitives), uniformly per kind.
+            ``function_rate``, else a terminal), ``'pre'`` (PreHeader: functions only when
+            the set has any) or ``'root'`` (the root of a random genome: a function, drawn by
+            the primitives' ``root`` weights).
+        symbols: primitive names to draw from (default: all primitives). Within a kind
+            (function or terminal) a primitive is drawn in proportion to its ``weight``
+            (:mod:`.primitives`: colour leaves more often, stock photos and ``time`` less).
         function_rate: probability of a function at a head position.
     """
     funcs, terms = _symbol_pools(symbols)
@@ -185,9 +200,13 @@ def random_chromosome(rng: np.random.Generator, place: str, symbols: Sequence[st
         pool = funcs if funcs and rng.random() < function_rate else terms
     elif place == "pre":
         pool = funcs or terms
+    elif place == "root":
+        pool = funcs or terms
+        return Chromosome.random(rng, _weighted(rng, pool, [P.get(s).root if funcs else P.get(s).weight
+                                                            for s in pool]))
     else:
-        raise ValueError(f"place: {place!r}; allowed: 'head', 'tail', 'pre'")
-    return Chromosome.random(rng, pool[rng.integers(len(pool))])
+        raise ValueError(f"place: {place!r}; allowed: 'head', 'tail', 'pre', 'root'")
+    return Chromosome.random(rng, _weighted(rng, pool, [P.get(s).weight for s in pool]))
 
 
 @dataclass(frozen=True)
@@ -285,16 +304,21 @@ class Genome:
                 terminals). PreHeader chromosomes start as functions so every string links in;
                 mutations may later put terminals there.
         Returns:
-            A valid :class:`Genome`.
+            A valid :class:`Genome`. Its root (the first PreHeader chromosome, or the root of
+            the only string) is a function drawn by the primitives' ``root`` weights, the
+            other chromosomes by their ``weight`` (:mod:`.primitives`), so that random
+            pictures are mostly coloured and structured. For a first generation that is also
+            never flat or black, use :func:`coursekit.pictures.variety.random_population`.
         """
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng: expected numpy.random.Generator, got {type(rng).__name__}")
         if isinstance(n_strings, bool) or not isinstance(n_strings, (int, np.integer)) or n_strings < 1:
             raise ValueError(f"n_strings: {n_strings!r} must be an integer >= 1")
-        strings = tuple(ChromosomeString.random(rng, head_length, symbols, function_rate)
-                        for _ in range(n_strings))
-        pre = tuple(random_chromosome(rng, "pre", symbols)
-                    for _ in range((n_strings - 1) // (P.max_arity() - 1)))
+        n_pre = (n_strings - 1) // (P.max_arity() - 1)
+        strings = tuple(ChromosomeString.random(rng, head_length, symbols, function_rate,
+                                                root="root" if k == 0 and n_pre == 0 else "head")
+                        for k in range(n_strings))
+        pre = tuple(random_chromosome(rng, "root" if i == 0 else "pre", symbols) for i in range(n_pre))
         return cls(strings, pre)
 
     # ---- decoding -----------------------------------------------------------------------

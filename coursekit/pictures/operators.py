@@ -12,6 +12,19 @@ string uniformly among those it can act on.
 Recombination pairs string ``k`` of one parent with string ``k`` of the other (and PreHeader
 with PreHeader) where both have the same length; parents with no such pair are refused.
 
+**Aimed at the coding part.** A change that lands in a non-coding chromosome (after a string's
+open reading frame, or in a string the PreHeader does not reach) leaves the picture as it was:
+drawn uniformly, two children in three of a gallery click looked like a parent or a sibling
+(measured, issue 12). So every operator picks its sites among the coding ones where the genome
+has any (a coding chromosome to replace, a head or tail with coding chromosomes to rotate, a
+string pair that differs where a parent codes ...), and repeats its draw, at most
+:data:`TRIES` times, while its result's expression (:func:`coding`) equals its input's (for a
+recombination: until both children differ from both parents and from each other, else the
+draw that came closest). The operation itself is the paper's, and non-coding chromosomes are
+kept (they may code after a later mutation). Repeats use the same ``rng``, so a seed still
+gives one result. Changes the genome cannot see (a constant under ``round``, swapped arguments
+of ``plus``) are left to the gallery's preview (:mod:`.variety`).
+
 Choices where the paper is silent (documented so students can reproduce them):
 
 - transposition: the region (head without the root, or tail) is picked uniformly among those
@@ -43,7 +56,7 @@ from .genome import Chromosome, Genome, random_chromosome
 
 __all__ = ["transposition", "root_transposition", "substitution", "head_tail_rotation",
            "crossover", "random_copy", "random_interpolation", "lerp_chromosome",
-           "MUTATIONS", "RECOMBINATIONS"]
+           "coding", "TRIES", "MUTATIONS", "RECOMBINATIONS"]
 
 
 def _check(genome, name="genome"):
@@ -79,17 +92,71 @@ def _pick(rng, seq):
     return seq[int(rng.integers(len(seq)))]
 
 
+def _first(*candidates):
+    """The first non-empty list of ``candidates`` (the last one when all are empty)."""
+    for c in candidates:
+        if c:
+            return c
+    return candidates[-1]
+
+
+# ---- aiming at the coding part ------------------------------------------------------------
+
+TRIES = 8
+"""Draws an operator makes, at most, until its result's coding part differs from the inputs'."""
+
+
+def _expressed(node):
+    return (node.chromosome, tuple(_expressed(c) for c in node.children))
+
+
+def coding(genome: Genome) -> tuple:
+    """The coding part of ``genome`` as a comparable value: equal for two genomes exactly when
+    their expression trees are equal (same primitives, parameters and shape), whatever their
+    non-coding chromosomes."""
+    return _expressed(genome.decode())
+
+
+def _active(g: Genome) -> dict:
+    return {k: set(v) for k, v in g.active.items()}
+
+
+def _mutated(genome, rng, draw) -> Genome:
+    """``draw(genome, rng)`` until the coding part changes (at most :data:`TRIES` draws)."""
+    before = coding(genome)
+    for _ in range(TRIES):
+        child = draw(genome, rng)
+        if coding(child) != before:
+            return child
+    return child
+
+
+def _recombined(a, b, rng, draw) -> tuple[Genome, Genome]:
+    """``draw(a, b, rng)`` until both children's coding parts differ from both parents' and
+    from each other (at most :data:`TRIES` draws; otherwise the draw that came closest)."""
+    parents = (coding(a), coding(b))
+    best, best_score = None, -1
+    for _ in range(TRIES):
+        ca, cb = draw(a, b, rng)
+        xa, xb = coding(ca), coding(cb)
+        score = (xa not in parents) + (xb not in parents) + (xa != xb)
+        if score > best_score:
+            best, best_score = (ca, cb), score
+        if score == 3:
+            break
+    return best
+
+
 # ---- mutations (section 3.3.1) ------------------------------------------------------------
 
-def transposition(genome: Genome, rng: np.random.Generator) -> Genome:
-    """Two chromosomes of one string, both in the head (never the root) or both in the tail,
-    are interchanged, or the first is replaced by a clone of the second."""
-    _check(genome)
-    keys = [k for k in _keys(genome) if _regions(genome, k, with_root=False)]
-    k = _pick(rng, keys)
-    region = _pick(rng, _regions(genome, k, with_root=False))
-    i, j = (int(v) for v in rng.choice(np.asarray(region), size=2, replace=False))
+def _transposition(genome: Genome, rng: np.random.Generator) -> Genome:
+    act = _active(genome)
+    spots = [(k, r) for k in _keys(genome) for r in _regions(genome, k, with_root=False)]
+    k, region = _pick(rng, _first([(k, r) for k, r in spots if act[k] & set(r)], spots))
     chroms, _ = _get(genome, k)
+    i = _pick(rng, _first([i for i in region if i in act[k]], list(region)))
+    others = [j for j in region if j != i]
+    j = _pick(rng, _first([j for j in others if chroms[j] != chroms[i]], others))
     if rng.random() < 0.5:
         chroms[i], chroms[j] = chroms[j], chroms[i]
     else:
@@ -97,16 +164,23 @@ def transposition(genome: Genome, rng: np.random.Generator) -> Genome:
     return _put(genome, k, chroms)
 
 
-def root_transposition(genome: Genome, rng: np.random.Generator) -> Genome:
-    """The root of a string is interchanged with another head chromosome of the same string,
-    or replaced by a clone of it. ValueError if no string has a head of length >= 2."""
+def transposition(genome: Genome, rng: np.random.Generator) -> Genome:
+    """Two chromosomes of one string, both in the head (never the root) or both in the tail,
+    are interchanged, or the first is replaced by a clone of the second.
+
+    Aimed at the coding part: the first chromosome is a coding one and the second differs
+    from it (where the genome has such a pair), and the draw is repeated (at most
+    :data:`TRIES` times) while the expression stays the same."""
     _check(genome)
+    return _mutated(genome, rng, _transposition)
+
+
+def _root_transposition(genome: Genome, rng: np.random.Generator) -> Genome:
+    act = _active(genome)
     keys = [k for k in _keys(genome) if _get(genome, k)[1] >= 2]
-    if not keys:
-        raise ValueError("root_transposition: needs a string or PreHeader with head length >= 2")
-    k = _pick(rng, keys)
+    k = _pick(rng, _first([k for k in keys if 0 in act[k]], keys))
     chroms, h = _get(genome, k)
-    j = int(rng.integers(1, h))
+    j = _pick(rng, _first([j for j in range(1, h) if chroms[j] != chroms[0]], list(range(1, h))))
     if rng.random() < 0.5:
         chroms[0], chroms[j] = chroms[j], chroms[0]
     else:
@@ -114,31 +188,65 @@ def root_transposition(genome: Genome, rng: np.random.Generator) -> Genome:
     return _put(genome, k, chroms)
 
 
+def root_transposition(genome: Genome, rng: np.random.Generator) -> Genome:
+    """The root of a string is interchanged with another head chromosome of the same string,
+    or replaced by a clone of it. ValueError if no string has a head of length >= 2.
+
+    Aimed at the coding part: a string whose root codes, a head chromosome that differs from
+    the root, and the draw repeated (at most :data:`TRIES` times) while the expression stays
+    the same."""
+    _check(genome)
+    if not any(_get(genome, k)[1] >= 2 for k in _keys(genome)):
+        raise ValueError("root_transposition: needs a string or PreHeader with head length >= 2")
+    return _mutated(genome, rng, _root_transposition)
+
+
 def substitution(genome: Genome, rng: np.random.Generator, symbols: Sequence[str] | None = None) -> Genome:
     """A chromosome is replaced by a new random one valid for its place (head or tail).
+
+    Aimed at the coding part: the chromosome is a coding one, and the draw is repeated (at
+    most :data:`TRIES` times) while the expression stays the same.
 
     Args:
         symbols: primitive names the new chromosome may use (default: all).
     """
     _check(genome)
-    k = _pick(rng, _keys(genome))
-    chroms, h = _get(genome, k)
-    i = int(rng.integers(len(chroms)))
-    chroms[i] = random_chromosome(rng, "head" if i < h else "tail", symbols)
-    return _put(genome, k, chroms)
+
+    def draw(genome, rng):
+        act = _active(genome)
+        keys = _keys(genome)
+        k = _pick(rng, _first([k for k in keys if act[k]], keys))
+        chroms, h = _get(genome, k)
+        i = _pick(rng, _first(sorted(act[k]), list(range(len(chroms)))))
+        chroms[i] = random_chromosome(rng, "head" if i < h else "tail", symbols)
+        return _put(genome, k, chroms)
+    return _mutated(genome, rng, draw)
 
 
-def head_tail_rotation(genome: Genome, rng: np.random.Generator) -> Genome:
-    """A string is split into head and tail, one of them rotated several steps, rejoined."""
-    _check(genome)
-    keys = [k for k in _keys(genome) if _regions(genome, k, with_root=True)]
-    k = _pick(rng, keys)
-    region = _pick(rng, _regions(genome, k, with_root=True))
+def _head_tail_rotation(genome: Genome, rng: np.random.Generator) -> Genome:
+    act = _active(genome)
+    spots = [(k, r) for k in _keys(genome) for r in _regions(genome, k, with_root=True)]
+
+    def varied(k, r):
+        part = _get(genome, k)[0][r.start:r.stop]
+        return any(c != part[0] for c in part)
+    k, region = _pick(rng, _first([(k, r) for k, r in spots if act[k] & set(r) and varied(k, r)],
+                                  [(k, r) for k, r in spots if varied(k, r)], spots))
     chroms, _ = _get(genome, k)
     part = chroms[region.start:region.stop]
     steps = int(rng.integers(1, len(part)))
     chroms[region.start:region.stop] = part[steps:] + part[:steps]
     return _put(genome, k, chroms)
+
+
+def head_tail_rotation(genome: Genome, rng: np.random.Generator) -> Genome:
+    """A string is split into head and tail, one of them rotated several steps, rejoined.
+
+    Aimed at the coding part: a head or tail that holds coding chromosomes (and not only
+    copies of one), and the draw repeated (at most :data:`TRIES` times) while the expression
+    stays the same."""
+    _check(genome)
+    return _mutated(genome, rng, _head_tail_rotation)
 
 
 # ---- recombinations (section 3.3.2) -------------------------------------------------------
@@ -156,35 +264,64 @@ def _pairs(a: Genome, b: Genome, min_len: int = 1) -> list:
     return keys
 
 
+def _differ(sa, sb) -> list[int]:
+    return [i for i, (x, y) in enumerate(zip(sa, sb)) if x != y]
+
+
 def crossover(a: Genome, b: Genome, rng: np.random.Generator, splits: int = 1) -> tuple[Genome, Genome]:
     """One position splits a pair of strings; the parts after it are exchanged.
+
+    Aimed at the coding part: a pair of strings that differ where either parent codes, a split
+    with differing chromosomes on both sides of it (where there are such), and the draw
+    repeated (at most :data:`TRIES` times) until both children's expressions differ from both
+    parents'.
 
     Args:
         splits: how many times to repeat it on the same pair with a new position (>= 1).
     """
     if isinstance(splits, bool) or not isinstance(splits, (int, np.integer)) or splits < 1:
         raise ValueError(f"splits: {splits!r} must be an integer >= 1")
-    k = _pick(rng, _pairs(a, b, min_len=2))
-    sa, sb = _get(a, k)[0], _get(b, k)[0]
-    for _ in range(splits):
-        q = int(rng.integers(1, len(sa)))
-        sa, sb = sa[:q] + sb[q:], sb[:q] + sa[q:]
-    return _put(a, k, sa), _put(b, k, sb)
+    keys = _pairs(a, b, min_len=2)
+    act_a, act_b = _active(a), _active(b)
+
+    def draw(a, b, rng):
+        def coding_diff(k):
+            return set(_differ(_get(a, k)[0], _get(b, k)[0])) & (act_a[k] | act_b[k])
+        k = _pick(rng, _first([k for k in keys if coding_diff(k)],
+                              [k for k in keys if _differ(_get(a, k)[0], _get(b, k)[0])], keys))
+        sa, sb = _get(a, k)[0], _get(b, k)[0]
+        for _ in range(splits):
+            d = _differ(sa, sb)
+            q = _pick(rng, _first(list(range(min(d) + 1, max(d) + 1)) if d else [],
+                                  list(range(1, len(sa)))))
+            sa, sb = sa[:q] + sb[q:], sb[:q] + sa[q:]
+        return _put(a, k, sa), _put(b, k, sb)
+    return _recombined(a, b, rng, draw)
 
 
 def random_copy(a: Genome, b: Genome, rng: np.random.Generator) -> tuple[Genome, Genome]:
     """In each string pair, a chromosome at an arbitrary position of one parent is copied to
-    an arbitrary position of the other's child (a tail position only takes a terminal)."""
-    children = [a, b]
-    for k in _pairs(a, b):
-        for c, donor in ((0, b), (1, a)):
-            target, h = _get(children[c], k)
-            source, _ = _get(donor, k)
-            i = int(rng.integers(len(target)))
-            valid = [j for j, ch in enumerate(source) if i < h or ch.arity == 0]
-            target[i] = source[_pick(rng, valid)]
-            children[c] = _put(children[c], k, target)
-    return children[0], children[1]
+    an arbitrary position of the other's child (a tail position only takes a terminal).
+
+    Aimed at the coding part: the target position is a coding one of the receiving parent and
+    the copied chromosome differs from the one it replaces (where possible), and the draw is
+    repeated (at most :data:`TRIES` times) until both children's expressions differ from both
+    parents'."""
+    keys = _pairs(a, b)
+    active = (_active(a), _active(b))
+
+    def draw(a, b, rng):
+        children = [a, b]
+        for k in keys:
+            for c, donor in ((0, b), (1, a)):
+                target, h = _get(children[c], k)
+                source, _ = _get(donor, k)
+                i = _pick(rng, _first(sorted(active[c][k]), list(range(len(target)))))
+                valid = [j for j, ch in enumerate(source) if i < h or ch.arity == 0]
+                target[i] = source[_pick(rng, _first([j for j in valid if source[j] != target[i]], valid))]
+                children[c] = _put(children[c], k, target)
+        return children[0], children[1]
+    return _recombined(a, b, rng, draw)
 
 
 def lerp_chromosome(c: Chromosome, d: Chromosome, u: float) -> Chromosome:
@@ -204,19 +341,34 @@ def lerp_chromosome(c: Chromosome, d: Chromosome, u: float) -> Chromosome:
 
 def random_interpolation(a: Genome, b: Genome, rng: np.random.Generator) -> tuple[Genome, Genome]:
     """Two chromosomes (one aligned position of a string pair) are linearly interpolated with
-    a random parameter u; the children get lerp(a, b, u) and lerp(b, a, u)."""
-    k = _pick(rng, _pairs(a, b))
-    sa, sb = _get(a, k)[0], _get(b, k)[0]
+    a random parameter u; the children get lerp(a, b, u) and lerp(b, a, u).
 
-    def shared(i):
-        pa = {p.name for p in P.get(sa[i].symbol).params}
-        return any(p.name in pa for p in P.get(sb[i].symbol).params)
-    positions = [i for i in range(len(sa)) if shared(i)] or list(range(len(sa)))
-    i = _pick(rng, positions)
-    u = float(rng.random())
-    ca, cb = lerp_chromosome(sa[i], sb[i], u), lerp_chromosome(sb[i], sa[i], u)
-    sa[i], sb[i] = ca, cb
-    return _put(a, k, sa), _put(b, k, sb)
+    Aimed at the coding part: the position is picked among those where the two chromosomes
+    differ, share a parameter and at least one codes (else the first there is of: differ and
+    one codes; differ and share; differ; any), and the draw is repeated (at most
+    :data:`TRIES` times) until both children's expressions differ from both parents'."""
+    keys = _pairs(a, b)
+    act_a, act_b = _active(a), _active(b)
+
+    def shared(x, y):
+        px = {p.name for p in P.get(x.symbol).params}
+        return any(p.name in px for p in P.get(y.symbol).params)
+    spots = [(k, i) for k in keys for i in range(len(_get(a, k)[0]))]
+    row = {k: (_get(a, k)[0], _get(b, k)[0]) for k in keys}
+    differ = [(k, i) for k, i in spots if row[k][0][i] != row[k][1][i]]
+    blend = [(k, i) for k, i in differ if shared(row[k][0][i], row[k][1][i])]
+    codes = lambda k, i: i in act_a[k] or i in act_b[k]  # noqa: E731
+    candidates = _first([(k, i) for k, i in blend if codes(k, i)], [(k, i) for k, i in differ if codes(k, i)],
+                        blend, differ, spots)
+
+    def draw(a, b, rng):
+        k, i = _pick(rng, candidates)
+        sa, sb = list(row[k][0]), list(row[k][1])
+        u = float(rng.random())
+        x, y = row[k][0][i], row[k][1][i]
+        sa[i], sb[i] = lerp_chromosome(x, y, u), lerp_chromosome(y, x, u)
+        return _put(a, k, sa), _put(b, k, sb)
+    return _recombined(a, b, rng, draw)
 
 
 MUTATIONS = {"transposition": transposition, "root_transposition": root_transposition,

@@ -1,0 +1,143 @@
+"""Benchmark: are random pictures worth a look, and does every gallery slot show something new?
+
+Prints one table for the two measurements of issue 12 (findings 1 and 2), on fixed seeds:
+
+**Random pictures** (``--genomes`` genomes, default 600; genome ``i`` is the first genome drawn
+from ``numpy.random.default_rng(i)``), rendered at 64 x 64 over the unit square, for
+``Genome.random`` at its defaults and, when the library has one, for the gallery's first
+generation (:func:`coursekit.pictures.variety.random_population`, one genome per seed):
+
+- *flat*: every channel's standard deviation over the picture is below 0.02;
+- *black*: no value above 1/255;
+- *greyscale*: the mean over pixels of (largest channel - smallest channel) is below 0.02;
+- *photo-dominated*: the picture's luminance correlates (``|Pearson r| > 0.5``) with the
+  luminance of one of the scikit-image stock photos (each rendered alone as a ``pixmap``
+  chromosome at the same size and window).
+
+**Children identical** (``--sessions`` sessions, default 30): session ``s`` starts a widget-free
+gallery (:class:`~coursekit.pictures.gallery.Evolution`, 20 pictures, first generation as the
+gallery makes it, ``default_rng(s)``), selects pictures ``s mod 20`` and ``(s + 7) mod 20`` and
+clicks each of the seven operators once (undo in between, so every operator breeds from the same
+two parents). Each of the 18 children per click is rendered at 64 x 64; it *repeats* when its
+mean absolute difference to a parent or to an earlier child of the same click is below 1/255
+(a wasted slot), and it is *identical to a parent or a sibling* when that holds for a parent or
+for any other child of the click (the issue's definition: both children of a duplicate pair count).
+
+Usage: ``python benchmarks/picture_variety.py [--genomes 600] [--sessions 30]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from coursekit.pictures import Genome, primitives, render
+from coursekit.pictures.gallery import Evolution, GalleryState
+from coursekit.pictures.genome import Chromosome, ChromosomeString
+
+SIZE = 64
+SAME = 1.0 / 255.0
+
+
+def _render(genomes):
+    return render(list(genomes), SIZE, workers=1)
+
+
+def _luminance(images):
+    return images @ np.array([0.299, 0.587, 0.114], dtype=np.float32)
+
+
+def _photos():
+    pics = [Genome((ChromosomeString(1, (Chromosome("pixmap", (i + 0.5,)), Chromosome("x"), Chromosome("y"))),))
+            for i in range(len(primitives.PIXMAPS))]
+    return _luminance(_render(pics)).reshape(len(pics), -1)
+
+
+def picture_figures(images, photos):
+    """Fractions (flat, black, greyscale, photo-dominated) of ``images`` (N, H, W, 3)."""
+    n = len(images)
+    if n == 0:
+        return [float("nan")] * 4
+    flat = images.reshape(n, -1, 3).std(axis=1).max(axis=1) < 0.02
+    black = images.reshape(n, -1).max(axis=1) <= SAME
+    grey = (images.max(axis=3) - images.min(axis=3)).reshape(n, -1).mean(axis=1) < 0.02
+    lum = _luminance(images).reshape(n, -1)
+    lum = lum - lum.mean(axis=1, keepdims=True)
+    ph = photos - photos.mean(axis=1, keepdims=True)
+    norm = np.linalg.norm(lum, axis=1)[:, None] * np.linalg.norm(ph, axis=1)[None, :]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = np.where(norm > 1e-9, (lum @ ph.T) / np.maximum(norm, 1e-30), 0.0)
+    photo = np.abs(r).max(axis=1) > 0.5
+    return [float(v.mean()) for v in (flat, black, grey, photo)]
+
+
+def first_generation(rng, n):
+    """The gallery's first generation, as this version of the library makes it."""
+    try:
+        from coursekit.pictures.variety import random_population
+    except ImportError:
+        return [Genome.random(rng) for _ in range(n)]
+    return random_population(rng, n)
+
+
+def children_figures(sessions, n=20):
+    """(children checked, fraction repeating, fraction identical to a parent or sibling)."""
+    checked = repeats = identical = 0
+    for s in range(sessions):
+        rng = np.random.default_rng(s)
+        ev = Evolution(GalleryState(first_generation(rng, n)), rng)
+        picks = [s % n, (s + 7) % n]
+        for name in list(ev.mutations) + list(ev.recombinations):
+            for i in picks:
+                ev.select(i, True)
+            msg = ev.mutate(name) if name in ev.mutations else ev.recombine(name)
+            assert msg.startswith("generation"), msg
+            pics = _render(ev.state.population)
+            parents, kids = pics[:2], pics[2:]
+            for j, kid in enumerate(kids):
+                d_par = [np.abs(kid - p).mean() for p in parents]
+                d_sib = [np.abs(kid - k).mean() for m, k in enumerate(kids) if m != j]
+                d_earlier = [np.abs(kid - k).mean() for k in kids[:j]]
+                checked += 1
+                repeats += min(d_par + d_earlier) < SAME
+                identical += min(d_par + d_sib) < SAME
+            ev.undo()
+            ev.state.selected.clear()
+    return checked, repeats / checked, identical / checked
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--genomes", type=int, default=600)
+    ap.add_argument("--sessions", type=int, default=30)
+    args = ap.parse_args(argv)
+    photos = _photos()
+    rows = []
+    t0 = time.perf_counter()
+    plain = [Genome.random(np.random.default_rng(i)) for i in range(args.genomes)]
+    rows.append(("Genome.random (defaults)", picture_figures(_render(plain), photos)))
+    t1 = time.perf_counter()
+    try:
+        from coursekit.pictures.variety import random_population
+    except ImportError:
+        random_population = None
+    if random_population is not None:
+        first = [random_population(np.random.default_rng(i), 1)[0] for i in range(args.genomes)]
+        rows.append(("first generation (random_population)", picture_figures(_render(first), photos)))
+    t2 = time.perf_counter()
+    checked, repeats, identical = children_figures(args.sessions)
+    t3 = time.perf_counter()
+    print(f"random pictures: {args.genomes} genomes (seeds 0..{args.genomes - 1}) at {SIZE}^2")
+    print(f"{'':38s} {'flat':>6s} {'black':>6s} {'grey':>6s} {'photo':>6s}")
+    for name, (flat, black, grey, photo) in rows:
+        print(f"{name:38s} {flat:6.1%} {black:6.1%} {grey:6.1%} {photo:6.1%}")
+    print(f"children: {checked} checked ({args.sessions} sessions x 7 operators x 18 children) at {SIZE}^2:")
+    print(f"  repeat a parent or an earlier child: {repeats:.1%}")
+    print(f"  identical to a parent or a sibling:  {identical:.1%}")
+    print(f"(seconds: Genome.random {t1 - t0:.1f}, random_population {t2 - t1:.1f}, sessions {t3 - t2:.1f})")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,150 @@
+"""Pictures worth a look: a first generation and children that never waste a slot (sections 3.3, 3.4).
+
+With the user as the fitness function (paper section 3.4) every picture on the screen costs a
+judgement, so a slot that shows a flat or black picture, or a copy of its parent or of a
+sibling, is a wasted click. Two cheap previews prevent that; both render low-resolution
+thumbnails (:data:`PREVIEW`, 32 x 32) and never change what the genomes are:
+
+- :func:`random_population` draws random genomes (:meth:`Genome.random`, whose draw weights
+  already favour colour and structure) and redraws those with a tiny coding part, those whose
+  preview is *dull* (flat or black, :func:`dull`) or repeats another picture of the
+  population, and a greyscale one once (grey pictures stay, as a minority).
+- :func:`distinct_children` takes children from an operator and redraws those whose preview
+  is within :data:`SAME` (mean absolute difference, 1/255) of a parent's or of another child's.
+
+The operators themselves (:mod:`.operators`) already aim at the coding part, so most children
+pass at once; the preview catches what the genome cannot tell, such as a changed constant under
+a ``round`` or two swapped arguments of ``plus``. Both redraw a bounded number of times, in slot
+order, from the given ``rng``: the same seed gives the same population, bit for bit.
+"""
+
+from __future__ import annotations
+
+from typing import Iterator, Sequence
+
+import numpy as np
+
+from .evaluate import render
+from .genome import Genome
+
+__all__ = ["PREVIEW", "SAME", "FLAT", "MIN_NODES", "preview", "dull", "greyscale", "random_population",
+           "distinct_children"]
+
+PREVIEW = 32  # pixels of a preview's side
+SAME = 1.0 / 255.0  # mean absolute difference under which two pictures look the same
+FLAT = 0.02  # a picture whose every channel has a standard deviation below this is flat
+MIN_NODES = 5  # coding chromosomes a random genome of a first generation has at least
+
+
+def preview(genomes: Sequence[Genome], size: int = PREVIEW) -> np.ndarray:
+    """Low-resolution renders ``(N, size, size, 3)`` of ``genomes`` (in this process)."""
+    return render(list(genomes), size, workers=1)
+
+
+def dull(images: np.ndarray, flat: float = FLAT) -> np.ndarray:
+    """Per picture of ``images`` ``(N, H, W, 3)``: flat (every channel's standard deviation
+    below ``flat``) or black (no value above 1/255)."""
+    n = len(images)
+    return ((images.reshape(n, -1, 3).std(axis=1).max(axis=1) < flat)
+            | (images.reshape(n, -1).max(axis=1) <= SAME))
+
+
+def greyscale(images: np.ndarray, tolerance: float = 0.02) -> np.ndarray:
+    """Per picture: the mean over pixels of (largest - smallest channel) is below ``tolerance``."""
+    n = len(images)
+    return (images.max(axis=3) - images.min(axis=3)).reshape(n, -1).mean(axis=1) < tolerance
+
+
+def _distance(pic: np.ndarray, refs: list[np.ndarray]) -> float:
+    """Smallest mean absolute difference between ``pic`` and any of ``refs`` (inf if none)."""
+    if not refs:
+        return float("inf")
+    return float(np.abs(np.stack(refs) - pic[None]).mean(axis=(1, 2, 3)).min())
+
+
+def random_population(rng: np.random.Generator, n: int, *, tries: int = 8, size: int = PREVIEW,
+                      min_nodes: int = MIN_NODES, **genome_params) -> list[Genome]:
+    """``n`` random genomes whose pictures are worth a look.
+
+    Slot by slot, a genome (:meth:`Genome.random` with ``genome_params``) is redrawn while its
+    coding part has fewer than ``min_nodes`` chromosomes (too small to breed: its mutants are
+    few and mostly alike), or its preview at ``size`` is dull (:func:`dull`) or within
+    :data:`SAME` of another slot's accepted picture, at
+    most ``tries`` times; a greyscale preview (:func:`greyscale`) is redrawn once. Redraws are
+    batched per round, in slot order, so the result depends only on ``rng``'s state.
+
+    Example:
+        >>> pop = random_population(np.random.default_rng(0), 4)
+        >>> bool(dull(preview(pop)).any())
+        False
+    """
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"rng: expected numpy.random.Generator, got {type(rng).__name__}")
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+        raise ValueError(f"n: {n!r} must be an integer >= 0")
+    if isinstance(tries, bool) or not isinstance(tries, (int, np.integer)) or tries < 0:
+        raise ValueError(f"tries: {tries!r} must be an integer >= 0")
+    genomes = [Genome.random(rng, **genome_params) for _ in range(n)]
+    accepted: dict[int, np.ndarray] = {}
+    pending = list(range(n))
+    for attempt in range(tries + 1):
+        fresh = preview([genomes[i] for i in pending], size) if pending else []
+        is_dull, is_grey = dull(np.asarray(fresh)), greyscale(np.asarray(fresh))
+        still = []
+        for i, pic, bad, grey in zip(pending, fresh, is_dull, is_grey):
+            if (bad or (grey and attempt == 0) or genomes[i].size() < min_nodes
+                    or _distance(pic, list(accepted.values())) < SAME) and attempt < tries:
+                still.append(i)
+            else:
+                accepted[i] = pic
+        if not still:
+            break
+        for i in still:
+            genomes[i] = Genome.random(rng, **genome_params)
+        pending = still
+    return genomes
+
+
+def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *, again=None,
+                      tries: int = 8, size: int = PREVIEW) -> list:
+    """``n`` children from the iterator ``children`` that look different from ``parents`` and
+    from each other.
+
+    The first ``n`` children are previewed at ``size``; slot by slot, one within :data:`SAME`
+    (mean absolute difference) of a parent or of an already accepted child is replaced by the
+    iterator's next child, at most ``tries`` rounds (what is left then stays). From round
+    ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is replaced by
+    ``again(c, accepted)`` instead (``accepted``: the children kept so far): the operator
+    applied once more to it, for when the parents have fewer distinct children than there are
+    slots (two relatives, a small coding part). The gallery crosses ``c`` with a parent or an
+    accepted sibling (more of the parents' material, with another split: the paper repeats
+    crossover "with a different head and tail separation"), or mutates it once more. If anything the
+    iterator gives is not a :class:`Genome` (a student's operator gone wrong), the children are
+    returned unchecked for the caller to report.
+    """
+    kids = [next(children) for _ in range(n)]
+    if not kids or not all(isinstance(k, Genome) for k in list(parents) + kids):
+        return kids
+    refs = list(preview(parents, size)) if parents else []
+    accepted: list[Genome] = []
+    pending = list(range(n))
+    for attempt in range(tries + 1):
+        fresh = preview([kids[i] for i in pending], size) if pending else []
+        still = []
+        for i, pic in zip(pending, fresh):
+            if _distance(pic, refs) < SAME and attempt < tries:
+                still.append(i)
+            else:
+                refs.append(pic)
+                accepted.append(kids[i])
+        if not still:
+            break
+        for i in still:
+            if again is not None and attempt + 1 >= tries // 2:
+                kids[i] = again(kids[i], list(accepted))
+            else:
+                kids[i] = next(children)
+            if not isinstance(kids[i], Genome):
+                return kids
+        pending = still
+    return kids
