@@ -137,17 +137,22 @@ def main(argv=None):
         rows.append(("first generation (random_population)",
                      picture_figures(_render(first), photos) + [with_photo(first)]))
     t2 = time.perf_counter()
-    checked, repeats, identical, per_op = children_figures(args.sessions)
+    children = children_figures(args.sessions) if args.sessions > 0 else None
     t3 = time.perf_counter()
     print(f"random pictures: {args.genomes} genomes (seeds 0..{args.genomes - 1}) at {SIZE}^2")
     print(f"{'':38s} {'flat':>6s} {'black':>6s} {'grey':>6s} {'photo':>6s} {'photo in tree':>14s}")
     for name, (flat, black, grey, photo, tree) in rows:
         print(f"{name:38s} {flat:6.1%} {black:6.1%} {grey:6.1%} {photo:6.1%} {tree:14.1%}")
-    print(f"children: {checked} checked ({args.sessions} sessions x 7 operators x 18 children) at {SIZE}^2:")
+    if children is not None:
+        _print_children(args.sessions, *children)
+    print(f"(seconds: Genome.random {t1 - t0:.1f}, random_population {t2 - t1:.1f}, sessions {t3 - t2:.1f})")
+
+
+def _print_children(sessions, checked, repeats, identical, per_op):
+    print(f"children: {checked} checked ({sessions} sessions x 7 operators x 18 children) at {SIZE}^2:")
     print(f"  repeat a parent or an earlier child: {repeats:.1%}")
     print(f"  identical to a parent or a sibling:  {identical:.1%}")
     print("  identical, per operator: " + ", ".join(f"{k} {v:.1%}" for k, v in per_op.items()))
-    print(f"(seconds: Genome.random {t1 - t0:.1f}, random_population {t2 - t1:.1f}, sessions {t3 - t2:.1f})")
 
 
 if __name__ == "__main__":
