@@ -12,7 +12,8 @@ generation (:func:`coursekit.pictures.variety.random_population`, one genome per
 - *greyscale*: the mean over pixels of (largest channel - smallest channel) is below 0.02;
 - *photo-dominated*: the picture's luminance correlates (``|Pearson r| > 0.5``) with the
   luminance of one of the scikit-image stock photos (each rendered alone as a ``pixmap``
-  chromosome at the same size and window).
+  chromosome at the same size and window);
+- *photo in tree*: the coding part holds a ``pixmap`` chromosome (an ingredient, seen or not).
 
 **Children identical** (``--sessions`` sessions, default 30): session ``s`` starts a widget-free
 gallery (:class:`~coursekit.pictures.gallery.Evolution`, 20 pictures, first generation as the
@@ -73,6 +74,11 @@ def picture_figures(images, photos):
     return [float(v.mean()) for v in (flat, black, grey, photo)]
 
 
+def with_photo(genomes):
+    """Fraction of ``genomes`` whose coding part holds a ``pixmap`` (a stock photo)."""
+    return float(np.mean([any(n.symbol == "pixmap" for n in g.decode().walk()) for g in genomes]))
+
+
 def first_generation(rng, n):
     """The gallery's first generation, as this version of the library makes it."""
     try:
@@ -83,8 +89,10 @@ def first_generation(rng, n):
 
 
 def children_figures(sessions, n=20):
-    """(children checked, fraction repeating, fraction identical to a parent or sibling)."""
+    """(children checked, fraction repeating, fraction identical to a parent or sibling, and
+    per operator the fraction identical)."""
     checked = repeats = identical = 0
+    per_op: dict = {}
     for s in range(sessions):
         rng = np.random.default_rng(s)
         ev = Evolution(GalleryState(first_generation(rng, n)), rng)
@@ -103,9 +111,10 @@ def children_figures(sessions, n=20):
                 checked += 1
                 repeats += min(d_par + d_earlier) < SAME
                 identical += min(d_par + d_sib) < SAME
+                per_op.setdefault(name, []).append(min(d_par + d_sib) < SAME)
             ev.undo()
             ev.state.selected.clear()
-    return checked, repeats / checked, identical / checked
+    return checked, repeats / checked, identical / checked, {k: float(np.mean(v)) for k, v in per_op.items()}
 
 
 def main(argv=None):
@@ -117,7 +126,7 @@ def main(argv=None):
     rows = []
     t0 = time.perf_counter()
     plain = [Genome.random(np.random.default_rng(i)) for i in range(args.genomes)]
-    rows.append(("Genome.random (defaults)", picture_figures(_render(plain), photos)))
+    rows.append(("Genome.random (defaults)", picture_figures(_render(plain), photos) + [with_photo(plain)]))
     t1 = time.perf_counter()
     try:
         from coursekit.pictures.variety import random_population
@@ -125,18 +134,25 @@ def main(argv=None):
         random_population = None
     if random_population is not None:
         first = [random_population(np.random.default_rng(i), 1)[0] for i in range(args.genomes)]
-        rows.append(("first generation (random_population)", picture_figures(_render(first), photos)))
+        rows.append(("first generation (random_population)",
+                     picture_figures(_render(first), photos) + [with_photo(first)]))
     t2 = time.perf_counter()
-    checked, repeats, identical = children_figures(args.sessions)
+    children = children_figures(args.sessions) if args.sessions > 0 else None
     t3 = time.perf_counter()
     print(f"random pictures: {args.genomes} genomes (seeds 0..{args.genomes - 1}) at {SIZE}^2")
-    print(f"{'':38s} {'flat':>6s} {'black':>6s} {'grey':>6s} {'photo':>6s}")
-    for name, (flat, black, grey, photo) in rows:
-        print(f"{name:38s} {flat:6.1%} {black:6.1%} {grey:6.1%} {photo:6.1%}")
-    print(f"children: {checked} checked ({args.sessions} sessions x 7 operators x 18 children) at {SIZE}^2:")
+    print(f"{'':38s} {'flat':>6s} {'black':>6s} {'grey':>6s} {'photo':>6s} {'photo in tree':>14s}")
+    for name, (flat, black, grey, photo, tree) in rows:
+        print(f"{name:38s} {flat:6.1%} {black:6.1%} {grey:6.1%} {photo:6.1%} {tree:14.1%}")
+    if children is not None:
+        _print_children(args.sessions, *children)
+    print(f"(seconds: Genome.random {t1 - t0:.1f}, random_population {t2 - t1:.1f}, sessions {t3 - t2:.1f})")
+
+
+def _print_children(sessions, checked, repeats, identical, per_op):
+    print(f"children: {checked} checked ({sessions} sessions x 7 operators x 18 children) at {SIZE}^2:")
     print(f"  repeat a parent or an earlier child: {repeats:.1%}")
     print(f"  identical to a parent or a sibling:  {identical:.1%}")
-    print(f"(seconds: Genome.random {t1 - t0:.1f}, random_population {t2 - t1:.1f}, sessions {t3 - t2:.1f})")
+    print("  identical, per operator: " + ", ".join(f"{k} {v:.1%}" for k, v in per_op.items()))
 
 
 if __name__ == "__main__":

@@ -126,7 +126,8 @@ class Evolution:
         return [self.state.population[i] for i in self.state.selected]
 
     def mutate(self, name: str) -> str:
-        """Parents (the selection) stay; the rest are children by mutation ``name``."""
+        """Parents (the selection) stay; the rest are children by mutation ``name``, none
+        looking like a parent or another child (:func:`~.variety.distinct_children`)."""
         parents = self._parents()
         if not parents:
             return "select at least one picture to mutate"
@@ -145,7 +146,8 @@ class Evolution:
         return self._commit(pop, f"generation {self.state.generation + 1}: {name} of {len(parents)} parent(s)")
 
     def recombine(self, name: str) -> str:
-        """Parents stay; the rest are children of random parent pairs by ``name``."""
+        """Parents stay; the rest are children of random parent pairs by ``name``, none looking
+        like a parent or another child (:func:`~.variety.distinct_children`)."""
         parents = self._parents()
         if len(parents) < 2:
             return "select at least two pictures to recombine"

@@ -47,6 +47,7 @@ Choices where the paper is silent (documented so students can reproduce them):
 
 from __future__ import annotations
 
+import functools
 from typing import Sequence
 
 import numpy as np
@@ -110,15 +111,18 @@ def _expressed(node):
     return (node.chromosome, tuple(_expressed(c) for c in node.children))
 
 
+@functools.lru_cache(maxsize=4096)
 def coding(genome: Genome) -> tuple:
     """The coding part of ``genome`` as a comparable value: equal for two genomes exactly when
     their expression trees are equal (same primitives, parameters and shape), whatever their
-    non-coding chromosomes."""
+    non-coding chromosomes. (Kept for the last few thousand genomes: the gallery asks again
+    and again about the same parents.)"""
     return _expressed(genome.decode())
 
 
+@functools.lru_cache(maxsize=4096)
 def _active(g: Genome) -> dict:
-    return {k: set(v) for k, v in g.active.items()}
+    return {k: frozenset(v) for k, v in g.active.items()}
 
 
 def _mutated(genome, rng, draw) -> Genome:

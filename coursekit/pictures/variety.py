@@ -106,32 +106,55 @@ def random_population(rng: np.random.Generator, n: int, *, tries: int = 8, size:
 
 
 def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *, again=None,
-                      tries: int = 8, size: int = PREVIEW) -> list:
+                      tries: int = 8, draws: int = 4, size: int = PREVIEW) -> list:
     """``n`` children from the iterator ``children`` that look different from ``parents`` and
     from each other.
 
-    The first ``n`` children are previewed at ``size``; slot by slot, one within :data:`SAME`
-    (mean absolute difference) of a parent or of an already accepted child is replaced by the
-    iterator's next child, at most ``tries`` rounds (what is left then stays). From round
-    ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is replaced by
-    ``again(c, accepted)`` instead (``accepted``: the children kept so far): the operator
-    applied once more to it, for when the parents have fewer distinct children than there are
-    slots (two relatives, a small coding part). The gallery crosses ``c`` with a parent or an
-    accepted sibling (more of the parents' material, with another split: the paper repeats
-    crossover "with a different head and tail separation"), or mutates it once more. If anything the
-    iterator gives is not a :class:`Genome` (a student's operator gone wrong), the children are
-    returned unchecked for the caller to report.
+    Each child is drawn (at most ``draws`` times, a cheap test on the genome) until its
+    expression (:func:`~coursekit.pictures.operators.coding`) is not one already there: a
+    parent's or another child's. The ``n`` children are then previewed at ``size``; slot by
+    slot, one within :data:`SAME` (mean absolute difference) of a parent or of an already
+    accepted child is drawn again the same way, at most ``tries`` rounds (what is left then
+    stays). From round ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is
+    replaced by ``again(c, accepted)`` instead (``accepted``: the children kept so far): the
+    operator applied once more to it, for when the parents have fewer distinct children than
+    there are slots (two relatives, a small coding part). The gallery crosses ``c`` with a
+    parent or an accepted sibling (more of the parents' material, with another split: the
+    paper repeats crossover "with a different head and tail separation"), or mutates it once
+    more. If anything the iterator gives is not a :class:`Genome` (a student's operator gone
+    wrong), the children are returned unchecked for the caller to report.
     """
-    kids = [next(children) for _ in range(n)]
-    if not kids or not all(isinstance(k, Genome) for k in list(parents) + kids):
+    from .operators import coding
+
+    if not all(isinstance(p, Genome) for p in parents):
+        return [next(children) for _ in range(n)]
+    seen = {coding(p) for p in parents}
+
+    def fresh(make):
+        for _ in range(max(1, draws)):
+            kid = make()
+            if not isinstance(kid, Genome):
+                return kid
+            key = coding(kid)
+            if key not in seen:
+                break
+        seen.add(key)
+        return kid
+
+    kids: list = []
+    while len(kids) < n:
+        kids.append(fresh(lambda: next(children)))
+        if not isinstance(kids[-1], Genome):
+            return kids + [next(children) for _ in range(n - len(kids))]
+    if not kids:
         return kids
     refs = list(preview(parents, size)) if parents else []
     accepted: list[Genome] = []
     pending = list(range(n))
     for attempt in range(tries + 1):
-        fresh = preview([kids[i] for i in pending], size) if pending else []
+        pics = preview([kids[i] for i in pending], size)
         still = []
-        for i, pic in zip(pending, fresh):
+        for i, pic in zip(pending, pics):
             if _distance(pic, refs) < SAME and attempt < tries:
                 still.append(i)
             else:
@@ -141,9 +164,10 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *, 
             break
         for i in still:
             if again is not None and attempt + 1 >= tries // 2:
-                kids[i] = again(kids[i], list(accepted))
+                rejected = kids[i]
+                kids[i] = fresh(lambda: again(rejected, list(accepted)))
             else:
-                kids[i] = next(children)
+                kids[i] = fresh(lambda: next(children))
             if not isinstance(kids[i], Genome):
                 return kids
         pending = still
