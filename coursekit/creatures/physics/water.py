@@ -87,6 +87,19 @@ def drag_matrix(model, k: float | None = None, box_drag=None):
 
 
 def max_drag_rate(model, k: float | None = None, box_drag=None) -> float:
-    """Upper bound on the drag relaxation rate of the whole batch (1/s)."""
+    """Upper bound on the drag relaxation rate of the batch (1/s), which sets the sub-steps.
+
+    With the library's drag it is the bound for *any* valid box, ``k / (density h_min)`` with
+    ``h_min`` = :data:`~coursekit.creatures.body.MIN_HALF_EXTENT` (the boxes' own rates are at
+    most that), not the stiffest box present: a creature's step, and so its trajectory and
+    fitness to the last bit, must not depend on which creatures share its batch. (Creatures of
+    other densities than water's still share the batch's smallest density.) With a student's
+    ``box_drag`` the rates of the boxes present are used.
+    """
+    from coursekit.creatures.body import MIN_HALF_EXTENT
+
     k = DRAG_COEFFICIENT if k is None else float(k)
+    if box_drag is None:
+        density = min(float(t.density) for t in model.trees)
+        return k / (density * MIN_HALF_EXTENT)
     return float(np.max(body_drag(model.half_extents_np, k, box_drag) / model.inertia_diag_np))
