@@ -208,13 +208,13 @@ def test_snake_legs_move_in_opposition():
 
 
 def test_snake_travelling_wave_from_recursive_relative_ids():
-    """Each snake segment adds -0.8 rad to its parent's phase: a known travelling wave."""
+    """Each snake segment adds -1.5 rad to its parent's phase: a known travelling wave."""
     ph = Creature.figure1_snake(segments=4).expand()
     bb = BrainBatch([ph])
     dt = 0.01
     for n in range(12):
         t = bb.time
         eff = bb.step(np.zeros(5), np.zeros(5), -np.ones((6, 6)), dt)
-    # joints 0..2 are segments 1..3; segment k has phase -0.8 (k + 1)
-    want = [math.sin(2 * math.pi * 3.0 * t - 0.8 * (k + 1)) for k in (1, 2, 3)]  # 3 Hz oscillators
+    # joints 0..2 are segments 1..3; segment k has phase -1.5 (k + 1)
+    want = [math.sin(2 * math.pi * 3.0 * t - 1.5 * (k + 1)) for k in (1, 2, 3)]  # 3 Hz oscillators
     np.testing.assert_allclose(eff[:3], want, atol=1e-12)

@@ -525,18 +525,22 @@ class Creature:
         if not _is_int(segments) or not 1 <= segments <= MAX_RECURSIVE_LIMIT + 1:
             raise ValueError(f"figure1_snake.segments: must be an int in [1, {MAX_RECURSIVE_LIMIT + 1}], got {segments!r}")
         brain = [Neuron("oscillate_wave", [Input(None, 0, 0.0)], 1.0)]
+        # Slender-body (resistive-force) theory for a travelling wave in a viscous medium gives a
+        # speed of about (r - 1) (A k)^2 / 2 times the wave speed (reference/creatures.md section
+        # 7), r being the drag across the body over the drag along it -- for Sims' per-face drag
+        # on a box, the side area over the end area, here L / w = 0.4 / 0.08 = 5 -- so the snake
+        # is slender, bends +-1 rad (amplitude counts squared) and beats at 3 Hz (speed grows
+        # with frequency) with about 0.7 wavelengths on its body, like an eel.
         segment = Node(
-            size=(0.2, 0.08, 0.06), joint_type="revolute", joint_pos=(-1.0, 0.0, 0.0), joint_axis=(0.0, 0.0, 1.0),
-            limits=(-0.6, 0.6), force=1.0, recursive_limit=segments - 1,
+            size=(0.2, 0.04, 0.06), joint_type="revolute", joint_pos=(-1.0, 0.0, 0.0), joint_axis=(0.0, 0.0, 1.0),
+            limits=(-1.0, 1.0), force=1.0, recursive_limit=segments - 1,
             children=[ChildLink(1, pos=(0.5, 1.0, 0.0), terminal_only=True)],
             recursion=[Recursion(pos=(1.0, 0.0, 0.0), scale=1.0)],
             symmetry=[Symmetry(1, axis=1)],
             # A travelling wave: neuron 0 accumulates a phase along the spine (its parent's
-            # phase minus 0.8 rad; the root has no parent and reads 0), neuron 1 oscillates at
-            # 3 Hz with that phase and drives the segment's joint. Slender-body theory puts the
-            # speed of such a wave in proportion to its frequency (reference/creatures.md
-            # section 7): within the paper's +-0.6 rad it takes about 3 Hz, not 1, to swim.
-            neurons=[Neuron("sum", [Input(-1, N_SENSORS, 1.0), Input(None, 0, -0.8)]),
+            # phase minus 1.5 rad; the root has no parent and reads 0), neuron 1 oscillates at
+            # 3 Hz with that phase and drives the segment's joint.
+            neurons=[Neuron("sum", [Input(-1, N_SENSORS, 1.0), Input(None, 0, -1.5)]),
                      Neuron("oscillate_wave", [Input(0, N_SENSORS, 1.0)], 3.0)],
             effectors=[Input(0, N_SENSORS + 1, 1.0)],
         )
@@ -545,6 +549,26 @@ class Creature:
             limits=(-0.8, 0.8), force=-1.0, effectors=[Input(-2, 0, 1.0)],
         )
         return cls([segment, leg], brain)
+
+    @classmethod
+    def paddle_turtle(cls) -> "Creature":
+        """A second hand-designed swimmer with a different stroke: a flat body rowing two paddles.
+
+        Node 0 is the body; its link to node 1 (an arm, swinging fore and aft about the body's
+        vertical axis) is mirrored by a symmetry entry, and each arm carries node 2 (a blade that
+        turns about the arm's long axis). In viscous water a reciprocal stroke gets nowhere
+        (Purcell's scallop theorem: the recovery undoes the power stroke), so the blades
+        *feather*: two central oscillators at 1.5 Hz, the blades' a quarter period ahead of the
+        arms', hold each blade broadside to the water on the power stroke and edge-on on the
+        recovery. A positive force coefficient makes both sides row together, like a turtle.
+        """
+        brain = [Neuron("oscillate_wave", [Input(None, 0, 0.0)], 1.5), Neuron("oscillate_wave", [Input(None, 0, math.pi / 2)], 1.5)]
+        body = Node(size=(0.25, 0.15, 0.06), children=[ChildLink(1, pos=(0.3, 1.0, 0.0))], symmetry=[Symmetry(1, axis=1)], effectors=[None])
+        arm = Node(size=(0.04, 0.12, 0.03), joint_type="revolute", joint_pos=(0.0, -1.0, 0.0), joint_axis=(0.0, 0.0, 1.0),
+                   limits=(-0.9, 0.9), force=1.0, children=[ChildLink(2, pos=(0.0, 1.0, 0.0))], effectors=[Input(-2, 0, 1.0)])
+        blade = Node(size=(0.15, 0.1, 0.025), joint_type="revolute", joint_pos=(0.0, -1.0, 0.0), joint_axis=(0.0, 1.0, 0.0),
+                     limits=(-1.2, 1.2), force=1.0, effectors=[Input(-2, 1, 1.0)])
+        return cls([body, arm, blade], brain)
 
 
 # ----------------------------------------------------------------------- random elements
