@@ -42,7 +42,9 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     if args.name == "swimmers":
         summary = demos.swimmers(args.out or "swimmers-demo", population=args.population, generations=args.generations,
                                  seconds=args.seconds, seed=args.seed)
-        print(f"best swimmer: fitness {summary['best_fitness']:.4f} m/s with {summary['best_parts']} parts")
+        print(f"best swimmer: {summary['best_speed']:.3f} m/s = {summary['best_body_lengths_per_second']:.3f} body lengths/s "
+              f"(fitness {summary['best_fitness']:.4f} m/s), {summary['best_parts']} parts")
+        print(f"audit: {summary['audit']}")
         print(f"wrote {', '.join(summary['files'])} to {args.out or 'swimmers-demo'}/")
         return 0
     return _lab(ROOT / "demos" / "picture_breeding.ipynb", args.no_browser, args.extra)

@@ -2,7 +2,8 @@
 
 - ``swimmers``: evolve a population of swimmers (paper section 2) in the batched simulator and
   write what a lecture wants to show: the best creature's genome, a picture of it, a GIF of it
-  swimming, and the fitness plot of the run.
+  swimming, the fitness plot of the run, and its audit (:mod:`coursekit.creatures.audit`: does
+  it swim, or exploit the simulator?).
 - ``pictures``: breed genetic pictures (paper section 3) in the click-to-select gallery: the CLI
   opens ``demos/picture_breeding.ipynb`` in JupyterLab.
 """
@@ -32,6 +33,7 @@ def swimmers(out="swimmers-demo", *, population: int | None = None, generations:
     import matplotlib.pyplot as plt
 
     from coursekit.creatures import evolve_swimmers, simulate
+    from coursekit.creatures.audit import audit
     from coursekit.creatures.render import animate, render
     from coursekit.atomic import atomic_write
 
@@ -48,6 +50,7 @@ def swimmers(out="swimmers-demo", *, population: int | None = None, generations:
     render(best, out / "best.png")
     replay = simulate([best], seconds, record_every=3)
     animate(best, replay.trajectory[0], out / "best.gif", fps=20)
+    report = audit([best], seconds)[0]  # is it swimming, or exploiting the simulator?
     fig, ax = plt.subplots(figsize=(6, 3.5))
     result.history.plot(ax=ax)
     ax.set_title(f"Swimmers: {population} creatures, {generations} generations")
@@ -57,6 +60,9 @@ def swimmers(out="swimmers-demo", *, population: int | None = None, generations:
     summary = {
         "population": population, "generations": generations, "seconds": seconds, "seed": seed,
         "best_fitness": float(result.best_fitness), "best_parts": int(best.expand().body.n_bodies),
+        "best_speed": report.speed, "best_body_length": report.body_length,
+        "best_body_lengths_per_second": report.body_lengths_per_second,
+        "audit": str(report), "audit_passed": report.passed,
         "history_best": [float(x) for x in result.history.best],
         "files": sorted(p.name for p in out.iterdir()),
     }

@@ -1,0 +1,167 @@
+"""Is a swimmer swimming, or exploiting the simulator? The checks a fast creature must pass.
+
+Sims warned that "energy leaks from non-conservation, or even round-off errors, will inevitably be
+discovered and exploited". A creature's speed is only worth celebrating when it comes from
+pushing against the water. :func:`audit` simulates each creature under conditions in which
+nothing can swim and reports what it finds:
+
+- ``passive_drift``: centre-of-mass displacement with its effectors off, in water (m): a body
+  settling, not swimming, should barely move;
+- ``vacuum_drift``: displacement with the water switched off, at the simulation step and at an
+  eighth of it (m): internal forces conserve momentum, so nothing swims in a vacuum; what is left
+  is integration error, which shrinks with the step (order 4) -- a creature whose speed depends on
+  it is exploiting the step, not the water;
+- ``fine_speed``: the distance swum per second at an eighth of the step (m/s), against ``speed``
+  at the step itself: a speed that disappears with a finer step was integration error;
+- ``limit_excess``: the worst excess of any joint beyond its limits, as a fraction of its range;
+- ``diverged``: the speed-cap or non-finite guard fired (the creature scores 0);
+- ``energy``: the work its effectors did (J), ``sum(tau * qd) dt``; ``cost_of_transport`` =
+  energy / (mass * distance) (J / (kg m)).
+
+``passed`` is False, with ``reasons``, when the drift in a vacuum at the fine step or the drift
+with the effectors off is over :data:`VACUUM_TOLERANCE` of the distance swum, when the fine-step speed is below
+:data:`FINE_SPEED_SHARE` of the speed, when a limit is passed by more than
+:data:`LIMIT_TOLERANCE` of its range, or when the creature diverged. Distances under
+:data:`NEGLIGIBLE` body lengths are not judged.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Largest vacuum drift at the fine step, as a share of the distance swum in water.
+VACUUM_TOLERANCE = 0.05
+#: Smallest share of its speed a creature must keep when the step is refined eightfold.
+FINE_SPEED_SHARE = 0.75
+#: Largest joint-limit excess, as a share of the joint's range.
+LIMIT_TOLERANCE = 0.25
+#: How much finer the "fine" step is.
+REFINE = 8
+#: Distances below this many body lengths are not judged (a creature that hardly moves).
+NEGLIGIBLE = 0.05
+
+
+@dataclass
+class AuditReport:
+    """What :func:`audit` found for one creature (see the module docstring for the fields)."""
+
+    speed: float
+    body_length: float
+    fine_speed: float
+    passive_drift: float
+    vacuum_drift: float
+    vacuum_drift_fine: float
+    limit_excess: float
+    diverged: bool
+    energy: float
+    cost_of_transport: float
+    reasons: list = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return not self.reasons
+
+    @property
+    def body_lengths_per_second(self) -> float:
+        return self.speed / self.body_length
+
+    def __str__(self) -> str:
+        verdict = "passed" if self.passed else "FAILED: " + "; ".join(self.reasons)
+        return (f"{self.speed:.3f} m/s = {self.body_lengths_per_second:.3f} body lengths/s "
+                f"(at dt/{REFINE}: {self.fine_speed:.3f} m/s); drift with effectors off {self.passive_drift:.3f} m, "
+                f"in a vacuum {self.vacuum_drift:.3f} m (at dt/{REFINE}: {self.vacuum_drift_fine:.4f} m); "
+                f"worst limit excess {100 * self.limit_excess:.1f} % of range; energy {self.energy:.3g} J; {verdict}")
+
+
+def body_length(body) -> float:
+    """The creature's largest extent at rest (m): its length, the unit of "body lengths per second"."""
+    from .render import box_corners
+
+    pts = box_corners(body).reshape(-1, 3)
+    return float(np.max(np.ptp(pts, axis=0)))
+
+
+class _Silent:
+    """A controller whose effectors are all off."""
+
+    def __init__(self, n):
+        self.n = n
+
+    def step(self, q, qd, contact, dt):
+        return np.zeros(self.n)
+
+
+def audit(creatures, seconds: float = 10.0, *, dt: float = 1.0 / 60.0, **options) -> list[AuditReport]:
+    """Audit creatures for exploits (module docstring); one :class:`AuditReport` each.
+
+    Args:
+        creatures: creatures (with brains) to audit, simulated together.
+        seconds: swimming time of every run (s).
+        dt: the simulation step to audit.
+        **options: further :func:`~coursekit.creatures.simulate.simulate` options.
+    """
+    from .simulate import simulate
+
+    creatures = list(creatures)
+    bodies = [c.expand().body for c in creatures]
+    n = sum(b.n_joints for b in bodies)
+    meter = _Metered(creatures)
+    swim = simulate(creatures, seconds, dt=dt, record_every=1, controller=meter, **options)
+    fine = simulate(creatures, seconds, dt=dt / REFINE, **options)
+    passive = simulate(creatures, seconds, dt=dt, controller=_Silent(n), **options)
+    water_off = {**options, "drag_coefficient": 0.0}
+    vacuum = simulate(creatures, seconds, dt=dt, **water_off)
+    vacuum_fine = simulate(creatures, seconds, dt=dt / REFINE, **water_off)
+    dist = lambda r, i: float(np.linalg.norm(r.com[i, -1] - r.com[i, 0]))  # noqa: E731
+    energy = meter.work
+    reports = []
+    for i, b in enumerate(bodies):
+        q = swim.trajectory[i][:, 7:]
+        lo, hi = b.limits[1:, 0], b.limits[1:, 1]
+        excess = float(np.max(np.maximum(q - hi, lo - q) / (hi - lo), initial=0.0))
+        d = dist(swim, i)
+        mass = float(b.mass.sum())
+        rep = AuditReport(
+            speed=d / seconds, body_length=body_length(b), fine_speed=dist(fine, i) / seconds,
+            passive_drift=dist(passive, i), vacuum_drift=dist(vacuum, i), vacuum_drift_fine=dist(vacuum_fine, i),
+            limit_excess=max(excess, 0.0), diverged=bool(swim.diverged[i] or fine.diverged[i]),
+            energy=energy[i], cost_of_transport=energy[i] / (mass * d) if d > 0 else float("inf"),
+        )
+        if rep.diverged:
+            rep.reasons.append("diverged (speed cap or non-finite state)")
+        floor = NEGLIGIBLE * rep.body_length  # below this, no one would call it swimming either way
+        if rep.vacuum_drift_fine > max(VACUUM_TOLERANCE * d, floor):
+            rep.reasons.append(f"moves {rep.vacuum_drift_fine:.3g} m in a vacuum at dt/{REFINE}")
+        if rep.passive_drift > max(VACUUM_TOLERANCE * d, floor):
+            rep.reasons.append(f"drifts {rep.passive_drift:.3g} m with its effectors off")
+        if rep.fine_speed < FINE_SPEED_SHARE * rep.speed and (rep.speed - rep.fine_speed) * seconds > floor:
+            rep.reasons.append(f"keeps only {rep.fine_speed / max(rep.speed, 1e-12):.0%} of its speed at dt/{REFINE}")
+        if rep.limit_excess > LIMIT_TOLERANCE:
+            rep.reasons.append(f"passes a joint limit by {100 * rep.limit_excess:.0f} % of its range")
+        reports.append(rep)
+    return reports
+
+
+class _Metered:
+    """The creatures' own brains as the controller, metering the effectors' work ``|tau . qd| dt``."""
+
+    def __init__(self, creatures):
+        from .brain import BrainBatch
+
+        phenotypes = [c.expand() for c in creatures]
+        self.brains = BrainBatch([p.brain for p in phenotypes])
+        self.strength = np.concatenate([p.body.strength[1:] for p in phenotypes])
+        self.gain = np.concatenate([p.body.gain[1:] for p in phenotypes])
+        self.owner = np.concatenate([np.full(p.body.n_joints, i) for i, p in enumerate(phenotypes)])
+        self.work = np.zeros(len(phenotypes))
+
+    def reset(self):
+        self.brains.reset()
+
+    def step(self, q, qd, contact, h):
+        e = np.asarray(self.brains.step(q, qd, contact, h), dtype=np.float64)
+        tau = self.strength * np.clip(self.gain * np.where(np.isfinite(e), e, 0.0), -1.0, 1.0)  # as World.set_effectors
+        self.work += np.bincount(self.owner, weights=np.abs(tau * qd) * h, minlength=len(self.work))
+        return e

@@ -1,0 +1,48 @@
+"""The audit tells swimming from exploiting the simulator: one creature per exploit, and two that swim."""
+
+import numpy as np
+import pytest
+
+from coursekit.creatures import Creature
+from coursekit.creatures.audit import audit
+
+
+@pytest.fixture(scope="module")
+def swimmers():
+    return audit([Creature.figure1_snake(), Creature.paddle_turtle()], 3.0)
+
+
+def test_the_hand_designed_swimmers_pass(swimmers):
+    snake, turtle = swimmers
+    assert snake.passed and turtle.passed, (str(snake), str(turtle))
+    assert snake.body_lengths_per_second > 0.15 and turtle.body_lengths_per_second > 0.01
+    assert snake.fine_speed > 0.75 * snake.speed  # the speed is the water's, not the step's
+    assert snake.vacuum_drift_fine < 0.05 * snake.speed * 3.0
+    assert snake.energy > 0 and np.isfinite(snake.cost_of_transport)
+
+
+def test_a_speed_that_is_integration_error_fails():
+    # at a step far too coarse for its stroke the snake "swims" in a vacuum: the fine-step rerun
+    # shows it (the same creature passes at the default step, above)
+    (r,) = audit([Creature.figure1_snake()], 3.0, dt=1 / 12)
+    assert not r.passed and any("vacuum" in x or "speed at dt" in x for x in r.reasons), str(r)
+
+
+def test_joints_through_their_limits_fail():
+    (r,) = audit([Creature.figure1_snake()], 3.0, limits=False)
+    assert r.limit_excess > 0.25 and not r.passed and any("limit" in x for x in r.reasons), str(r)
+
+
+def test_a_creature_past_the_speed_caps_fails():
+    (r,) = audit([Creature.figure1_snake()], 3.0, max_joint_speed=1.0)
+    assert r.diverged and not r.passed and any("diverged" in x for x in r.reasons), str(r)
+
+
+def test_drifting_without_effort_fails():
+    # a body launched at 1 m/s into thin water coasts with its effectors off: not swimming
+    snake = Creature.figure1_snake()
+    nq = 7 + snake.expand().body.n_joints
+    qvel = np.zeros(nq - 1)
+    qvel[0] = 1.0
+    (r,) = audit([snake], 3.0, initial_state=([np.r_[0, 0, 0, 1, 0, 0, 0, np.zeros(nq - 7)]], [qvel]), settle=0.0, drag_coefficient=0.05)
+    assert not r.passed and any("effectors off" in x for x in r.reasons), str(r)
