@@ -201,7 +201,7 @@ class World:
         inertia -- exactly momentum-conserving. The inertias are those the step's first stage needs.
         """
         xp, m = self.xp, self.model
-        self._lock, rate = self.limits.begin(s.q, s.qd)
+        self._lock, rate = self.limits.begin(s.q, s.qd, self.tau)
         self._inertia_q, self._inertia = s.q, articulated_inertias(m, s.q, self._lock)
         zj, zc = xp.zeros_like(s.q), xp.zeros((m.n_creatures, 6), dtype=s.q.dtype, device=m.device)
         dv0, dqd, _, _ = aba(m, s.q, zj, zc, zj, inertias=self._inertia, v=xp.zeros((m.n_bodies, 6), dtype=s.q.dtype, device=m.device),
