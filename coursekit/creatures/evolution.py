@@ -21,7 +21,7 @@ import numpy as np
 from coursekit import ga
 from coursekit.creatures import operators
 from coursekit.creatures.genotype import Creature
-from coursekit.creatures.simulate import simulate
+from coursekit.creatures.simulate import DT, simulate
 
 
 @dataclass(frozen=True)
@@ -55,16 +55,28 @@ class SwimmerFitness:
 
     Given to :func:`coursekit.ga.evolve` as ``map`` (the engine's per-genome ``fitness`` is not
     called); every option goes to :func:`~coursekit.creatures.simulate.simulate`.
+
+    Exploits of the time step are scored out: the ``refine`` fittest creatures of every batch are
+    simulated again at half the step, and each keeps the lower of its two scores. A speed that
+    came from integration error -- the one leak an exact simulator still has, and the first thing
+    evolution finds (:mod:`coursekit.creatures.audit`) -- does not survive the finer step; a
+    swimmer's does (the Figure 1 snake: 0.419 and 0.384 m/s).
     """
 
     seconds: float = 10.0
     options: dict = field(default_factory=dict)
+    refine: int = 3
 
     def __call__(self, _fitness, creatures):
         creatures = list(creatures)
         if not creatures:
             return []
-        return [float(f) for f in simulate(creatures, self.seconds, **self.options).fitness]
+        fitness = simulate(creatures, self.seconds, **self.options).fitness
+        if self.refine > 0:
+            top = np.argsort(-fitness, kind="stable")[: self.refine]
+            fine = {**self.options, "dt": self.options.get("dt", DT) / 2}
+            fitness[top] = np.minimum(fitness[top], simulate([creatures[i] for i in top], self.seconds, **fine).fitness)
+        return [float(f) for f in fitness]
 
 
 def _unbatched(creature):  # pragma: no cover - never called: SwimmerFitness evaluates the batch

@@ -24,6 +24,10 @@ from coursekit.creatures.physics.model import as_trees
 from coursekit.creatures.physics.world import World
 
 
+#: The default physics step (s).
+DT = 1.0 / 60.0
+
+
 @dataclass
 class SimulationResult:
     """Outcome of :func:`simulate`.
@@ -68,7 +72,7 @@ def simulate(
     creatures,
     seconds: float = 10.0,
     *,
-    dt: float = 1.0 / 60.0,
+    dt: float = DT,
     settle: float = 0.5,
     controller=None,
     initial_state=None,
