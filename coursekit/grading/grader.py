@@ -251,11 +251,15 @@ def exercise_of(path, override=None) -> str:
         registry.for_notebook(path.stem)
         return path.stem
     name = meta["exercise"]
-    known = ", ".join(sorted(registry.EXERCISES))
-    if type(name) is not str or name not in registry.EXERCISES:
-        raise ValueError(f"{path}: metadata field coursekit.exercise is {clean(repr(name))[:80]}, which names no exercise; "
-                         f"known: {known} (or pass --exercise)")
-    return name
+    if type(name) is str:
+        try:
+            registry.for_notebook(name)  # loads the registry
+            return name
+        except ValueError:
+            pass
+    registry._load()
+    raise ValueError(f"{path}: metadata field coursekit.exercise is {clean(repr(name))[:80]}, which names no exercise; "
+                     f"known: {', '.join(sorted(registry.EXERCISES))} (or pass --exercise)")
 
 
 # -- running the child and cleaning up after it --------------------------------------------------
