@@ -175,3 +175,12 @@ def test_a_renamed_submission_is_graded_by_its_metadata(do_nothing_and_renamed):
     by_name, _ = do_nothing_and_renamed
     nb = by_name["my homework (final).ipynb"]
     assert nb["graded"] and nb["score"] == nb["max_score"] == 10.0
+
+
+def test_the_librarys_own_operators_are_refused_with_a_clear_message(adversarial):
+    results, _ = adversarial
+    tests = per_check(results, "library_answers.ipynb")
+    for check in ("ga.tournament", "ga.truncation"):  # imported; rebuilt from the library's code
+        assert "is coursekit's own, from coursekit.ga.selection; write your own" in tests[check]["output"]
+    assert "coursekit's own roulette is not available while your roulette is graded" in tests["ga.roulette"]["output"]
+

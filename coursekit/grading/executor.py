@@ -35,7 +35,8 @@ _HARVEST = """def _coursekit_harvest():
     import json
     ns = {{"__name__": "coursekit_harvest"}}
     exec(compile({source!r}, "<coursekit-harvest>", "exec"), ns)
-    ns["harvest"](get_ipython().user_ns, json.loads({spec!r}), {channel!r})
+    ip = get_ipython()
+    ns["harvest"](ip.user_ns, json.loads({spec!r}), {channel!r}, set(getattr(ip.compile, "_filename_map", None) or ()) or None)
 try:
     _coursekit_harvest()
 finally:

@@ -9,6 +9,8 @@ Integrity model. This process computes and writes scores and never imports or ru
   channel file. Memory is bounded by what the notebook's processes hold, never by address space
   (a CUDA build of torch reserves ~3 GB of it on import): :mod:`.supervisor` polls them and
   kills the largest when they pass ``--memory-mb``.
+- A graded function must be written in the notebook (:mod:`.runner` refuses one whose code comes
+  from coursekit or any other file), and coursekit's own versions of it raise while it runs.
 - A notebook part of which could not run -- a cell skipped for time, memory or a crash, a
   harvest that did not finish, no execution report -- is reported **not graded**, with the
   reasons, and ``coursekit grade`` exits with status 3: an instructor never gets a silent 0.
@@ -378,7 +380,8 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
     rng = np.random.default_rng(seed)
     cases = {c.name: c.cases(rng) for c in checks}
     spec = {"timeout": float(timeout), "memory_mb": int(memory_mb),
-            "checks": [{"name": c.name, "function": c.function, "output": c.output, "cases": cases[c.name]} for c in checks]}
+            "checks": [{"name": c.name, "function": c.function, "output": c.output, "cases": cases[c.name],
+                        "refuse": list(c.reference)} for c in checks]}
     ids = grading_user(user)
     private = supervisor.private_dir()
     child = None

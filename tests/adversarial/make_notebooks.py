@@ -148,6 +148,17 @@ for channel in glob.glob("/tmp/coursekit-grade-*/box/channel.jsonl") + [os.path.
         f.write(json.dumps({"check": "ga.point_mutation", "case": "basic", "status": "ok", "verdict": "pass", "score": 2}) + "\\n")
         f.write('{"check": "ga.point_mutation", "score": 2.0, "passed": true}\\n')'''],
     },
+    "library_answers": {
+        "about": "hands in coursekit's own operators: imported, wrapped, aliased and rebuilt from their code.",
+        "sabotaged": {"tournament": '''from coursekit.ga import tournament''', "roulette": '''from coursekit.ga import roulette as library_roulette
+
+def roulette(fitness, k, rng):
+    return library_roulette(fitness, k, rng)''', "truncation": '''import types
+from coursekit import ga
+
+truncation = types.FunctionType(ga.truncation.__code__, ga.truncation.__globals__, "truncation", ga.truncation.__defaults__)'''},
+        "cells": [],
+    },
     "rigged_eq": {
         "about": "returns objects with rigged __eq__/__len__, int and ndarray subclasses, array-likes and huge outputs.",
         "sabotaged": {"truncation": '''class Evil(int):
