@@ -9,6 +9,10 @@ Integrity model. This process computes and writes scores and never imports or ru
   channel file. Memory is bounded by what the notebook's processes hold, never by address space
   (a CUDA build of torch reserves ~3 GB of it on import): :mod:`.supervisor` polls them and
   kills the largest when they pass ``--memory-mb``.
+- The child runs in a bubblewrap sandbox (:mod:`.sandbox`): the file system read-only,
+  ``solutions/``, the other submissions and the results file hidden, a private ``/tmp``, no
+  network, its own PID namespace (the grader and its environment are not visible). Where the
+  sandbox cannot be set up, grading is refused unless the instructor passes ``--unsafe``.
 - A graded function must be written in the notebook (:mod:`.runner` refuses one whose code comes
   from coursekit or any other file), and coursekit's own versions of it raise while it runs.
 - A notebook part of which could not run -- a cell skipped for time, memory or a crash, a
@@ -26,9 +30,10 @@ Integrity model. This process computes and writes scores and never imports or ru
   otherwise it is removed, after ``SIGTERM`` too, and by the next run after a ``SIGKILL``.)
 
 What the kernel can still do is choose the raw outputs its functions return -- exactly what a
-student's function can do anyway. Without root, the kernel runs as the grader's own user and
-could signal or overwrite the grader's files; run graders as root in a container (the
-autograder convention) for the privilege separation.
+student's function can do anyway -- and forge what the harvest reports about itself (its cell
+file names, its own inputs), since the harvest runs in the kernel. Inside the sandbox it runs as
+``nobody`` where that user can run this Python, else as the grader's user with every capability
+dropped: it can then read files that user can read outside the hidden ones.
 """
 
 from __future__ import annotations
@@ -56,13 +61,14 @@ import numpy as np
 import coursekit
 
 from coursekit.grading import checks as registry
-from coursekit.grading import supervisor
+from coursekit.grading import sandbox, supervisor
 from coursekit.grading.checks import STATUSES, Judgement, Verdict
 
 RESULTS_FORMAT = "coursekit.grade/1"
 GRADING_SEED = 7_919
 MAX_CHANNEL_BYTES = 64 * 2**20
 MAX_REPORT_BYTES = 2**20
+MAX_FILE_BYTES = 2**30  # the largest file a graded notebook's processes may write
 _PKG_ROOT = Path(os.path.abspath(coursekit.__file__)).parent.parent  # the coursekit this grader runs (not symlink-resolved)
 
 
@@ -341,8 +347,10 @@ def grading_user(user: str):
 def _limits():
     def apply():
         # No address-space limit: a CUDA build of torch reserves ~3 GB of it on import. Memory is
-        # bounded by what the processes hold (supervisor.MemoryWatch); core dumps are off.
+        # bounded by what the processes hold (supervisor.MemoryWatch); core dumps are off and no
+        # file the notebook writes may pass MAX_FILE_BYTES.
         resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+        resource.setrlimit(resource.RLIMIT_FSIZE, (MAX_FILE_BYTES, MAX_FILE_BYTES))
 
     return apply
 
@@ -359,7 +367,7 @@ def _stop(child) -> None:
 
 
 def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, seed=GRADING_SEED,
-                   exercise=None, user="nobody") -> NotebookResult:
+                   exercise=None, user="nobody", sandboxed=True, hide_files=()) -> NotebookResult:
     """Grade one notebook in an isolated child; see the module docstring.
 
     Args:
@@ -372,6 +380,9 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         exercise: exercise stem (default: :func:`exercise_of`: the notebook's metadata field
             ``coursekit.exercise``, else its file stem, e.g. ``01_selection``).
         user: account the child runs as when grading as root ("" keeps root).
+        sandboxed: run the child in the bubblewrap sandbox (:mod:`.sandbox`; it must be
+            available); False grades unsandboxed (``--unsafe``).
+        hide_files: files the sandbox masks (the batch's other submissions, the results file).
     Returns:
         a :class:`NotebookResult`; ``not_graded`` lists why its score does not stand, if it does not.
     """
@@ -383,6 +394,8 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
             "checks": [{"name": c.name, "function": c.function, "output": c.output, "cases": cases[c.name],
                         "refuse": list(c.reference)} for c in checks]}
     ids = grading_user(user)
+    if sandboxed and ids and sandbox.available(ids) is not None:
+        ids = None  # the sandbox works for this user only: run it as this user, capabilities dropped
     private = supervisor.private_dir()
     child = None
     try:
@@ -409,9 +422,14 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         cmd = [sys.executable, "-m", "coursekit.grading.executor", "--notebook", str(box / "submission.ipynb"),
                "--spec", str(box / "spec.json"), "--channel", str(channel), "--report", str(report),
                "--cwd", str(box / "work"), "--cell-timeout", str(cell_timeout)]
+        if sandboxed:
+            cmd = sandbox.command(box, hide_dirs=[_PKG_ROOT / "solutions"], hide_files=hide_files) + cmd
         # Backstop only: the child bounds every cell and call itself.
         wall = 2 * cell_timeout * (min(nb_bytes.count(b'"cell_type"'), 500) + 2) + (4 * timeout + 60) * len(checks)
-        notes = [] if ids or os.geteuid() != 0 else [f"ran as root: user {user!r} could not run this Python, so privileges were not dropped"]
+        notes = [] if ids or os.geteuid() != 0 else [f"ran as root: user {user!r} could not run this Python, so privileges were not dropped"
+                                                      + (" (inside the sandbox, every capability dropped)" if sandboxed else "")]
+        if not sandboxed:
+            notes.append("graded without a sandbox (--unsafe): the notebook could read solutions/ and other submissions")
         problems = []
         watch = supervisor.MemoryWatch(memory_mb)
         with open(private / "child.log", "wb") as log:
@@ -570,6 +588,14 @@ def main(args) -> int:
         if why:
             print(f"coursekit grade: {why}", file=sys.stderr)
             return 2
+    unsafe = bool(getattr(args, "unsafe", False))
+    why = None if unsafe else sandbox.available()
+    if why:
+        print(f"coursekit grade: cannot sandbox the notebooks: {why}. Refusing to grade; --unsafe grades without a "
+              "sandbox (a notebook can then read solutions/ and the other submissions, and write what this user can)",
+              file=sys.stderr)
+        return 2
+    hide = [os.path.abspath(nb) for nb in args.notebooks] + ([os.path.abspath(args.json_out)] if args.json_out else [])
     supervisor.remove_stale()
     supervisor.handle_termination()
     if not become_subreaper():
@@ -580,7 +606,8 @@ def main(args) -> int:
         for nb, exercise in zip(args.notebooks, exercises):
             t0 = time.monotonic()
             results.append(grade_notebook(nb, timeout=args.timeout, cell_timeout=getattr(args, "cell_timeout", 300.0),
-                                          memory_mb=getattr(args, "memory_mb", 4096), exercise=exercise))
+                                          memory_mb=getattr(args, "memory_mb", 4096), exercise=exercise,
+                                          sandboxed=not unsafe, hide_files=hide))
             results[-1].notes.append(f"graded in {time.monotonic() - t0:.1f} s")
     except supervisor.Terminated as exc:  # the notebook's processes and private folder are gone already
         print(f"coursekit grade: {exc}; no results written", file=sys.stderr)
