@@ -331,6 +331,17 @@ def _died_message(status):
 
 
 def _run_forked(fn, cases, kind, timeout, memory_mb, budget, refuse=()):
+    # A notebook that ignores SIGCHLD makes the kernel reap its children itself, and waitpid()
+    # on a worker would fail: the default disposition is restored for the calls, then put back.
+    old_chld = signal.signal(signal.SIGCHLD, signal.SIG_DFL) if threading.current_thread() is threading.main_thread() else None
+    try:
+        return _run_forked_calls(fn, cases, kind, timeout, memory_mb, budget, refuse)
+    finally:
+        if old_chld is not None:
+            signal.signal(signal.SIGCHLD, old_chld)
+
+
+def _run_forked_calls(fn, cases, kind, timeout, memory_mb, budget, refuse):
     records = {}
     todo = list(cases)
     end = time.monotonic() + budget

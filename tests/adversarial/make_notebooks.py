@@ -196,6 +196,11 @@ def point_mutation(genome, rng, rate=None):
     except OSError:
         pass''', '''open("/tmp/coursekit-leftover", "wb").write(b"x" * 2**24)'''],
     },
+    "sigchld": {
+        "about": "ignores SIGCHLD (children reaped automatically), which broke the graders' waitpid: all honest.",
+        "sabotaged": {},
+        "cells": ['import signal\nsignal.signal(signal.SIGCHLD, signal.SIG_IGN)'],
+    },
     "rigged_eq": {
         "about": "returns objects with rigged __eq__/__len__, int and ndarray subclasses, array-likes and huge outputs.",
         "sabotaged": {"truncation": '''class Evil(int):
