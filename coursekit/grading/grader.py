@@ -448,6 +448,9 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         problems += more_problems
         if rejected:
             notes.append(f"{rejected} malformed result line(s) were ignored")
+        unreadable = any(n.startswith("could not read the notebook") for n in more_notes)
+        if not unreadable and not more_problems and any(not records[c.name] for c in checks):
+            problems.append("no results came back for " + ", ".join(c.function for c in checks if not records[c.name]))
         judgements = [registry.judge(c, cases[c.name], records[c.name]) if records[c.name] else
                       _zero([c], f"no results: {c.function} could not be called (the notebook stopped before grading; see the notes)")[0]
                       for c in checks]

@@ -201,6 +201,11 @@ def point_mutation(genome, rng, rate=None):
         "sabotaged": {},
         "cells": ['import signal\nsignal.signal(signal.SIGCHLD, signal.SIG_IGN)'],
     },
+    "breaks_harvest": {
+        "about": "breaks IPython.get_ipython, which the grading harvest calls: nothing can be called, so it is not graded.",
+        "sabotaged": dict(HONEST),  # honest code, but the harvest cannot call it: 0 points and NOT GRADED
+        "cells": ['import IPython\nIPython.get_ipython = None'],
+    },
     "rigged_eq": {
         "about": "returns objects with rigged __eq__/__len__, int and ndarray subclasses, array-likes and huge outputs.",
         "sabotaged": {"truncation": '''class Evil(int):
