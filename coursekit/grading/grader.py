@@ -367,7 +367,7 @@ def _stop(child) -> None:
 
 
 def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, seed=GRADING_SEED,
-                   exercise=None, user="nobody", sandboxed=True, hide_files=()) -> NotebookResult:
+                   exercise=None, user="nobody", sandboxed=True, hide_files=(), notebook_timeout=3600.0) -> NotebookResult:
     """Grade one notebook in an isolated child; see the module docstring.
 
     Args:
@@ -383,6 +383,8 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         sandboxed: run the child in the bubblewrap sandbox (:mod:`.sandbox`; it must be
             available); False grades unsandboxed (``--unsafe``).
         hide_files: files the sandbox masks (the batch's other submissions, the results file).
+        notebook_timeout: seconds for the whole notebook (its cells and the calls); past them it
+            is stopped and reported not graded.
     Returns:
         a :class:`NotebookResult`; ``not_graded`` lists why its score does not stand, if it does not.
     """
@@ -424,8 +426,9 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
                "--cwd", str(box / "work"), "--cell-timeout", str(cell_timeout)]
         if sandboxed:
             cmd = sandbox.command(box, hide_dirs=[_PKG_ROOT / "solutions"], hide_files=hide_files) + cmd
-        # Backstop only: the child bounds every cell and call itself.
-        wall = 2 * cell_timeout * (min(nb_bytes.count(b'"cell_type"'), 500) + 2) + (4 * timeout + 60) * len(checks)
+        # The child bounds every cell and call itself; this bounds the notebook as a whole.
+        wall = min(float(notebook_timeout),
+                   2 * cell_timeout * (min(nb_bytes.count(b'"cell_type"'), 500) + 2) + (4 * timeout + 60) * len(checks))
         notes = [] if ids or os.geteuid() != 0 else [f"ran as root: user {user!r} could not run this Python, so privileges were not dropped"
                                                       + (" (inside the sandbox, every capability dropped)" if sandboxed else "")]
         if not sandboxed:
@@ -438,7 +441,8 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
                                      user=ids[0] if ids else None, group=ids[1] if ids else None,
                                      extra_groups=[] if ids else None)
             if not watch.wait(child, wall):
-                problems.append(f"grading stopped after {wall:.0f} s")
+                problems.append(f"grading stopped after {wall:.0f} s (--notebook-timeout {notebook_timeout:g} s)"
+                                if wall == notebook_timeout else f"grading stopped after {wall:.0f} s")
             _stop(child)
             child = None
         problems += watch.events
@@ -576,7 +580,7 @@ def main(args) -> int:
     3 when a notebook was not graded (its cells were skipped for time, memory or a crash) and
     1 when the results file could not be written.
     """
-    for name in ("timeout", "cell_timeout", "memory_mb"):
+    for name in ("timeout", "cell_timeout", "memory_mb", "notebook_timeout"):
         v = getattr(args, name, None)
         if v is not None and not v > 0:
             print(f"coursekit grade: --{name.replace('_', '-')} must be positive, got {v}", file=sys.stderr)
@@ -610,7 +614,8 @@ def main(args) -> int:
             t0 = time.monotonic()
             results.append(grade_notebook(nb, timeout=args.timeout, cell_timeout=getattr(args, "cell_timeout", 300.0),
                                           memory_mb=getattr(args, "memory_mb", 4096), exercise=exercise,
-                                          sandboxed=not unsafe, hide_files=hide))
+                                          sandboxed=not unsafe, hide_files=hide,
+                                          notebook_timeout=getattr(args, "notebook_timeout", 3600.0)))
             results[-1].notes.append(f"graded in {time.monotonic() - t0:.1f} s")
     except supervisor.Terminated as exc:  # the notebook's processes and private folder are gone already
         print(f"coursekit grade: {exc}; no results written", file=sys.stderr)
