@@ -104,6 +104,12 @@ def build_parser() -> argparse.ArgumentParser:
                    "(not address space; default 4096); over it the notebook is reported as not graded")
     s.add_argument("--exercise", help="grade as this exercise (default: each notebook's metadata field coursekit.exercise, "
                    "else its file stem, e.g. 01_selection)")
+    s.add_argument("--notebook-timeout", type=float, default=3600.0,
+                   help="seconds allowed for a whole notebook, cells and graded calls (default 3600); "
+                        "past them it is stopped and reported as not graded")
+    s.add_argument("--unsafe", action="store_true",
+                   help="grade even where the bubblewrap sandbox cannot be set up (notebooks can then read "
+                        "solutions/ and other submissions)")
     s.set_defaults(func=_cmd_grade)
 
     s = sub.add_parser("exercises", help="build exercises/ from solutions/, or check they are in sync")

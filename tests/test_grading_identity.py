@@ -71,3 +71,10 @@ def test_a_generated_exercise_is_named_after_its_solution_file():
     assert exercise_notebook(nb, "04_new_topic.ipynb").metadata["coursekit"] == {"exercise": "04_new_topic"}
     nb.metadata["coursekit"] = {"exercise": "01_selection"}  # a solution that sets it keeps it
     assert exercise_notebook(nb, "renamed.ipynb").metadata["coursekit"] == {"exercise": "01_selection"}
+
+
+def test_metadata_is_read_in_a_fresh_process_before_anything_else_loaded_the_checks(tmp_path):
+    nb = with_metadata(tmp_path / "homework.ipynb", {"exercise": "01_selection"})
+    code = f"from coursekit.grading.grader import exercise_of; print(exercise_of({str(nb)!r}))"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={"PYTHONPATH": str(ROOT)})
+    assert proc.returncode == 0 and proc.stdout.strip() == "01_selection", proc.stderr

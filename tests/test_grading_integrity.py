@@ -28,10 +28,14 @@ EXERCISES = {"01_selection": (10.0, 5), "02_picture_mutations": (10.0, 5), "03_p
              "05_creature_operators": (12.0, 3), "07_swimming_physics": (10.0, 2)}
 
 
+SECRET = "grader-secret-7d1f"  # in the grader's environment only: no notebook may read it
+
+
 def grade(paths, out, *extra, status=0):
     cmd = [sys.executable, "-m", "coursekit", "grade", *map(str, paths), "--json", str(out), *extra]
     proc = subprocess.run(cmd, cwd=out.parent, capture_output=True, text=True, timeout=900,
-                          env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(ROOT), "COURSEKIT_PROFILE": "ci"})
+                          env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(ROOT), "COURSEKIT_PROFILE": "ci",
+                               "COURSEKIT_TEST_SECRET": SECRET})
     assert proc.returncode == status, (proc.stdout[-3000:], proc.stderr)
     return proc.stdout, json.loads(out.read_text())
 
@@ -102,8 +106,9 @@ def test_adversarial_notebook_gets_exactly_its_honest_score(adversarial, name):
 
 
 #: adversarial notebooks some of whose top-level cells had to be skipped, and why
-SKIPPED = {"infinite_loop": "did not finish within 10 s", "exits": "stopped the kernel",
-           "crash_and_memory": "stopped the kernel"}
+SKIPPED = {"infinite_loop": "skipped: did not finish within 10 s", "exits": "skipped: stopped the kernel",
+           "crash_and_memory": "skipped: stopped the kernel",
+           "breaks_harvest": "calling truncation failed inside the kernel (TypeError"}  # not a silent 0
 
 
 @pytest.mark.parametrize("name", list(NOTEBOOKS))
@@ -112,7 +117,7 @@ def test_a_notebook_with_skipped_cells_is_reported_not_graded_with_the_reason(ad
     nb = next(n for n in results["extra_data"]["notebooks"] if Path(n["path"]).name == f"{name}.ipynb")
     assert nb["graded"] == (name not in SKIPPED), nb
     if name in SKIPPED:
-        assert any("skipped: " + SKIPPED[name] in why for why in nb["not_graded"]), nb
+        assert any(SKIPPED[name] in why for why in nb["not_graded"]), nb
         assert f"{name}.ipynb: NOT GRADED: " in results["output"]
 
 
@@ -175,3 +180,25 @@ def test_a_renamed_submission_is_graded_by_its_metadata(do_nothing_and_renamed):
     by_name, _ = do_nothing_and_renamed
     nb = by_name["my homework (final).ipynb"]
     assert nb["graded"] and nb["score"] == nb["max_score"] == 10.0
+
+
+def test_the_librarys_own_operators_are_refused_with_a_clear_message(adversarial):
+    results, _ = adversarial
+    tests = per_check(results, "library_answers.ipynb")
+    for check in ("ga.tournament", "ga.truncation"):  # imported; rebuilt from the library's code
+        assert "is coursekit's own, from coursekit.ga.selection; write your own" in tests[check]["output"]
+    assert "coursekit's own roulette is not available while your roulette is graded" in tests["ga.roulette"]["output"]
+
+
+def test_the_sandbox_kept_the_notebook_from_files_and_the_graders_environment(adversarial):
+    """escape.ipynb copies functions from solutions/ and from exits.ipynb (on the same command line),
+    reads every /proc/*/environ into a message, writes into the package and leaves a file in /tmp."""
+    results, _ = adversarial
+    tests = per_check(results, "escape.ipynb")
+    assert "truncation is not defined" in tests["ga.truncation"]["output"]  # solutions/ is empty in the sandbox
+    assert "roulette is not defined" in tests["ga.roulette"]["output"]  # the other submission reads as empty
+    assert "RuntimeError" in tests["ga.point_mutation"]["output"] and SECRET not in json.dumps(results)
+    import coursekit
+
+    for leftover in (Path(coursekit.__file__).parent / "grading" / "PWNED", ROOT / "PWNED", Path("/tmp/coursekit-leftover")):
+        assert not leftover.exists(), leftover

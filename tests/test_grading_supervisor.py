@@ -11,7 +11,6 @@
 """
 
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -184,3 +183,18 @@ def test_clean_strips_terminal_escapes_and_control_characters(attack):
     text = clean(f"before {attack}ga.tournament 2.00 / 2 all properties hold\tafter\nnext")
     assert text == "before ga.tournament 2.00 / 2 all properties hold\tafter\nnext"
     assert all(ch in "\n\t" or (ord(ch) >= 32 and not 0x7f <= ord(ch) <= 0x9f) for ch in text)
+
+
+@pytest.mark.slow
+def test_a_notebook_past_its_total_time_is_stopped_and_not_graded(tmp_path):
+    sleeps = ["import time\ntime.sleep(20)"] * 3  # 60 s of cells, each well within its own timeout
+    nb = notebook(tmp_path / "01_selection.ipynb", *HONEST.values(), *sleeps)
+    proc = grade(tmp_path, [nb], "--json", "r.json", "--cell-timeout", "60", "--notebook-timeout", "15")
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    assert "NOT GRADED: grading stopped after 15 s (--notebook-timeout 15 s)" in proc.stdout
+    assert leftovers(tmp_path) == []
+
+
+def test_notebook_timeout_must_be_positive(tmp_path):
+    proc = grade(tmp_path, [tmp_path / "01_selection.ipynb"], "--notebook-timeout", "0")
+    assert proc.returncode == 2 and "--notebook-timeout must be positive" in proc.stderr

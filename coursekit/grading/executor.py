@@ -35,7 +35,9 @@ _HARVEST = """def _coursekit_harvest():
     import json
     ns = {{"__name__": "coursekit_harvest"}}
     exec(compile({source!r}, "<coursekit-harvest>", "exec"), ns)
-    ns["harvest"](get_ipython().user_ns, json.loads({spec!r}), {channel!r})
+    from IPython import get_ipython  # not the notebook's global of that name, which it may have replaced
+    ip = get_ipython()
+    ns["harvest"](ip.user_ns, json.loads({spec!r}), {channel!r}, set(getattr(ip.compile, "_filename_map", None) or ()) or None)
 try:
     _coursekit_harvest()
 finally:
@@ -91,6 +93,9 @@ def execute(nb, spec: dict, channel: str, cwd: str, cell_timeout: float) -> dict
                     client.timeout = harvest_timeout
                     try:
                         client.execute_cell(run.cells[-1], len(run.cells) - 1)
+                        err = _error_name(run.cells[-1])
+                        if err and harvest_problem is None:  # the harvest itself failed in the kernel
+                            harvest_problem = f"calling {check['function']} failed inside the kernel ({err})"
                     except CellTimeoutError:  # the kernel is wedged: remaining checks get no output
                         harvest_problem = f"calling {check['function']} did not finish within {harvest_timeout:g} s"
                         break

@@ -9,6 +9,12 @@ Integrity model. This process computes and writes scores and never imports or ru
   channel file. Memory is bounded by what the notebook's processes hold, never by address space
   (a CUDA build of torch reserves ~3 GB of it on import): :mod:`.supervisor` polls them and
   kills the largest when they pass ``--memory-mb``.
+- The child runs in a bubblewrap sandbox (:mod:`.sandbox`): the file system read-only,
+  ``solutions/``, the other submissions and the results file hidden, a private ``/tmp``, no
+  network, its own PID namespace (the grader and its environment are not visible). Where the
+  sandbox cannot be set up, grading is refused unless the instructor passes ``--unsafe``.
+- A graded function must be written in the notebook (:mod:`.runner` refuses one whose code comes
+  from coursekit or any other file), and coursekit's own versions of it raise while it runs.
 - A notebook part of which could not run -- a cell skipped for time, memory or a crash, a
   harvest that did not finish, no execution report -- is reported **not graded**, with the
   reasons, and ``coursekit grade`` exits with status 3: an instructor never gets a silent 0.
@@ -24,9 +30,10 @@ Integrity model. This process computes and writes scores and never imports or ru
   otherwise it is removed, after ``SIGTERM`` too, and by the next run after a ``SIGKILL``.)
 
 What the kernel can still do is choose the raw outputs its functions return -- exactly what a
-student's function can do anyway. Without root, the kernel runs as the grader's own user and
-could signal or overwrite the grader's files; run graders as root in a container (the
-autograder convention) for the privilege separation.
+student's function can do anyway -- and forge what the harvest reports about itself (its cell
+file names, its own inputs), since the harvest runs in the kernel. Inside the sandbox it runs as
+``nobody`` where that user can run this Python, else as the grader's user with every capability
+dropped: it can then read files that user can read outside the hidden ones.
 """
 
 from __future__ import annotations
@@ -54,13 +61,14 @@ import numpy as np
 import coursekit
 
 from coursekit.grading import checks as registry
-from coursekit.grading import supervisor
+from coursekit.grading import sandbox, supervisor
 from coursekit.grading.checks import STATUSES, Judgement, Verdict
 
 RESULTS_FORMAT = "coursekit.grade/1"
 GRADING_SEED = 7_919
 MAX_CHANNEL_BYTES = 64 * 2**20
 MAX_REPORT_BYTES = 2**20
+MAX_FILE_BYTES = 2**30  # the largest file a graded notebook's processes may write
 _PKG_ROOT = Path(os.path.abspath(coursekit.__file__)).parent.parent  # the coursekit this grader runs (not symlink-resolved)
 
 
@@ -251,11 +259,15 @@ def exercise_of(path, override=None) -> str:
         registry.for_notebook(path.stem)
         return path.stem
     name = meta["exercise"]
-    known = ", ".join(sorted(registry.EXERCISES))
-    if type(name) is not str or name not in registry.EXERCISES:
-        raise ValueError(f"{path}: metadata field coursekit.exercise is {clean(repr(name))[:80]}, which names no exercise; "
-                         f"known: {known} (or pass --exercise)")
-    return name
+    if type(name) is str:
+        try:
+            registry.for_notebook(name)  # loads the registry
+            return name
+        except ValueError:
+            pass
+    registry._load()
+    raise ValueError(f"{path}: metadata field coursekit.exercise is {clean(repr(name))[:80]}, which names no exercise; "
+                     f"known: {', '.join(sorted(registry.EXERCISES))} (or pass --exercise)")
 
 
 # -- running the child and cleaning up after it --------------------------------------------------
@@ -335,8 +347,10 @@ def grading_user(user: str):
 def _limits():
     def apply():
         # No address-space limit: a CUDA build of torch reserves ~3 GB of it on import. Memory is
-        # bounded by what the processes hold (supervisor.MemoryWatch); core dumps are off.
+        # bounded by what the processes hold (supervisor.MemoryWatch); core dumps are off and no
+        # file the notebook writes may pass MAX_FILE_BYTES.
         resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+        resource.setrlimit(resource.RLIMIT_FSIZE, (MAX_FILE_BYTES, MAX_FILE_BYTES))
 
     return apply
 
@@ -353,7 +367,7 @@ def _stop(child) -> None:
 
 
 def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, seed=GRADING_SEED,
-                   exercise=None, user="nobody") -> NotebookResult:
+                   exercise=None, user="nobody", sandboxed=True, hide_files=(), notebook_timeout=3600.0) -> NotebookResult:
     """Grade one notebook in an isolated child; see the module docstring.
 
     Args:
@@ -366,6 +380,11 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         exercise: exercise stem (default: :func:`exercise_of`: the notebook's metadata field
             ``coursekit.exercise``, else its file stem, e.g. ``01_selection``).
         user: account the child runs as when grading as root ("" keeps root).
+        sandboxed: run the child in the bubblewrap sandbox (:mod:`.sandbox`; it must be
+            available); False grades unsandboxed (``--unsafe``).
+        hide_files: files the sandbox masks (the batch's other submissions, the results file).
+        notebook_timeout: seconds for the whole notebook (its cells and the calls); past them it
+            is stopped and reported not graded.
     Returns:
         a :class:`NotebookResult`; ``not_graded`` lists why its score does not stand, if it does not.
     """
@@ -374,8 +393,11 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
     rng = np.random.default_rng(seed)
     cases = {c.name: c.cases(rng) for c in checks}
     spec = {"timeout": float(timeout), "memory_mb": int(memory_mb),
-            "checks": [{"name": c.name, "function": c.function, "output": c.output, "cases": cases[c.name]} for c in checks]}
+            "checks": [{"name": c.name, "function": c.function, "output": c.output, "cases": cases[c.name],
+                        "refuse": list(c.reference)} for c in checks]}
     ids = grading_user(user)
+    if sandboxed and ids and sandbox.available(ids) is not None:
+        ids = None  # the sandbox works for this user only: run it as this user, capabilities dropped
     private = supervisor.private_dir()
     child = None
     try:
@@ -402,9 +424,15 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         cmd = [sys.executable, "-m", "coursekit.grading.executor", "--notebook", str(box / "submission.ipynb"),
                "--spec", str(box / "spec.json"), "--channel", str(channel), "--report", str(report),
                "--cwd", str(box / "work"), "--cell-timeout", str(cell_timeout)]
-        # Backstop only: the child bounds every cell and call itself.
-        wall = 2 * cell_timeout * (min(nb_bytes.count(b'"cell_type"'), 500) + 2) + (4 * timeout + 60) * len(checks)
-        notes = [] if ids or os.geteuid() != 0 else [f"ran as root: user {user!r} could not run this Python, so privileges were not dropped"]
+        if sandboxed:
+            cmd = sandbox.command(box, hide_dirs=[_PKG_ROOT / "solutions"], hide_files=hide_files) + cmd
+        # The child bounds every cell and call itself; this bounds the notebook as a whole.
+        wall = min(float(notebook_timeout),
+                   2 * cell_timeout * (min(nb_bytes.count(b'"cell_type"'), 500) + 2) + (4 * timeout + 60) * len(checks))
+        notes = [] if ids or os.geteuid() != 0 else [f"ran as root: user {user!r} could not run this Python, so privileges were not dropped"
+                                                      + (" (inside the sandbox, every capability dropped)" if sandboxed else "")]
+        if not sandboxed:
+            notes.append("graded without a sandbox (--unsafe): the notebook could read solutions/ and other submissions")
         problems = []
         watch = supervisor.MemoryWatch(memory_mb)
         with open(private / "child.log", "wb") as log:
@@ -413,7 +441,8 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
                                      user=ids[0] if ids else None, group=ids[1] if ids else None,
                                      extra_groups=[] if ids else None)
             if not watch.wait(child, wall):
-                problems.append(f"grading stopped after {wall:.0f} s")
+                problems.append(f"grading stopped after {wall:.0f} s (--notebook-timeout {notebook_timeout:g} s)"
+                                if wall == notebook_timeout else f"grading stopped after {wall:.0f} s")
             _stop(child)
             child = None
         problems += watch.events
@@ -423,6 +452,9 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         problems += more_problems
         if rejected:
             notes.append(f"{rejected} malformed result line(s) were ignored")
+        unreadable = any(n.startswith("could not read the notebook") for n in more_notes)
+        if not unreadable and not more_problems and any(not records[c.name] for c in checks):
+            problems.append("no results came back for " + ", ".join(c.function for c in checks if not records[c.name]))
         judgements = [registry.judge(c, cases[c.name], records[c.name]) if records[c.name] else
                       _zero([c], f"no results: {c.function} could not be called (the notebook stopped before grading; see the notes)")[0]
                       for c in checks]
@@ -548,7 +580,7 @@ def main(args) -> int:
     3 when a notebook was not graded (its cells were skipped for time, memory or a crash) and
     1 when the results file could not be written.
     """
-    for name in ("timeout", "cell_timeout", "memory_mb"):
+    for name in ("timeout", "cell_timeout", "memory_mb", "notebook_timeout"):
         v = getattr(args, name, None)
         if v is not None and not v > 0:
             print(f"coursekit grade: --{name.replace('_', '-')} must be positive, got {v}", file=sys.stderr)
@@ -563,6 +595,14 @@ def main(args) -> int:
         if why:
             print(f"coursekit grade: {why}", file=sys.stderr)
             return 2
+    unsafe = bool(getattr(args, "unsafe", False))
+    why = None if unsafe else sandbox.available()
+    if why:
+        print(f"coursekit grade: cannot sandbox the notebooks: {why}. Refusing to grade; --unsafe grades without a "
+              "sandbox (a notebook can then read solutions/ and the other submissions, and write what this user can)",
+              file=sys.stderr)
+        return 2
+    hide = [os.path.abspath(nb) for nb in args.notebooks] + ([os.path.abspath(args.json_out)] if args.json_out else [])
     supervisor.remove_stale()
     supervisor.handle_termination()
     if not become_subreaper():
@@ -573,7 +613,9 @@ def main(args) -> int:
         for nb, exercise in zip(args.notebooks, exercises):
             t0 = time.monotonic()
             results.append(grade_notebook(nb, timeout=args.timeout, cell_timeout=getattr(args, "cell_timeout", 300.0),
-                                          memory_mb=getattr(args, "memory_mb", 4096), exercise=exercise))
+                                          memory_mb=getattr(args, "memory_mb", 4096), exercise=exercise,
+                                          sandboxed=not unsafe, hide_files=hide,
+                                          notebook_timeout=getattr(args, "notebook_timeout", 3600.0)))
             results[-1].notes.append(f"graded in {time.monotonic() - t0:.1f} s")
     except supervisor.Terminated as exc:  # the notebook's processes and private folder are gone already
         print(f"coursekit grade: {exc}; no results written", file=sys.stderr)

@@ -192,12 +192,52 @@ def _after(arg, encoded, max_len):
     return None
 
 
-def run_case(fn, case, kind, tick=None, capture=True):
+class _Refusing:
+    """While active, coursekit's own versions of a graded function raise instead of running.
+
+    Each ``"module:attr"`` of ``paths`` (a library function or method) gets the code of a stub
+    that raises ``RuntimeError``, so every reference to it -- an import under another name, a
+    wrapper that calls it, the library calling it internally -- refuses while the student's
+    function runs; the code is put back on exit. Arguments are decoded and results converted
+    outside, so the library itself stays usable there.
+    """
+
+    def __init__(self, paths, function):
+        self.saved = []
+        for path in paths:
+            try:
+                obj = _library_attr(path)
+            except (ImportError, AttributeError, ValueError):
+                continue
+            obj = getattr(obj, "__func__", obj)
+            if not hasattr(obj, "__code__") or obj.__code__.co_freevars:
+                continue
+            name = path.partition(":")[2]
+            msg = (f"coursekit's own {name} is not available while your {function} is graded: "
+                   f"{function} must do the work itself (the rest of the library may be used)")
+            ns = {}
+            exec(compile(f"def stub(*args, **kwargs):\n    raise RuntimeError({msg!r})", "<coursekit-refused>", "exec"), ns)
+            self.saved.append((obj, obj.__code__, ns["stub"].__code__))
+
+    def __enter__(self):
+        for obj, _, stub in self.saved:
+            obj.__code__ = stub
+        return self
+
+    def __exit__(self, *exc):
+        for obj, code, _ in self.saved:
+            obj.__code__ = code
+        return False
+
+
+def run_case(fn, case, kind, tick=None, capture=True, refuse=()):
     """Call ``fn`` once per seed of ``case`` in this process and return the plain record.
 
     With ``capture``, what the function prints is recorded instead of shown (only safe where
-    nothing else runs meanwhile: in a forked worker).
+    nothing else runs meanwhile: in a forked worker). ``refuse`` lists library functions
+    (``"module:attr"``) that raise while ``fn`` runs (see :class:`_Refusing`).
     """
+    guard = _Refusing(refuse, getattr(fn, "__name__", "function")) if refuse else None
     record = {"case": case["id"]}
     outputs = []
     captured = io.StringIO()
@@ -210,7 +250,11 @@ def run_case(fn, case, kind, tick=None, capture=True):
             kwargs = {k: decode(v, seed) for k, v in case.get("kwargs", {}).items()}
             record["call"] = i
             try:
-                out = fn(*args, **kwargs)
+                if guard is None:
+                    out = fn(*args, **kwargs)
+                else:
+                    with guard:
+                        out = fn(*args, **kwargs)
                 outputs.append(convert(kind, out, case["max_len"]))
             except NotImplementedError as exc:
                 record.update(status="not_implemented", error=_describe_error(exc))
@@ -253,7 +297,7 @@ def _limit_memory(memory_mb):
         pass  # no /proc or no RLIMIT_AS (macOS): the outer limits still apply
 
 
-def _worker(fn, cases, kind, wfd, memory_mb):
+def _worker(fn, cases, kind, wfd, memory_mb, refuse=()):
     """Body of the forked child: run cases, write 'T' ticks and 'R json' records, never return."""
     try:
         sys.stdin = io.StringIO()
@@ -265,7 +309,7 @@ def _worker(fn, cases, kind, wfd, memory_mb):
                 data = data[os.write(wfd, data):]
 
         for case in cases:
-            record = run_case(fn, case, kind, tick=lambda: write("T"))
+            record = run_case(fn, case, kind, tick=lambda: write("T"), refuse=refuse)
             try:
                 text = json.dumps(record, allow_nan=False)
             except (TypeError, ValueError) as exc:
@@ -286,7 +330,18 @@ def _died_message(status):
     return f"the process running it exited with status {os.WEXITSTATUS(status)} (os._exit?)"
 
 
-def _run_forked(fn, cases, kind, timeout, memory_mb, budget):
+def _run_forked(fn, cases, kind, timeout, memory_mb, budget, refuse=()):
+    # A notebook that ignores SIGCHLD makes the kernel reap its children itself, and waitpid()
+    # on a worker would fail: the default disposition is restored for the calls, then put back.
+    old_chld = signal.signal(signal.SIGCHLD, signal.SIG_DFL) if threading.current_thread() is threading.main_thread() else None
+    try:
+        return _run_forked_calls(fn, cases, kind, timeout, memory_mb, budget, refuse)
+    finally:
+        if old_chld is not None:
+            signal.signal(signal.SIGCHLD, old_chld)
+
+
+def _run_forked_calls(fn, cases, kind, timeout, memory_mb, budget, refuse):
     records = {}
     todo = list(cases)
     end = time.monotonic() + budget
@@ -295,7 +350,7 @@ def _run_forked(fn, cases, kind, timeout, memory_mb, budget):
         pid = os.fork()
         if pid == 0:  # child
             os.close(rfd)
-            _worker(fn, todo, kind, wfd, memory_mb)
+            _worker(fn, todo, kind, wfd, memory_mb, refuse)
         os.close(wfd)
         buf = b""
         deadline = time.monotonic() + timeout
@@ -342,11 +397,11 @@ def _run_forked(fn, cases, kind, timeout, memory_mb, budget):
     return [records[c["id"]] for c in cases]
 
 
-def _run_threaded(fn, cases, kind, timeout):
+def _run_threaded(fn, cases, kind, timeout, refuse=()):
     out = []
     for case in cases:
         box = []
-        t = threading.Thread(target=lambda: box.append(run_case(fn, case, kind, capture=False)), daemon=True)
+        t = threading.Thread(target=lambda: box.append(run_case(fn, case, kind, capture=False, refuse=refuse)), daemon=True)
         t.start()
         t.join(timeout * max(1, len(case["seeds"])))
         out.append(box[0] if box else {"case": case["id"], "status": "timeout",
@@ -354,7 +409,7 @@ def _run_threaded(fn, cases, kind, timeout):
     return out
 
 
-def run_cases(fn, cases, kind, *, timeout=10.0, memory_mb=2048, budget=None):
+def run_cases(fn, cases, kind, *, timeout=10.0, memory_mb=2048, budget=None, refuse=()):
     """Run ``fn`` on every case, isolated and bounded; return one plain record per case.
 
     Args:
@@ -365,6 +420,8 @@ def run_cases(fn, cases, kind, *, timeout=10.0, memory_mb=2048, budget=None):
         memory_mb: extra address space the worker may allocate.
         budget: seconds for all cases together (default ``4 * timeout + 30``); cases not reached
             in time are reported as timeouts.
+        refuse: ``"module:attr"`` names of coursekit's own versions of the function, which raise
+            while it runs (summative grading; see :class:`_Refusing`).
     Returns:
         list of record dicts, in case order.
     """
@@ -373,23 +430,49 @@ def run_cases(fn, cases, kind, *, timeout=10.0, memory_mb=2048, budget=None):
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)  # "multi-threaded, fork() may deadlock"
-            return _run_forked(fn, cases, kind, timeout, memory_mb, 4 * timeout + 30 if budget is None else budget)
-    return _run_threaded(fn, cases, kind, timeout)
+            return _run_forked(fn, cases, kind, timeout, memory_mb, 4 * timeout + 30 if budget is None else budget, refuse)
+    return _run_threaded(fn, cases, kind, timeout, refuse)
 
 
-def harvest(namespace, spec, channel):
+def _foreign(fn, cells):
+    """Why ``fn`` is not the notebook's own function, or None (``cells``: the kernel's cell file names)."""
+    code = getattr(fn, "__code__", None)
+    if code is None:
+        return f"is a {type(fn).__name__}, not a function written with def in this notebook"
+    if code.co_filename in cells:
+        return None
+    module = getattr(fn, "__module__", None) or ""
+    if module == "coursekit" or module.startswith("coursekit."):
+        where = f"coursekit's own, from {module}"
+    elif "coursekit" in code.co_filename.replace("\\", "/").split("/"):
+        where = f"coursekit's own code, from {os.path.basename(code.co_filename)}"
+    else:
+        where = f"not defined in this notebook (its code comes from {os.path.basename(code.co_filename)})"
+    return f"is {where}; write your own with def in a cell of this notebook (the rest of the library may be used)"
+
+
+def harvest(namespace, spec, channel, cells=None):
     """Summative side: run every check of ``spec`` on the function the notebook defined.
 
     Appends one JSON line per case record, tagged with its check name, to the file ``channel``.
-    ``spec`` is ``{"timeout": s, "memory_mb": m, "checks": [{"name", "function", "output", "cases"}]}``.
+    ``spec`` is ``{"timeout": s, "memory_mb": m, "checks": [{"name", "function", "output", "cases",
+    "refuse"}]}``. With ``cells`` (the file names the kernel compiled the notebook's cells under),
+    a function whose code comes from anywhere else -- ``from coursekit.ga import tournament``, a
+    module on disk -- is refused as not attempted; ``refuse`` lists coursekit's own versions of
+    the function, which raise while it is graded (:class:`_Refusing`).
     """
     for check in spec["checks"]:
         fn = namespace.get(check["function"])
+        why = None
         if not callable(fn):
-            what = "is not defined" if fn is None else f"is a {type(fn).__name__}, not a function"
-            records = [{"case": c["id"], "status": "missing", "error": f"{check['function']} {what}"} for c in check["cases"]]
+            why = "is not defined" if fn is None else f"is a {type(fn).__name__}, not a function"
+        elif cells is not None:
+            why = _foreign(fn, cells)
+        if why:
+            records = [{"case": c["id"], "status": "missing", "error": f"{check['function']} {why}"} for c in check["cases"]]
         else:
-            records = run_cases(fn, check["cases"], check["output"], timeout=spec["timeout"], memory_mb=spec["memory_mb"])
+            records = run_cases(fn, check["cases"], check["output"], timeout=spec["timeout"], memory_mb=spec["memory_mb"],
+                                refuse=tuple(check.get("refuse", ())))
         with open(channel, "a", encoding="utf-8") as f:
             for rec in records:
                 rec.pop("printed", None)

@@ -148,6 +148,64 @@ for channel in glob.glob("/tmp/coursekit-grade-*/box/channel.jsonl") + [os.path.
         f.write(json.dumps({"check": "ga.point_mutation", "case": "basic", "status": "ok", "verdict": "pass", "score": 2}) + "\\n")
         f.write('{"check": "ga.point_mutation", "score": 2.0, "passed": true}\\n')'''],
     },
+    "library_answers": {
+        "about": "hands in coursekit's own operators: imported, wrapped, aliased and rebuilt from their code.",
+        "sabotaged": {"tournament": '''from coursekit.ga import tournament''', "roulette": '''from coursekit.ga import roulette as library_roulette
+
+def roulette(fitness, k, rng):
+    return library_roulette(fitness, k, rng)''', "truncation": '''import types
+from coursekit import ga
+
+truncation = types.FunctionType(ga.truncation.__code__, ga.truncation.__globals__, "truncation", ga.truncation.__defaults__)'''},
+        "cells": [],
+    },
+    "escape": {
+        "about": "copies answers from solutions/ and another submission, reads the grader's environment, "
+                 "writes into the package and leaves a file in /tmp.",
+        "sabotaged": {"truncation": '''import coursekit, glob, json
+REPO = os.path.dirname(os.path.dirname(coursekit.__file__))
+
+def run_function_cells(path, name):
+    """Define `name` by running the cells of another notebook that define it (if it can be read)."""
+    try:
+        nb = json.load(open(path))
+    except (OSError, ValueError):
+        return
+    for cell in nb.get("cells", []):
+        src = "".join(cell["source"]) if cell.get("cell_type") == "code" else ""
+        if f"def {name}(" in src:
+            exec(src.replace("raise NotImplementedError()", "pass"), globals())
+
+run_function_cells(os.path.join(REPO, "solutions", "01_selection.ipynb"), "truncation")''',
+                      "roulette": '''run_function_cells(os.path.join(REPO, "tests", "adversarial", "exits.ipynb"), "roulette")''',
+                      "point_mutation": '''def grader_environment():
+    found = []
+    for environ in glob.glob("/proc/[0-9]*/environ"):
+        try:
+            found.append(open(environ, "rb").read().decode(errors="replace"))
+        except OSError:
+            pass
+    return " ".join(found)
+
+def point_mutation(genome, rng, rate=None):
+    raise RuntimeError(grader_environment())  # the message reaches the student-visible results'''},
+        "cells": ['''for target in [os.path.join(os.path.dirname(coursekit.__file__), "grading", "PWNED"),
+               os.path.join(REPO, "PWNED")]:
+    try:
+        open(target, "w").write("pwned")
+    except OSError:
+        pass''', '''open("/tmp/coursekit-leftover", "wb").write(b"x" * 2**24)'''],
+    },
+    "sigchld": {
+        "about": "ignores SIGCHLD (children reaped automatically), which broke the graders' waitpid: all honest.",
+        "sabotaged": {},
+        "cells": ['import signal\nsignal.signal(signal.SIGCHLD, signal.SIG_IGN)'],
+    },
+    "breaks_harvest": {
+        "about": "breaks IPython.get_ipython, which the grading harvest calls: nothing can be called, so it is not graded.",
+        "sabotaged": dict(HONEST),  # honest code, but the harvest cannot call it: 0 points and NOT GRADED
+        "cells": ['import IPython\nIPython.get_ipython = None'],
+    },
     "rigged_eq": {
         "about": "returns objects with rigged __eq__/__len__, int and ndarray subclasses, array-likes and huge outputs.",
         "sabotaged": {"truncation": '''class Evil(int):

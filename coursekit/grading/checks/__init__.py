@@ -60,6 +60,10 @@ class Check:
             order). When a gate fails the check scores 0 and the later properties are not
             judged, so no property can pass vacuously: a do-nothing, identity or copy
             implementation keeps inputs unchanged and is deterministic, and earns nothing for it.
+        reference: ``"module:attr"`` names of coursekit's own implementations of the function.
+            The summative grader refuses them while the student's function runs (an import, an
+            alias or a wrapper of the library's version scores 0), and refuses a graded function
+            that is not defined in the notebook at all.
     """
 
     name: str
@@ -71,6 +75,7 @@ class Check:
     cases: Callable[[np.random.Generator], list]
     props: tuple
     gates: int = 1
+    reference: tuple = ()
 
     def __post_init__(self):
         if type(self.gates) is not int or not 1 <= self.gates <= max(1, len(self.props)):

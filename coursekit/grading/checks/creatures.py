@@ -353,6 +353,7 @@ def _expand_cap(ctx):
 register(Check(
     name="creatures.expand", function="expand", params=("creature", "max_parts"), points=4.0,
     title="phenotype expansion", output="json", cases=_expand_cases, gates=2,
+    reference=('coursekit.creatures.phenotype:expand', 'coursekit.creatures.genotype:Creature.expand'),
     props=(
         ("returns a list of part records", _expand_valid),
         ("expands more than the root", _expand_grows),
@@ -537,6 +538,7 @@ def _random_blocks(ctx):
 register(Check(
     name="creatures.crossover", function="crossover", params=("a", "b", "rng"), points=4.0,
     title="LR recombination", output="json", cases=_crossover_cases, gates=2,
+    reference=('coursekit.creatures.operators:crossover',),
     props=(
         ("returns a valid creature", _valid_creatures(_CROSS_CASES)),
         ("the child holds nodes of both parents", _cross_mixes),
@@ -737,6 +739,7 @@ def _all_kinds(ctx):
 register(Check(
     name="creatures.mutate", function="mutate", params=("c", "rng"), points=4.0,
     title="creature mutation", output="json", cases=_mutation_cases, gates=2,
+    reference=('coursekit.creatures.operators:mutate',),
     props=(
         ("returns a valid creature", _valid_creatures(_MUT_CASES)),
         ("changes the creature", _mutate_changes),

@@ -166,6 +166,7 @@ def _truncation_uniform(ctx):
 register(Check(
     name="ga.truncation", function="truncation", params=("fitness", "k", "rng"), points=2.0,
     title="truncation selection", output="indices", cases=_truncation_cases, gates=2,
+    reference=('coursekit.ga.selection:truncation',),
     props=(
         ("returns k valid indices", _indices_valid(["basic", "survival", "ceil", "uniform"])),
         ("prefers fitter individuals", _prefers_fit("uniform")),
@@ -217,6 +218,7 @@ def _tournament_rates(cid):
 register(Check(
     name="ga.tournament", function="tournament", params=("fitness", "k", "rng"), points=2.0,
     title="tournament selection", output="indices", cases=_tournament_cases, gates=2,
+    reference=('coursekit.ga.selection:tournament',),
     props=(
         ("returns k valid indices", _indices_valid(["basic", "size3", "size2"])),
         ("prefers fitter individuals", _prefers_fit("size3")),
@@ -271,6 +273,7 @@ def _roulette_proportional(ctx):
 register(Check(
     name="ga.roulette", function="roulette", params=("fitness", "k", "rng"), points=2.0,
     title="roulette-wheel selection", output="indices", cases=_roulette_cases, gates=2,
+    reference=('coursekit.ga.selection:roulette',),
     props=(
         ("returns k valid indices", _indices_valid(["basic", "dist"])),
         ("prefers fitter individuals", _prefers_fit("dist")),
@@ -360,6 +363,7 @@ def _crossover_uniform(ctx):
 register(Check(
     name="ga.one_point_crossover", function="one_point_crossover", params=("a", "b", "rng"), points=2.0,
     title="one-point crossover", output="array_pair", cases=_crossover_cases, gates=2,
+    reference=('coursekit.ga.operators:one_point_crossover',),
     props=(
         ("returns two children of the right length", _crossover_valid),
         ("children hold genes of both parents", _crossover_mixes),
@@ -464,6 +468,7 @@ def _mutation_rate(ctx):
 register(Check(
     name="ga.point_mutation", function="point_mutation", params=("genome", "rng"), points=2.0,
     title="point mutation", output="array", cases=_mutation_cases, gates=2,
+    reference=('coursekit.ga.operators:point_mutation',),
     props=(
         ("returns a 0/1 genome of the same length", _mutation_valid),
         ("changes the genome", _mutation_changes),

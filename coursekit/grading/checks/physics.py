@@ -185,6 +185,7 @@ def _drag_dissipative(ctx):
 register(Check(
     name="physics.box_drag", function="box_drag", params=("half_extents", "k"), points=4.0,
     title="Sims' water drag on a box", output="array", cases=_drag_cases, gates=2,
+    reference=('coursekit.creatures.physics.water:drag_diagonal',),
     props=(
         ("returns the 6 diagonal entries", _drag_shape),
         ("the water resists sliding", _drag_resists),
@@ -305,6 +306,7 @@ def _rkn_calls(ctx):
 register(Check(
     name="physics.rkn_step", function="rkn_step", params=("f", "t", "y", "v", "h"), points=6.0,
     title="one Runge-Kutta-Nystrom step", output="array_pair", cases=_rkn_cases, gates=2,
+    reference=('coursekit.creatures.physics.integrate:_nystrom',),
     props=(
         ("returns (y_next, v_next) shaped like y and v", _rkn_shape),
         ("of higher order than explicit Euler", _rkn_beats_euler),

@@ -406,6 +406,7 @@ def _decode_karva(ctx):
 register(Check(
     name="pictures.decode", function="decode", params=("symbols",), points=2.0,
     title="Karva decoding of a chromosome string", output="json", cases=_decode_cases, gates=2,
+    reference=('coursekit.pictures.genome:_karva',),
     props=(
         ("returns a nested-list tree", _decode_form),
         ("builds a tree below the root", _decode_builds),
@@ -495,6 +496,7 @@ def _transposition_both(ctx):
 register(Check(
     name="pictures.transposition", function="transposition", params=("genome", "rng"), points=2.0,
     title="transposition", output="json", cases=_mutation_cases, gates=2,
+    reference=('coursekit.pictures.operators:transposition',),
     props=(
         ("returns a valid genome of the same shape", _valid(MUT_CASES)),
         ("changes the genome", _changes(MUT_CASES)),
@@ -551,6 +553,7 @@ def _root_both(ctx):
 register(Check(
     name="pictures.root_transposition", function="root_transposition", params=("genome", "rng"), points=2.0,
     title="root transposition", output="json", cases=_mutation_cases, gates=2,
+    reference=('coursekit.pictures.operators:root_transposition',),
     props=(
         ("returns a valid genome of the same shape", _valid(MUT_CASES)),
         ("changes the genome", _changes(MUT_CASES)),
@@ -621,6 +624,7 @@ def _substitution_anywhere(ctx):
 register(Check(
     name="pictures.substitution", function="substitution", params=("genome", "rng"), points=2.0,
     title="substitution", output="json", cases=_mutation_cases, gates=2,
+    reference=('coursekit.pictures.operators:substitution',),
     props=(
         ("returns a valid genome of the same shape", _valid(MUT_CASES)),
         ("changes a chromosome", _substitution_changes),
@@ -673,6 +677,7 @@ def _rotation_varies(ctx):
 register(Check(
     name="pictures.head_tail_rotation", function="head_tail_rotation", params=("genome", "rng"), points=2.0,
     title="head/tail rotation", output="json", cases=_mutation_cases, gates=2,
+    reference=('coursekit.pictures.operators:head_tail_rotation',),
     props=(
         ("returns a valid genome of the same shape", _valid(MUT_CASES)),
         ("changes the genome", _changes(MUT_CASES)),
@@ -779,6 +784,7 @@ def _split_varies(ctx):
 register(Check(
     name="pictures.crossover", function="crossover", params=("a", "b", "rng"), points=2.0,
     title="crossover", output="json_pair", cases=_recombination_cases, gates=2,
+    reference=('coursekit.pictures.operators:crossover',),
     props=(
         ("returns two valid genomes of the parents' shape", _valid(REC_CASES, pair=True)),
         ("children hold material of both parents", _mixes(REC_CASES)),
@@ -849,6 +855,7 @@ def _copy_arbitrary(ctx):
 register(Check(
     name="pictures.random_copy", function="random_copy", params=("a", "b", "rng"), points=2.0,
     title="random copy", output="json_pair", cases=_recombination_cases, gates=2,
+    reference=('coursekit.pictures.operators:random_copy',),
     props=(
         ("returns two valid genomes of the parents' shape", _valid(REC_CASES, pair=True)),
         ("children hold material of both parents", _mixes(REC_CASES)),
@@ -973,6 +980,7 @@ def _u_random(ctx):
 register(Check(
     name="pictures.random_interpolation", function="random_interpolation", params=("a", "b", "rng"), points=2.0,
     title="random interpolation", output="json_pair", cases=_interpolation_cases, gates=2,
+    reference=('coursekit.pictures.operators:random_interpolation',),
     props=(
         ("returns two valid genomes of the parents' shape", _valid(INTERP_CASES, pair=True)),
         ("blends a pair", _interp_changes),

@@ -1,0 +1,76 @@
+"""The grading child's sandbox: bubblewrap (``bwrap``), the sandbox Flatpak uses.
+
+Part of the summative grader (seed paper section 4, exercises graded; see
+:mod:`coursekit.grading.grader`). The executor and the notebook's kernel run inside a
+``bwrap`` sandbox with
+
+- the whole file system bound **read-only** (the installed package, the grader's files, the
+  results file: nothing can be rewritten), only the notebook's private box writable;
+- ``solutions/`` next to the package hidden under an empty tmpfs, and the other submissions of
+  the batch and the results file masked by ``/dev/null``;
+- a private ``/tmp`` (a tmpfs of at most :data:`TMP_BYTES` that disappears with the sandbox), private PID, IPC, UTS and
+  cgroup namespaces (the grader's processes and their ``/proc/<pid>/environ`` are not there),
+  no network (a fresh network namespace with loopback only), every capability dropped, and
+  ``--die-with-parent``.
+
+Memory and time are bounded from outside by :mod:`coursekit.grading.supervisor`. Where the
+sandbox cannot be set up (no ``bwrap``, or namespaces not permitted), :func:`available` says
+why, and ``coursekit grade`` refuses to grade unless the instructor passes ``--unsafe``.
+
+Measured in this project's CI container (Debian 12, root): ``bwrap`` 0.8.0 from the Debian
+package works as root and as ``nobody``; starting the sandbox adds well under a second to a
+notebook's grading.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+_PROBE: dict = {}
+#: Size of the sandbox's private /tmp (a tmpfs: memory the notebook's processes do not hold).
+TMP_BYTES = 512 * 2**20
+
+
+def command(box: Path | None, *, hide_dirs=(), hide_files=()) -> list[str]:
+    """The ``bwrap`` argument list that runs a command in the sandbox (append the command).
+
+    Args:
+        box: the notebook's private folder, the only writable place (bound at the same path;
+            None binds nothing writable, for a probe).
+        hide_dirs: folders replaced by an empty tmpfs (``solutions/``).
+        hide_files: files replaced by ``/dev/null`` (other submissions, the results file).
+    """
+    args = ["bwrap", "--die-with-parent", "--unshare-all", "--cap-drop", "ALL", "--new-session",
+            "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--size", str(TMP_BYTES), "--tmpfs", "/tmp"]
+    for d in hide_dirs:
+        if Path(d).is_dir():
+            args += ["--tmpfs", str(d)]
+    for f in hide_files:
+        if Path(f).is_file():
+            args += ["--ro-bind", "/dev/null", str(f)]
+    if box is None:
+        return args + ["--chdir", "/"]
+    return args + ["--bind", str(box), str(box), "--chdir", str(box / "work")]
+
+
+def available(ids=None) -> str | None:
+    """None when the sandbox starts this Python (as ``ids`` = (uid, gid), or this user); else why not."""
+    key = ids or ()
+    if key not in _PROBE:
+        if os.name != "posix" or shutil.which("bwrap") is None:
+            _PROBE[key] = "bubblewrap (bwrap) is not installed (Debian/Ubuntu: apt-get install bubblewrap)"
+        else:
+            cmd = command(None) + [sys.executable, "-c", "import nbclient, numpy"]
+            try:
+                run = subprocess.run(cmd, capture_output=True, timeout=120, stdin=subprocess.DEVNULL,
+                                     user=ids[0] if ids else None, group=ids[1] if ids else None,
+                                     extra_groups=[] if ids else None)
+                _PROBE[key] = None if run.returncode == 0 else \
+                    f"bwrap could not start a sandbox here: {run.stderr.decode(errors='replace').strip()[:300] or run.returncode}"
+            except (OSError, subprocess.SubprocessError) as exc:
+                _PROBE[key] = f"bwrap could not start a sandbox here: {exc}"
+    return _PROBE[key]

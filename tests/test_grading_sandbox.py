@@ -1,0 +1,56 @@
+"""The grading sandbox (issue 13, parts 2-3): bubblewrap, or no grading without --unsafe.
+
+What a notebook cannot do inside it, end to end: tests/test_grading_integrity.py (escape.ipynb).
+"""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from coursekit.grading import sandbox
+
+ROOT = Path(__file__).resolve().parent.parent
+HAVE = sandbox.available() is None
+
+
+def test_without_a_sandbox_grading_is_refused_unless_unsafe(tmp_path):
+    bad = tmp_path / "01_selection.ipynb"
+    bad.write_text('{"cells": [')  # graded at once: no kernel needed
+    env = {"PATH": str(tmp_path), "PYTHONPATH": str(ROOT)}  # no bwrap on this PATH
+    proc = subprocess.run([sys.executable, "-m", "coursekit", "grade", str(bad), "--json", "r.json"], cwd=tmp_path,
+                          capture_output=True, text=True, env=env)
+    assert proc.returncode == 2 and "cannot sandbox the notebooks: bubblewrap (bwrap) is not installed" in proc.stderr
+    assert "--unsafe" in proc.stderr and proc.stdout == "" and not (tmp_path / "r.json").exists()
+    proc = subprocess.run([sys.executable, "-m", "coursekit", "grade", str(bad), "--json", "r.json", "--unsafe"],
+                          cwd=tmp_path, capture_output=True, text=True, env=env)
+    assert proc.returncode == 0 and "graded without a sandbox (--unsafe)" in proc.stdout
+
+
+@pytest.mark.skipif(not HAVE, reason=f"no sandbox here: {sandbox.available()}")
+def test_inside_the_sandbox_files_are_read_only_hidden_or_private(tmp_path):
+    box = tmp_path / "box"
+    (box / "work").mkdir(parents=True)
+    other = tmp_path / "other_submission.ipynb"
+    other.write_text("answers")
+    marker = Path("/tmp") / f"coursekit-host-file-{tmp_path.name}"
+    marker.write_text("the host's /tmp")
+    script = f"""
+cat {ROOT}/solutions/01_selection.ipynb 2>/dev/null | wc -c
+cat {other} | wc -c
+touch {ROOT}/coursekit/PWNED 2>/dev/null && echo wrote-package
+echo box > {box}/work/mine && cat {box}/work/mine
+test -e {marker} && echo seen || echo unseen
+ls /proc | grep -c '^[0-9]'
+"""
+    try:
+        run = subprocess.run(sandbox.command(box, hide_dirs=[ROOT / "solutions"], hide_files=[other]) + ["/bin/sh", "-c", script],
+                             capture_output=True, text=True, timeout=120)
+    finally:
+        marker.unlink()
+    lines = run.stdout.split()
+    assert run.returncode == 0, run.stderr
+    assert lines[:4] == ["0", "0", "box", "unseen"], lines  # solutions hidden, other submission empty, box writable, /tmp private
+    assert int(lines[4]) < 10  # its own PID namespace: a handful of processes, not the machine's
+    assert not (ROOT / "coursekit" / "PWNED").exists() and (ROOT / "solutions" / "01_selection.ipynb").stat().st_size > 0
