@@ -242,3 +242,33 @@ def test_a_swimmer_scores_the_same_to_the_last_bit_alone_and_in_any_batch_for_an
     batch = simulate([tiny, *others, snake], 1.0, **options)
     assert alone.fitness[0] == batch.fitness[-1]
     np.testing.assert_array_equal(alone.com[0], batch.com[-1])
+
+
+@pytest.mark.parametrize("change, field", [
+    (lambda c: setattr(c.nodes[0], "size", (0.0, 0.0, 0.0)), "size"),
+    (lambda c: setattr(c.nodes[1], "force", 1e9), "force"),
+    (lambda c: c.nodes[1].children.append(__import__("coursekit").creatures.ChildLink(0)), "cycle|child"),
+])
+def test_simulate_validates_creatures_changed_after_they_were_built(change, field):
+    from coursekit.creatures import Creature
+
+    for controller in (None, lambda q, qd, contact, dt: np.zeros_like(q)):
+        snake = Creature.figure1_snake()
+        change(snake)
+        with pytest.raises((ValueError, TypeError), match=rf"creatures\[0\].*({field})"):
+            simulate([snake], 1.0, controller=controller)
+
+
+def test_a_body_cut_off_at_the_part_cap_scores_zero():
+    from coursekit.creatures import ChildLink, Creature, Input, Neuron, Node, Recursion, Symmetry
+
+    # a branching spine of 31 segments, each with a mirrored pair of paddling legs: 93 parts
+    beat = Input(-2, 0, 1.0)
+    spine = Node(size=(0.2, 0.05, 0.05), recursive_limit=4, recursion=[Recursion((1.0, 0, 0)), Recursion((0, 1.0, 0))],
+                 children=[ChildLink(1, pos=(0, 0, 1.0))], symmetry=[Symmetry(1, axis=2)], effectors=[beat])
+    leg = Node(size=(0.05, 0.05, 0.1), joint_pos=(0, 0, -1.0), effectors=[beat])
+    big = Creature([spine, leg], [Neuron("oscillate_wave", [Input(None, 0, 0.0)], 2.0)])
+    assert big.expand().body.meta["truncated"]
+    r = simulate([big, Creature.figure1_snake()], 1.0)
+    assert np.linalg.norm(r.com[0, -1] - r.com[0, 0]) > 1e-3  # what is left of it moves
+    assert r.fitness[0] == 0.0 and r.fitness[1] > 0  # but the cut-off body scores nothing

@@ -20,7 +20,7 @@ import numpy as np
 from coursekit.creatures.body import REVOLUTE
 from coursekit.creatures.fitness import swimming_fitness
 from coursekit.creatures.physics import backend as bk
-from coursekit.creatures.physics.model import as_trees
+from coursekit.creatures.physics.model import as_trees, validated
 from coursekit.creatures.physics.world import World
 
 
@@ -59,12 +59,7 @@ def _brains(creatures):
     seq = creatures if isinstance(creatures, (list, tuple)) else [creatures]
     if not all(hasattr(c, "expand") for c in seq):
         return None, as_trees(creatures)
-    for i, c in enumerate(seq):  # a creature may have been changed since it was built
-        try:
-            c.validate()
-        except (TypeError, ValueError) as e:
-            raise type(e)(f"creatures[{i}]: {e}") from None
-    phenotypes = [c.expand() for c in seq]
+    phenotypes = [validated(c, i).expand() for i, c in enumerate(seq)]
     return BrainBatch([p.brain for p in phenotypes]), [p.body for p in phenotypes]
 
 

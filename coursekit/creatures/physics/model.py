@@ -30,8 +30,20 @@ from . import spatial as sp
 from .aba import fit_joint_basis
 
 
+def validated(creature, i: int):
+    """``creature`` after its own ``validate()`` (if it has one), errors prefixed ``creatures[i]``:
+    a genotype may have been changed since it was built."""
+    if hasattr(creature, "validate"):
+        try:
+            creature.validate()
+        except (TypeError, ValueError) as e:
+            raise type(e)(f"creatures[{i}]: {e}") from None
+    return creature
+
+
 def as_trees(creatures) -> list[BodyTree]:
-    """BodyTrees of ``creatures``: BodyTrees, or objects with ``.expand().body`` or ``.body``."""
+    """BodyTrees of ``creatures``: BodyTrees, or objects with ``.expand().body`` or ``.body``
+    (validated first)."""
     if isinstance(creatures, BodyTree) or hasattr(creatures, "expand") or hasattr(creatures, "body"):
         creatures = [creatures]
     trees = []
@@ -39,7 +51,7 @@ def as_trees(creatures) -> list[BodyTree]:
         if isinstance(c, BodyTree):
             trees.append(c)
         elif hasattr(c, "expand"):
-            trees.append(c.expand().body)
+            trees.append(validated(c, i).expand().body)
         elif isinstance(getattr(c, "body", None), BodyTree):
             trees.append(c.body)
         else:
