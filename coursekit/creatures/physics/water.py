@@ -93,13 +93,13 @@ def max_drag_rate(model, k: float | None = None, box_drag=None) -> float:
     ``h_min`` = :data:`~coursekit.creatures.body.MIN_HALF_EXTENT` (the boxes' own rates are at
     most that), not the stiffest box present: a creature's step, and so its trajectory and
     fitness to the last bit, must not depend on which creatures share its batch. (Creatures of
-    other densities than water's still share the batch's smallest density.) With a student's
-    ``box_drag`` the rates of the boxes present are used.
+    other densities than water's still share the batch's smallest density.) A student's
+    ``box_drag`` that is stiffer than the law allows raises it to the rates of the boxes present.
     """
     from coursekit.creatures.body import MIN_HALF_EXTENT
 
     k = DRAG_COEFFICIENT if k is None else float(k)
+    bound = k / (min(float(t.density) for t in model.trees) * MIN_HALF_EXTENT)
     if box_drag is None:
-        density = min(float(t.density) for t in model.trees)
-        return k / (density * MIN_HALF_EXTENT)
-    return float(np.max(body_drag(model.half_extents_np, k, box_drag) / model.inertia_diag_np))
+        return bound
+    return max(bound, float(np.max(body_drag(model.half_extents_np, k, box_drag) / model.inertia_diag_np)))
