@@ -216,9 +216,12 @@ def articulated_inertias(model, q, lock=None):
         V = xp.empty_like(U)
         Wl, dl = W[jl], d[jl]
         V[jl] = Wl * dl[:, None]
-        # a locked leaf passes Xup' I Xup = (its free share) + d W W'
-        model.leaf_segments.add_into(IA, sp.outer(xp, Wl * ((1.0 - free[jl]) * dl[:, None]), Wl))
-        W[jl] = Wl * free[jl]
+        # a locked leaf passes Xup' I Xup = (its free share) + d W W': a few leaves, added one by one
+        k = bk.nonzero(xp, lock[jl])
+        if k.shape[0]:
+            Wk = Wl[k]
+            bk.add_at(xp, IA, xp.take(model.leaf_parent, k, axis=0), sp.outer(xp, Wk * dl[k][:, None], Wk))
+            Wl[k] = 0.0  # a view of W
     Z = xp.empty((L - C, 6, 6), dtype=Xup.dtype, device=model.device)
     Yt = xp.empty_like(Z)
     for s, e, _, seg in reversed(model.levels):
@@ -316,6 +319,40 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed):
     # the force a locked joint needs: the free formula qdd = (tau - S'pA - U'(Xup a_p + c)) / d solved for tau
     need = d * ap + SpA + Uc + sp.dot(xp, V, a_parent)
     return a0, qdd, v, xp.where(lock, need, tau)
+
+
+def impulse(model, inertias, lock, change):
+    """The hybrid system's response to a change of the locked joints' rates, from rest.
+
+    The sweeps of :func:`aba` with no velocities and no forces (no bias terms: ``c = 0``,
+    ``pA = 0`` at first): the locked joints' rates change by ``change`` (M,) and the root and the
+    free joints respond as the articulated inertia makes them -- an impulse through the body,
+    which conserves momentum exactly (the joint limits, :mod:`limits`).
+
+    Args:
+        inertias: :func:`articulated_inertias` at the state's ``q`` with this ``lock``.
+    Returns:
+        ``(dv0, dqd)``: the root's velocity change (C, 6) in root coordinates and the joints' (M,).
+    """
+    xp = model.xp
+    C, L = model.n_creatures, model.leaf_start
+    Xup, IA, U, d, W, Z, Yt, V = inertias
+    S = model.S
+    ap = xp.where(lock, change, xp.zeros_like(change))
+    jl, ji = slice(L - C, None), slice(0, L - C)
+    pA = xp.zeros((model.n_bodies, 6), dtype=ap.dtype, device=model.device)
+    g = xp.empty_like(V)  # what each joint passes to its parent: Xup' U ap (locked), 0 (free)
+    g[ji] = V[ji] * ap[ji][:, None]
+    sp.mtv(Xup[jl], U[jl] * ap[jl][:, None], out=g[jl])
+    model.joint_segments.add_into(pA, g)
+    for s, e, _, seg in reversed(model.levels):
+        seg.add_into(pA, sp.mtv(Z[s - C : e - C], pA[s:e]))
+    ud = xp.where(lock, ap, -sp.dot(xp, S, pA[C:]) / d)
+    a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
+    a = xp.concat([a0, S[ji] * ud[ji][:, None]], axis=0)
+    for s, e, par, _ in model.levels:
+        a[s:e] += sp.mv(Z[s - C : e - C], xp.take(a, par, axis=0))
+    return a0, ud - sp.dot(xp, W, xp.take(a, model.joint_parent, axis=0))
 
 
 def poses_rows(model, R0, p0, q):

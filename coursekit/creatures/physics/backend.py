@@ -149,3 +149,16 @@ def scatter_add(xp, target, idx, values) -> None:
         flat = values.reshape(len(idx), -1)
         sums = [np.bincount(idx, weights=flat[:, k], minlength=target.shape[0]) for k in range(flat.shape[1])]
         target += np.stack(sums, axis=1).reshape(target.shape)
+
+
+def nonzero(xp, mask):
+    """Indices (1-D) of the true entries of a boolean vector."""
+    return xp.nonzero(mask)[0]
+
+
+def add_at(xp, target, idx, values) -> None:
+    """``target[idx[k]] += values[k]`` in place for a few rows (repeats accumulate)."""
+    if is_torch(xp):
+        target.index_put_((idx,), values, accumulate=True)
+    else:
+        np.add.at(target, idx, values)

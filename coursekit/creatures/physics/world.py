@@ -22,7 +22,7 @@ import numpy as np
 
 from . import backend as bk
 from . import spatial as sp
-from .aba import aba, articulated_inertias, body_velocities, forward_kinematics, joint_transforms, pose_stacks, poses_rows
+from .aba import aba, articulated_inertias, body_velocities, forward_kinematics, impulse, joint_transforms, pose_stacks, poses_rows
 from .contact import Contacts
 from .dynamics import _flatten, split_layout, join_velocity_layout
 from .integrate import INTEGRATORS, State, step
@@ -196,16 +196,15 @@ class World:
     def _stop_at_limits(self, s: State) -> State:
         """Lock the joints at their limits for this step and give them their rates by an impulse.
 
-        The impulse is the hybrid sweep with no velocities and no forces: the locked joints' rates
-        change by the prescribed amounts and the rest of the body responds through the articulated
-        inertia -- exactly momentum-conserving. The inertias are those the step's first stage needs.
+        The impulse (:func:`~coursekit.creatures.physics.aba.impulse`) is the hybrid sweep with no
+        velocities and no forces: the locked joints' rates change by the prescribed amounts and the
+        rest of the body responds through the articulated inertia -- exactly momentum-conserving.
+        The inertias are those the step's first stage needs.
         """
         xp, m = self.xp, self.model
         self._lock, rate = self.limits.begin(s.q, s.qd, self.tau)
         self._inertia_q, self._inertia = s.q, articulated_inertias(m, s.q, self._lock)
-        zj, zc = xp.zeros_like(s.q), xp.zeros((m.n_creatures, 6), dtype=s.q.dtype, device=m.device)
-        dv0, dqd, _, _ = aba(m, s.q, zj, zc, zj, inertias=self._inertia, v=xp.zeros((m.n_bodies, 6), dtype=s.q.dtype, device=m.device),
-                             lock=self._lock, prescribed=rate - s.qd)
+        dv0, dqd = impulse(m, self._inertia, self._lock, rate - s.qd)
         R = sp.quat_to_mat(xp, s.quat)
         return State(s.pos, s.quat, s.q, s.lin + sp.mv(R, dv0[:, 3:]), s.omega + dv0[:, :3], xp.where(self._lock, rate, s.qd + dqd))
 
