@@ -4,17 +4,18 @@ For batches of random creatures (10-20 boxes each) this prints body-steps and cr
 second of our batched simulator (numpy, torch CPU, torch CUDA when present) next to MuJoCo
 stepping the very same exported creatures (``to_mjcf``, all creatures in one model) with its RK4
 integrator, the same step and one thread, and the ratio. Ours runs the full swimmer physics
-(water drag, joint-limit springs; self-collisions in a separate row); MuJoCo runs the exported
-articulated bodies (joint limits as constraints, no fluid, no contacts). Times are the best
+(water drag, joint limits as constraints; self-collisions in a separate row); MuJoCo runs the
+exported articulated bodies (joint limits as constraints, no fluid, no contacts). Times are the best
 window of process CPU time, the engines taking turns window by window (see ``_timed``), so other
 jobs on a shared machine disturb them little and disturb all engines alike.
 
 Every engine first simulates ``--warmup`` seconds (default 2 s, 120 steps) untimed. The random
 creatures start inside their joint limits, and MuJoCo's step cost grows as they reach them and
 its constraint count rises (at batch 300, about 6 ms per step over the first 20 steps, 10 ms from
-about step 60 on, 255 -> 1,200 active constraints by step 240); our limits are springs whose
-cost does not depend on the state. Timing from the first step would measure MuJoCo on that
-transient only (the best window is an early one); ``--warmup 0`` does so.
+about step 60 on, 255 -> 1,200 active constraints by step 240); ours costs a little more with
+more joints locked at their limits (each locked leaf adds its inertia to its parent). Timing
+from the first step would measure MuJoCo on that transient only (the best window is an early
+one); ``--warmup 0`` does so.
 
 Our numpy step is bound by memory traffic and per-call overhead (see the notes in
 ``coursekit/creatures/physics/aba.py``); part of it is stacked 6x6 products, which a forced
