@@ -46,6 +46,8 @@ def command(box: Path | None, *, hide_dirs=(), hide_files=()) -> list[str]:
     """
     args = ["bwrap", "--die-with-parent", "--unshare-all", "--cap-drop", "ALL", "--new-session",
             "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--size", str(TMP_BYTES), "--tmpfs", "/tmp"]
+    for d in _needed_under_tmp():  # a Python, a virtual environment or a checkout under /tmp stays visible
+        args += ["--ro-bind", d, d]
     for d in hide_dirs:
         if Path(d).is_dir():
             args += ["--tmpfs", str(d)]
@@ -55,6 +57,22 @@ def command(box: Path | None, *, hide_dirs=(), hide_files=()) -> list[str]:
     if box is None:
         return args + ["--chdir", "/"]
     return args + ["--bind", str(box), str(box), "--chdir", str(box / "work")]
+
+
+def _needed_under_tmp() -> list[str]:
+    """The folders this Python runs from that the private ``/tmp`` would hide: its prefixes and
+    import path (a CI checkout with its virtual environment under ``/tmp``, say), outermost first."""
+    tmp = Path("/tmp").resolve()
+    found = set()
+    for p in [sys.prefix, sys.base_prefix, sys.exec_prefix, *sys.path]:
+        try:
+            path = Path(p).resolve()
+        except (OSError, RuntimeError):
+            continue
+        if path != tmp and tmp in path.parents and path.is_dir():
+            found.add(path)
+    outer = [p for p in found if not any(q in p.parents for q in found)]
+    return sorted(str(p) for p in outer)
 
 
 def available(ids=None) -> str | None:
