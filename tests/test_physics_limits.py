@@ -203,3 +203,21 @@ def test_nothing_swims_in_a_vacuum_beyond_integration_error():
     snake = Creature.figure1_snake()
     drift = [np.linalg.norm(np.subtract(*simulate([snake], 10.0, dt=dt, drag_coefficient=0.0).com[0, [-1, 0]])) for dt in (1 / 240, 1 / 480)]
     assert drift[1] < 0.05 and drift[1] < 0.2 * drift[0], drift
+
+
+def test_a_swim_with_a_joint_its_limits_could_not_hold_scores_zero(monkeypatch):
+    # evolution bred a champion with a joint 120 % of its range beyond its limit: the worst excess
+    # is recorded for every creature, and past limits.MAX_EXCESS the swim does not count
+    import sys
+
+    simulate_module = sys.modules["coursekit.creatures.simulate"]  # the package's name is the function
+
+    snake = Creature.figure1_snake()
+    body = snake.expand().body
+    r = simulate([snake], 2.0, record_every=1)
+    q = r.trajectory[0][:, 7:]
+    lo, hi = body.limits[1:, 0], body.limits[1:, 1]
+    assert r.limit_excess[0] == np.max(np.maximum(q - hi, lo - q).clip(0) / (hi - lo))
+    assert 0 < r.limit_excess[0] < simulate_module.MAX_EXCESS and r.fitness[0] > 0.3
+    monkeypatch.setattr(simulate_module, "MAX_EXCESS", 0.5 * r.limit_excess[0])
+    assert simulate([snake], 2.0).fitness[0] == 0.0

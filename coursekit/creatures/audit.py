@@ -31,12 +31,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .physics.limits import MAX_EXCESS
+
 #: Largest vacuum drift at the fine step, as a share of the distance swum in water.
 VACUUM_TOLERANCE = 0.05
 #: Smallest share of its speed a creature must keep when the step is refined eightfold.
 FINE_SPEED_SHARE = 0.75
-#: Largest joint-limit excess, as a share of the joint's range.
-LIMIT_TOLERANCE = 0.25
+#: Largest joint-limit excess, as a share of the joint's range (the simulator's own bound).
+LIMIT_TOLERANCE = MAX_EXCESS
 #: How much finer the "fine" step is.
 REFINE = 8
 #: Distances below this many body lengths are not judged (a creature that hardly moves).

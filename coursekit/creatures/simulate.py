@@ -8,7 +8,8 @@ physics step on the sensors (joint angles, wrapped to (-pi, pi] for revolute joi
 rates; per-face contact sensors) and the last tick's effector outputs become joint forces
 ``strength * clip(gain * e, -1, 1)``. The centre of mass of every creature is recorded after
 every step and scored with :func:`coursekit.creatures.fitness.swimming_fitness`. Creatures are
-validated again before they are expanded, and one whose body was cut off at the part cap scores 0.
+validated again before they are expanded; one whose body was cut off at the part cap, or one with
+a joint its limits could not hold (beyond them by more than a quarter of the range), scores 0.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import numpy as np
 from coursekit.creatures.body import REVOLUTE
 from coursekit.creatures.fitness import swimming_fitness
 from coursekit.creatures.physics import backend as bk
+from coursekit.creatures.physics.limits import MAX_EXCESS
 from coursekit.creatures.physics.model import as_trees, validated
 from coursekit.creatures.physics.world import World
 
@@ -33,7 +35,10 @@ class SimulationResult:
     """Outcome of :func:`simulate`.
 
     ``fitness`` (C,), ``com`` (C, T, 3) centre-of-mass trajectory of the evaluation phase,
-    ``times`` (T,) its sample times (0 = end of settling), ``diverged`` (C,) flags, the
+    ``times`` (T,) its sample times (0 = end of settling), ``diverged`` (C,) flags,
+    ``limit_excess`` (C,) the worst excess of any joint beyond its limits during the evaluation
+    (share of the joint's range; a creature past :data:`~coursekit.creatures.physics.limits.MAX_EXCESS`
+    scores 0), the
     final ``qpos``/``qvel`` (lists, MuJoCo layout), and with ``record_every=k`` the ``trajectory``:
     per creature an (F, nq) array of ``qpos`` every k steps from the start of the evaluation
     (times ``frame_times``), for animations.
@@ -48,6 +53,7 @@ class SimulationResult:
     dt: float
     trajectory: list | None = None
     frame_times: np.ndarray | None = None
+    limit_excess: np.ndarray | None = None
 
 
 def _brains(creatures):
@@ -143,12 +149,17 @@ def simulate(
     com = np.empty((m.n_creatures, n_steps + 1, 3))
     com[:, 0] = world.centre_of_mass()
     frames = [world.get_state()[0]] if record_every else None
+    worst = None
+    if world.limits is not None and m.n_joints:
+        worst = world.xp.zeros_like(world.state.q)
     for i in range(n_steps):
         if controller is not None:
             for _ in range(2):  # two brain ticks per physics step (Sims 1994 section 3)
                 effector = tick(*sense(), dt / 2)
             world.set_effectors(np.asarray(bk.to_numpy(effector), dtype=np.float64))
         world.step()
+        if worst is not None:
+            worst = world.limits.worst(world.state.q, worst)
         com[:, i + 1] = world.centre_of_mass()
         if record_every and (i + 1) % record_every == 0:
             frames.append(world.get_state()[0])
@@ -159,10 +170,13 @@ def simulate(
     times = np.arange(n_steps + 1) * dt
     # a body cut off at the part cap is not the creature its genotype describes: it scores 0
     truncated = np.array([bool(b.meta.get("truncated", False)) for b in m.trees])
-    fitness = swimming_fitness(com, times, world.diverged | truncated)
+    excess = np.zeros(m.n_creatures)
+    if worst is not None:  # a joint the step could not hold is no stroke: such a swim scores 0 too
+        np.maximum.at(excess, m.joint_creature, bk.to_numpy(worst))
+    fitness = swimming_fitness(com, times, world.diverged | truncated | (excess > MAX_EXCESS))
     qpos, qvel = world.get_state()
     trajectory = frame_times = None
     if record_every:
         trajectory = [np.stack([f[c] for f in frames]) for c in range(m.n_creatures)]
         frame_times = np.arange(len(frames)) * record_every * dt
-    return SimulationResult(fitness, com, times, world.diverged.copy(), qpos, qvel, dt, trajectory, frame_times)
+    return SimulationResult(fitness, com, times, world.diverged.copy(), qpos, qvel, dt, trajectory, frame_times, excess)

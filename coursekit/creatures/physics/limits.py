@@ -67,6 +67,12 @@ def effective_inertia(model) -> np.ndarray:
     return 1.0 / inv_diag
 
 
+#: The largest excess beyond a limit, as a share of the joint's range, that a swim may show and
+#: still count: past it the step could not hold the joint, and the creature scores 0
+#: (:func:`~coursekit.creatures.simulate.simulate`; evolution found such creatures and bred them).
+MAX_EXCESS = 0.25
+
+
 class Limits:
     """The lock set of one batch, decided step by step (see the module docstring).
 
@@ -117,6 +123,10 @@ class Limits:
     def end(self, force, tau) -> None:
         """Record the locks' own share of the joint forces (``force - tau``) in a step's last evaluation."""
         self.push = force - tau
+
+    def worst(self, q, so_far):
+        """(M,) the running worst excess of every joint, as a share of its range."""
+        return self.xp.maximum(so_far, self.excess(q) / (self.hi - self.lo))
 
     def excess(self, q):
         """(M,) how far each joint is beyond its limits (negative inside)."""
