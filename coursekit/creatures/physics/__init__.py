@@ -2,7 +2,7 @@
 
 Modules: :mod:`.spatial` (spatial vectors), :mod:`.model` (a population packed by tree depth),
 :mod:`.aba` (Featherstone's articulated-body algorithm), :mod:`.water` (Sims' drag),
-:mod:`.limits` (joint-limit springs), :mod:`.contact` (OBB self-collisions), :mod:`.integrate`
+:mod:`.limits` (joint limits as constraints), :mod:`.contact` (OBB self-collisions), :mod:`.integrate`
 (RKN / RK4), :mod:`.world` (stepping a batch with guards), :mod:`.dynamics` (MuJoCo-layout
 forward dynamics), :mod:`.backend` (numpy / torch), :mod:`.samples` (random bodies).
 """

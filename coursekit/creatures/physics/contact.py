@@ -34,7 +34,7 @@ from . import backend as bk
 from . import spatial as sp
 from .aba import forward_kinematics, pose_stacks, poses_rows
 
-#: Default ``dt * w`` of the contact springs (see the module docstring for why it is lower than the limits').
+#: Default ``dt * w`` of the contact springs (see the module docstring).
 CONTACT_STIFFNESS_PER_STEP = 0.1
 
 
