@@ -70,9 +70,10 @@ def test_passive_creatures_thrown_against_their_limits_and_themselves_never_gain
         worst = np.where(alive, np.maximum(worst, world.kinetic_energy()), worst)
     # RK4/RKN truncation may wobble the energy by ~1e-6 relative (more around contact onsets);
     # contact forces held over each step gave up to 16 %
-    # a joint that one step's acceleration carried past its limit is sent back by a velocity
-    # impulse and stopped at the limit the step after: that round trip can leave a little energy
-    # with the rest of the body (measured at most +0.18 %, seeds 400-440); the springs gave 250x
+    # a lock keeps a joint's rate for the whole step; where the rest of the body would have slowed
+    # it further, the lock's force does a little positive work (measured at most +0.18 %, seeds
+    # 400-440; a position projection in place of the return impulse changed nothing); the springs
+    # gave 250x
     assert np.all(worst <= e0 * (1 + 3e-3) + 1e-12)
 
 
