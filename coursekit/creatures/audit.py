@@ -110,7 +110,7 @@ def audit(creatures, seconds: float = 10.0, *, dt: float = 1.0 / 60.0, **options
     bodies = [c.expand().body for c in creatures]
     n = sum(b.n_joints for b in bodies)
     meter = _Metered(creatures)
-    swim = simulate(creatures, seconds, dt=dt, record_every=1, controller=meter, **options)
+    swim = simulate(creatures, seconds, dt=dt, controller=meter, **options)
     fine = simulate(creatures, seconds, dt=dt / REFINE, **options)
     passive = simulate(creatures, seconds, dt=dt, controller=_Silent(n), **options)
     water_off = {**options, "drag_coefficient": 0.0}
@@ -120,15 +120,12 @@ def audit(creatures, seconds: float = 10.0, *, dt: float = 1.0 / 60.0, **options
     energy = meter.work
     reports = []
     for i, b in enumerate(bodies):
-        q = swim.trajectory[i][:, 7:]
-        lo, hi = b.limits[1:, 0], b.limits[1:, 1]
-        excess = float(np.max(np.maximum(q - hi, lo - q) / (hi - lo), initial=0.0))
         d = dist(swim, i)
         mass = float(b.mass.sum())
         rep = AuditReport(
             speed=d / seconds, body_length=body_length(b), fine_speed=dist(fine, i) / seconds,
             passive_drift=dist(passive, i), vacuum_drift=dist(vacuum, i), vacuum_drift_fine=dist(vacuum_fine, i),
-            limit_excess=max(excess, 0.0), diverged=bool(swim.diverged[i] or fine.diverged[i]),
+            limit_excess=float(swim.limit_excess[i]), diverged=bool(swim.diverged[i] or fine.diverged[i]),
             energy=energy[i], cost_of_transport=energy[i] / (mass * d) if d > 0 else float("inf"),
         )
         if rep.diverged:

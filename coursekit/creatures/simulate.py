@@ -37,8 +37,8 @@ class SimulationResult:
     ``fitness`` (C,), ``com`` (C, T, 3) centre-of-mass trajectory of the evaluation phase,
     ``times`` (T,) its sample times (0 = end of settling), ``diverged`` (C,) flags,
     ``limit_excess`` (C,) the worst excess of any joint beyond its limits during the evaluation
-    (share of the joint's range; a creature past :data:`~coursekit.creatures.physics.limits.MAX_EXCESS`
-    scores 0), the
+    (share of the joint's range, 0 inside; with limits on, a creature past
+    :data:`~coursekit.creatures.physics.limits.MAX_EXCESS` scores 0), the
     final ``qpos``/``qvel`` (lists, MuJoCo layout), and with ``record_every=k`` the ``trajectory``:
     per creature an (F, nq) array of ``qpos`` every k steps from the start of the evaluation
     (times ``frame_times``), for animations.
@@ -149,17 +149,17 @@ def simulate(
     com = np.empty((m.n_creatures, n_steps + 1, 3))
     com[:, 0] = world.centre_of_mass()
     frames = [world.get_state()[0]] if record_every else None
-    worst = None
-    if world.limits is not None and m.n_joints:
-        worst = world.xp.zeros_like(world.state.q)
+    # every joint's worst excess beyond its limits, as a share of its range (limits on or off)
+    lo, hi = (bk.asarray(world.xp, m.limits_np[:, k], device=m.device) for k in (0, 1))
+    worst = world.xp.zeros_like(world.state.q)
     for i in range(n_steps):
         if controller is not None:
             for _ in range(2):  # two brain ticks per physics step (Sims 1994 section 3)
                 effector = tick(*sense(), dt / 2)
             world.set_effectors(np.asarray(bk.to_numpy(effector), dtype=np.float64))
         world.step()
-        if worst is not None:
-            worst = world.limits.worst(world.state.q, worst)
+        q = world.state.q
+        worst = world.xp.maximum(worst, world.xp.maximum(q - hi, lo - q) / (hi - lo))
         com[:, i + 1] = world.centre_of_mass()
         if record_every and (i + 1) % record_every == 0:
             frames.append(world.get_state()[0])
@@ -171,9 +171,10 @@ def simulate(
     # a body cut off at the part cap is not the creature its genotype describes: it scores 0
     truncated = np.array([bool(b.meta.get("truncated", False)) for b in m.trees])
     excess = np.zeros(m.n_creatures)
-    if worst is not None:  # a joint the step could not hold is no stroke: such a swim scores 0 too
-        np.maximum.at(excess, m.joint_creature, bk.to_numpy(worst))
-    fitness = swimming_fitness(com, times, world.diverged | truncated | (excess > MAX_EXCESS))
+    np.maximum.at(excess, m.joint_creature, bk.to_numpy(worst))
+    broken = excess > MAX_EXCESS if world.limits is not None else np.zeros(m.n_creatures, dtype=bool)
+    # a joint the step could not hold is no stroke: such a swim scores 0 too
+    fitness = swimming_fitness(com, times, world.diverged | truncated | broken)
     qpos, qvel = world.get_state()
     trajectory = frame_times = None
     if record_every:

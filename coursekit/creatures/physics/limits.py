@@ -124,10 +124,6 @@ class Limits:
         """Record the locks' own share of the joint forces (``force - tau``) in a step's last evaluation."""
         self.push = force - tau
 
-    def worst(self, q, so_far):
-        """(M,) the running worst excess of every joint, as a share of its range."""
-        return self.xp.maximum(so_far, self.excess(q) / (self.hi - self.lo))
-
     def excess(self, q):
         """(M,) how far each joint is beyond its limits (negative inside)."""
         return self.xp.maximum(q - self.hi, self.lo - q)
