@@ -13,7 +13,8 @@ nothing can swim and reports what it finds:
   it is exploiting the step, not the water;
 - ``fine_speed``: the distance swum per second at an eighth of the step (m/s), against ``speed``
   at the step itself: a speed that disappears with a finer step was integration error;
-- ``limit_excess``: the worst excess of any joint beyond its limits, as a fraction of its range;
+- ``limit_excess``: the worst overshoot of any joint beyond its limits within a step (put back at
+  the step's end; :mod:`~coursekit.creatures.physics.limits`), as a fraction of its range;
 - ``diverged``: the speed-cap or non-finite guard fired (the creature scores 0);
 - ``energy``: the work its effectors did (J), ``sum(tau * qd) dt``; ``cost_of_transport`` =
   energy / (mass * distance) (J / (kg m)).

@@ -9,7 +9,8 @@ rates; per-face contact sensors) and the last tick's effector outputs become joi
 ``strength * clip(gain * e, -1, 1)``. The centre of mass of every creature is recorded after
 every step and scored with :func:`coursekit.creatures.fitness.swimming_fitness`. Creatures are
 validated again before they are expanded; one whose body was cut off at the part cap, or one with
-a joint its limits could not hold (beyond them by more than a quarter of the range), scores 0.
+a joint whose motion the step does not resolve (a step carried it beyond its limit by more than a
+quarter of the range before it was put back), scores 0.
 """
 
 from __future__ import annotations
@@ -37,7 +38,8 @@ class SimulationResult:
     ``fitness`` (C,), ``com`` (C, T, 3) centre-of-mass trajectory of the evaluation phase,
     ``times`` (T,) its sample times (0 = end of settling), ``diverged`` (C,) flags,
     ``limit_excess`` (C,) the worst excess of any joint beyond its limits during the evaluation
-    (share of the joint's range, 0 inside; with limits on, a creature past
+    (share of the joint's range, 0 inside; with limits on, no state is beyond them and this is
+    the worst overshoot a step put back; a creature past
     :data:`~coursekit.creatures.physics.limits.MAX_EXCESS` scores 0), the
     final ``qpos``/``qvel`` (lists, MuJoCo layout), and with ``record_every=k`` the ``trajectory``:
     per creature an (F, nq) array of ``qpos`` every k steps from the start of the evaluation
@@ -159,7 +161,8 @@ def simulate(
             world.set_effectors(np.asarray(bk.to_numpy(effector), dtype=np.float64))
         world.step()
         q = world.state.q
-        worst = world.xp.maximum(worst, world.xp.maximum(q - hi, lo - q) / (hi - lo))
+        beyond = world.xp.maximum(q - hi, lo - q) if world.overshoot is None else world.overshoot
+        worst = world.xp.maximum(worst, beyond / (hi - lo))
         com[:, i + 1] = world.centre_of_mass()
         if record_every and (i + 1) % record_every == 0:
             frames.append(world.get_state()[0])

@@ -13,26 +13,32 @@ rest of the creature responds and which joint force that takes. The constraint f
 whatever it must be -- no stiffness to tune, no dependence on the effector's strength or the
 part's mass -- and, being a joint force, it is internal.
 
-Every (sub-)step, for the whole step (:class:`Limits`):
+At the end of every (sub-)step, for the next one (:class:`Limits`,
+:meth:`~coursekit.creatures.physics.world.World.step`):
 
-1. *Which joints lock.* A joint locks when, at its rate, it would pass its limit within the step
-   (a speculative contact), when it is beyond its limit, or when it was held at its limit and
-   either the lock pushed it inwards in the last evaluation or its own effector still pushes it
-   outwards. A lock that had to pull a joint outwards, against no effector, is released: a limit
-   only pushes. (Without the effector test, half the passes beyond a limit came from joints let
-   go one step early: the lock's force is the last step's, the effector's the present one.)
-2. *An impulse.* A locked joint's rate is set, by an impulse through the articulated inertia
-   (the same hybrid sweep with no velocities, :meth:`~coursekit.creatures.physics.world.World.step`),
-   to the rate that ends the step exactly at the limit, ``(limit - q) / h``, if that is slower
-   towards the limit than its own: an inelastic stop, which conserves momentum exactly and only
-   takes energy. A joint that was pushed beyond its limit returns to it the same way, and is
-   stopped there at the next step, so the return gives it no speed of its own.
-3. *The step.* Locked joints keep that rate (prescribed acceleration 0) while the rest of the
-   body moves, so they end the step at their limits; nothing stiff is left for the integrator.
+1. *Which joints lock.* A joint locks when, at its rate, it would pass its limit within the next
+   step (a speculative contact), when the step carried it beyond its limit, or when it was held at
+   its limit and either the lock pushed it inwards in the step's last evaluation or its own
+   effector still pushes it outwards. A lock that had to pull a joint outwards, against no
+   effector, is released: a limit only pushes.
+2. *Two impulses through the articulated inertia* (the hybrid sweep with no velocities,
+   :func:`~coursekit.creatures.physics.aba.impulse`):
 
-A joint can still pass its limit when its acceleration, not its rate, carries it there within
-one step (``a h^2 / 2``); it is back at the limit the step after. The effectors' maximum sweep
-speed (:func:`~coursekit.creatures.body.effector_strength`) keeps that small.
+   - a *stop*: a locked joint's rate is set to the rate that ends the next step exactly at its
+     limit, ``(limit - q) / h``, if that is slower towards the limit than its own. An inelastic
+     stop: it conserves momentum exactly and only takes energy.
+   - a *projection*: a joint the step carried beyond its limit is put back on it, and the root and
+     the free joints move as that impulse would move them, so the centre of mass stays put to
+     first order (post-stabilisation, Cline & Pai 2003). A free joint the projection would push
+     past a limit stops at it. No state a step ends in is beyond a limit.
+3. *The next step.* Locked joints keep their rates (prescribed acceleration 0) while the rest of
+   the body moves, so they end it at their limits; nothing stiff is left for the integrator.
+
+A joint can still overshoot within a step, when its acceleration (``a h^2 / 2``), or the stop of
+another joint of its creature, carries it past a limit it was not heading for: the projection
+puts it back, and :attr:`Limits.beyond` records how far it went (the simulator's
+``limit_excess``). The effectors' maximum sweep speed
+(:func:`~coursekit.creatures.body.effector_strength`) keeps that small.
 """
 
 from __future__ import annotations
@@ -67,8 +73,8 @@ def effective_inertia(model) -> np.ndarray:
     return 1.0 / inv_diag
 
 
-#: The largest excess beyond a limit, as a share of the joint's range, that a swim may show and
-#: still count: past it the step could not hold the joint, and the creature scores 0
+#: The largest overshoot beyond a limit, as a share of the joint's range, that a swim may show and
+#: still count: past it the step does not resolve the joint's motion, and the creature scores 0
 #: (:func:`~coursekit.creatures.simulate.simulate`; evolution found such creatures and bred them).
 MAX_EXCESS = 0.25
 
@@ -93,36 +99,44 @@ class Limits:
         """Forget the history (after the state was set from outside)."""
         self.push = self.xp.zeros_like(self.lo)  # the locks' share of the joint forces in the last evaluation
         self.lock = self.xp.zeros(self.lo.shape, dtype=self.xp.bool, device=model.device)
-        self.back = self.lock
         self.target = self.hi
+        self.beyond = self.xp.zeros_like(self.lo)  # how far the last step carried each joint beyond its limits
 
     def begin(self, q, qd, tau):
-        """Which joints are locked this step, and the rate each joint starts it with.
+        """Which joints are locked for the next step, and where the locked ones stand.
 
-        Returns ``(lock, rate)``: a locked joint moves at ``rate`` for the whole step, which ends it
-        exactly at its limit (``(limit - q) / h``), or its own rate if that is slower towards the
-        limit; a free joint keeps ``qd``.
+        Returns ``(lock, at)``: ``at`` (M,) is ``q`` for a locked joint within its limits and the
+        limit itself for one beyond it (the projection); free joints keep ``q``.
         """
         xp = self.xp
         ahead = q + self.h * qd
         # a held joint stays locked while the lock pushed it inwards, or while its own effector
-        # still pushes it outwards (the lock's last force lags a step behind)
+        # still pushes it outwards
         toward = xp.where(self.target == self.hi, 1.0, -1.0)
         held = self.lock & ((self.push * toward <= 0) | (tau * toward > 0))
-        out = self.excess(q) > self.tol
-        back = self.back  # joints that returned to their limit last step: stop them there
-        self.lock = held | out | back | (self.excess(ahead) > self.tol)
-        up = xp.where(held | out | back, q, ahead) > self.mid
-        self.target = xp.where(up, self.hi, self.lo)
+        self.beyond = xp.maximum(self.excess(q), 0.0)
+        out = self.beyond > self.tol
+        self.lock = held | out | (self.excess(ahead) > self.tol)
+        self.up = xp.where(held | out, q, ahead) > self.mid
+        self.target = xp.where(self.up, self.hi, self.lo)
+        return self.lock, xp.where(out, self.target, q)
+
+    def rate(self, q, qd):
+        """The rate every joint starts the step with: a locked joint's ends the step exactly at its
+        limit, ``(limit - q) / h``, or is its own if that is slower towards the limit."""
+        xp = self.xp
         reach = (self.target - q) / self.h
-        rate = xp.where(up, xp.minimum(qd, reach), xp.maximum(qd, reach))
-        rate = xp.where(back, xp.zeros_like(rate), rate)
-        self.back = out & (rate == reach)  # sent back by the impulse, not by their own motion
-        return self.lock, xp.where(self.lock, rate, qd)
+        rate = xp.where(self.up, xp.minimum(qd, reach), xp.maximum(qd, reach))
+        return xp.where(self.lock, rate, qd)
 
     def end(self, force, tau) -> None:
         """Record the locks' own share of the joint forces (``force - tau``) in a step's last evaluation."""
         self.push = force - tau
+
+    def within(self, q, moved):
+        """``moved`` where it stays within the limits or ``q`` was beyond them already, else the limit it would pass."""
+        xp = self.xp
+        return xp.where(self.excess(q) > self.tol, moved, xp.clip(moved, self.lo, self.hi))
 
     def excess(self, q):
         """(M,) how far each joint is beyond its limits (negative inside)."""

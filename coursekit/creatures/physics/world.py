@@ -90,6 +90,7 @@ class World:
         self.h = self.dt / self.substeps
         self.limits = Limits(m, self.h) if limits else None
         self._lock = None
+        self.overshoot = None  # (M,) how far the last step carried each joint beyond its limits before they were put back
         f = lambda a: bk.asarray(xp, a, device=m.device)  # noqa: E731
         self.strength = f(m.strength_np)
         self.gain = f(m.gain_np)
@@ -124,6 +125,7 @@ class World:
             self.contacts.reset()
         if self.limits is not None:
             self.limits.reset(m)
+            self._lock = None
 
     def get_state(self):
         """``(qpos, qvel)`` as lists of per-creature numpy vectors (MuJoCo layout)."""
@@ -179,6 +181,8 @@ class World:
             jfrozen = xp.take(bk.asarray(xp, self.diverged, dtype=xp.bool, device=m.device), self._joint_creature, axis=0)
             self.tau = xp.where(jfrozen, xp.zeros_like(self.tau), self.tau)
         for i in range(self.substeps):
+            if self.limits is not None and m.n_joints and self._lock is None:  # the first step, or a state set from outside
+                self.state = self._stop_at_limits(self.state)
             if self.contacts is not None:
                 s = self.state
                 rows = poses_rows(m, sp.quat_to_mat(xp, s.quat), s.pos, s.q) if self.contacts.n_pairs else None
@@ -186,28 +190,37 @@ class World:
                 if self.active_contacts is not None:  # the first stage's poses (it passes s.q on)
                     self._poses_q, self._poses = s.q, pose_stacks(xp, rows)
             prev = self.state
-            if self.limits is not None and m.n_joints:
-                prev = self._stop_at_limits(prev)
-            new = step(xp, prev, self.h, self._accel, self.integrator, self.time + i * self.h)
+            new = self._guard(prev, step(xp, prev, self.h, self._accel, self.integrator, self.time + i * self.h))
             if self._lock is not None:
                 self.limits.end(self._force, self.tau)
-            self.state = self._guard(prev, new)
+                new = self._stop_at_limits(new)
+                over = self.limits.beyond if i == 0 else xp.maximum(over, self.limits.beyond)
+            self.state = new
+        if self._lock is not None:
+            self.overshoot = over
         self.time += self.dt
 
     def _stop_at_limits(self, s: State) -> State:
-        """Lock the joints at their limits for this step and give them their rates by an impulse.
+        """Lock the joints at their limits for the next step, stop them there, and put those
+        the step carried beyond their limits back on them (:mod:`~coursekit.creatures.physics.limits`).
 
-        The impulse (:func:`~coursekit.creatures.physics.aba.impulse`) is the hybrid sweep with no
-        velocities and no forces: the locked joints' rates change by the prescribed amounts and the
-        rest of the body responds through the articulated inertia -- exactly momentum-conserving.
-        The inertias are those the step's first stage needs.
+        Both are impulses through the articulated inertia
+        (:func:`~coursekit.creatures.physics.aba.impulse`): the locked joints change by the
+        prescribed amounts and the root and the free joints respond. The stop is a velocity change
+        (exactly momentum-conserving), the projection a displacement (the centre of mass stays put
+        to first order). The inertias are those the next step's first stage reuses.
         """
         xp, m = self.xp, self.model
-        self._lock, rate = self.limits.begin(s.q, s.qd, self.tau)
-        self._inertia_q, self._inertia = s.q, articulated_inertias(m, s.q, self._lock)
+        self._lock, at = self.limits.begin(s.q, s.qd, self.tau)
+        self._inertia = articulated_inertias(m, s.q, self._lock)
+        rate = self.limits.rate(at, s.qd)
         dv0, dqd = impulse(m, self._inertia, self._lock, rate - s.qd)
+        dx0, dq = impulse(m, self._inertia, self._lock, at - s.q)
         R = sp.quat_to_mat(xp, s.quat)
-        return State(s.pos, s.quat, s.q, s.lin + sp.mv(R, dv0[:, 3:]), s.omega + dv0[:, :3], xp.where(self._lock, rate, s.qd + dqd))
+        q = xp.where(self._lock, at, self.limits.within(s.q, s.q + dq))
+        pos, quat = s.pos + sp.mv(R, dx0[:, 3:]), sp.quat_canonical(xp, sp.quat_mul(xp, s.quat, sp.quat_exp(xp, dx0[:, :3])))
+        self._inertia_q = q
+        return State(pos, quat, q, s.lin + sp.mv(R, dv0[:, 3:]), s.omega + dv0[:, :3], xp.where(self._lock, rate, s.qd + dqd))
 
     def _guard(self, prev: State, new: State) -> State:
         xp, m = self.xp, self.model
