@@ -70,3 +70,23 @@ def test_bad_arguments_are_named():
         evolve_swimmers(generations=1, rng=np.random.default_rng(0), population_size=1)
     with pytest.raises(ValueError, match="ratios"):
         evolve_swimmers(generations=1, rng=np.random.default_rng(0), ratios=(1, -1, 0), **SMALL)
+
+
+def test_a_run_on_worker_processes_or_dask_equals_the_serial_run_bit_for_bit():
+    # the generation is dealt into one batch per worker; a creature's trajectory does not depend
+    # on its batch, so every back end breeds the very same creatures
+    from concurrent.futures import ProcessPoolExecutor
+
+    from distributed import Client, LocalCluster
+
+    def run(executor=None):
+        r = evolve_swimmers(generations=2, rng=np.random.default_rng(5), population_size=7, seconds=0.5,
+                            progress=False, random_options=dict(max_parts=6), executor=executor)
+        return r.history, [c.to_json() for c in r.population]
+
+    serial = run()
+    with ProcessPoolExecutor(2) as pool:
+        assert run(pool) == serial
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, Client(cluster) as client:
+        assert run(client) == serial
+    assert serial[0].best[-1] > 0

@@ -56,6 +56,12 @@ class SwimmerFitness:
     Given to :func:`coursekit.ga.evolve` as ``map`` (the engine's per-genome ``fitness`` is not
     called); every option goes to :func:`~coursekit.creatures.simulate.simulate`.
 
+    With an ``executor`` (a ``concurrent.futures`` pool or a Dask client) the generation is dealt
+    into ``chunks`` batches (default: one per worker), every ``chunks``-th creature to the same
+    batch so that big and small creatures spread evenly, and the batches swim in the workers.
+    A creature's trajectory does not depend on its batch, so the fitness is bit for bit that of
+    one serial batch.
+
     Exploits of the time step are scored out: the ``refine`` fittest creatures of every batch are
     simulated again at half the step, and each keeps the lower of its two scores. A speed that
     came from integration error -- the one leak an exact simulator still has, and the first thing
@@ -66,17 +72,35 @@ class SwimmerFitness:
     seconds: float = 10.0
     options: dict = field(default_factory=dict)
     refine: int = 3
+    executor: object = None
+    chunks: int | None = None
 
     def __call__(self, _fitness, creatures):
         creatures = list(creatures)
         if not creatures:
             return []
-        fitness = simulate(creatures, self.seconds, **self.options).fitness
+        if self.executor is None:
+            fitness = _swim((creatures, self.seconds, self.options))
+        else:
+            n = min(len(creatures), self.chunks or ga.evaluation.workers(self.executor))
+            parts = ga.evaluation.parallel_map(_swim, [(creatures[k::n], self.seconds, self.options) for k in range(n)], self.executor)
+            fitness = np.empty(len(creatures))
+            for k, f in enumerate(parts):
+                fitness[k::n] = f
         if self.refine > 0:
             top = np.argsort(-fitness, kind="stable")[: self.refine]
             fine = {**self.options, "dt": self.options.get("dt", DT) / 2}
             fitness[top] = np.minimum(fitness[top], simulate([creatures[i] for i in top], self.seconds, **fine).fitness)
         return [float(f) for f in fitness]
+
+
+def _swim(job):
+    """Fitness of one batch ``(creatures, seconds, options)``; one thread per worker process."""
+    from threadpoolctl import threadpool_limits
+
+    creatures, seconds, options = job
+    with threadpool_limits(1):
+        return simulate(creatures, seconds, **options).fitness
 
 
 def _unbatched(creature):  # pragma: no cover - never called: SwimmerFitness evaluates the batch
@@ -100,6 +124,7 @@ def evolve_swimmers(
     progress: bool = True,
     callback=None,
     random_options: dict | None = None,
+    executor=None,
     **simulate_options,
 ) -> ga.EvolutionResult:
     """Evolve swimmers for speed.
@@ -118,6 +143,9 @@ def evolve_swimmers(
         elite: survivors copied unchanged (default: the top fifth, as Sims kept his survivors).
         checkpoint, progress, callback: as for :func:`coursekit.ga.evolve`.
         random_options: options for ``Creature.random``.
+        executor: a ``concurrent.futures`` pool or a Dask ``distributed.Client`` the generation
+            swims in, a batch per worker (:class:`SwimmerFitness`); the result is bit for bit the
+            serial one.
         **simulate_options: options for :func:`~coursekit.creatures.simulate.simulate` (``dt``,
             ``settle``, ``backend``, ``drag_coefficient`` ...).
 
@@ -139,7 +167,7 @@ def evolve_swimmers(
     vary = ga.Variation(parts)
     if elite is None:
         elite = max(1, math.ceil(len(population) / 5))
-    evaluate = SwimmerFitness(seconds, dict(simulate_options))
+    evaluate = SwimmerFitness(seconds, dict(simulate_options), executor=executor)
     return ga.evolve(
         population, _unbatched, vary, generations=generations, rng=rng, select=select, elite=elite,
         map=evaluate, checkpoint=checkpoint, progress=progress, callback=callback,

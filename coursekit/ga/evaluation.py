@@ -20,11 +20,12 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
-__all__ = ["evaluate", "is_dask_client"]
+__all__ = ["evaluate", "is_dask_client", "parallel_map", "workers"]
 
 
 def is_dask_client(obj) -> bool:
@@ -34,6 +35,23 @@ def is_dask_client(obj) -> bool:
     from distributed import Client
 
     return isinstance(obj, Client)
+
+
+def parallel_map(func: Callable, items: Sequence, executor, *, chunksize: int = 1) -> list:
+    """``[func(x) for x in items]`` on ``executor`` (a ``concurrent.futures.Executor`` or a Dask
+    ``distributed.Client``), in order; ``chunksize`` items travel together to a process."""
+    if is_dask_client(executor):
+        return executor.gather(executor.map(func, items, pure=False))
+    if hasattr(executor, "submit") and hasattr(executor, "map"):
+        return list(executor.map(func, items, chunksize=chunksize))
+    raise TypeError(f"executor: expected a concurrent.futures.Executor or a dask distributed.Client, got {type(executor).__name__}")
+
+
+def workers(executor) -> int:
+    """How many tasks ``executor`` runs at once (its processes or Dask threads)."""
+    if is_dask_client(executor):
+        return max(1, sum(executor.nthreads().values()))
+    return max(1, int(getattr(executor, "_max_workers", None) or os.cpu_count() or 1))
 
 
 def evaluate(fitness: Callable, genomes: Sequence, *, map: Callable | None = None, executor=None) -> np.ndarray:
@@ -61,15 +79,8 @@ def evaluate(fitness: Callable, genomes: Sequence, *, map: Callable | None = Non
         results = list(map(fitness, genomes))
     elif executor is None:
         results = [fitness(g) for g in genomes]
-    elif is_dask_client(executor):
-        futures = executor.map(fitness, genomes, pure=False)
-        results = executor.gather(futures)
-    elif hasattr(executor, "submit") and hasattr(executor, "map"):
-        results = list(executor.map(fitness, genomes, chunksize=max(1, math.ceil(len(genomes) / 32))))
     else:
-        raise TypeError(
-            f"executor: expected a concurrent.futures.Executor or a dask distributed.Client, got {type(executor).__name__}"
-        )
+        results = parallel_map(fitness, genomes, executor, chunksize=max(1, math.ceil(len(genomes) / 32)))
     if len(results) != len(genomes):
         raise ValueError(f"map: returned {len(results)} fitness values for {len(genomes)} genomes")
     out = np.empty(len(genomes), dtype=np.float64)
