@@ -53,7 +53,11 @@ def swimmers(out="swimmers-demo", *, population: int | None = None, generations:
     report = audit([best], seconds)[0]  # is it swimming, or exploiting the simulator?
     fig, ax = plt.subplots(figsize=(6, 3.5))
     result.history.plot(ax=ax)
+    ax.set_ylabel("fitness: swimming speed (m/s)")
     ax.set_title(f"Swimmers: {population} creatures, {generations} generations")
+    ax.annotate(f"champion: {report.speed:.3f} m/s = {report.body_lengths_per_second:.3f} body lengths/s\n"
+                f"(body length {report.body_length:.2f} m)", xy=(0.02, 0.97), xycoords="axes fraction",
+                va="top", fontsize=8, bbox=dict(boxstyle="round", fc="white", alpha=0.8))
     fig.tight_layout()
     fig.savefig(out / "fitness.png", dpi=100)
     plt.close(fig)

@@ -1,0 +1,105 @@
+"""Sims' 1994 experiment on this machine: 300 swimmers x 100 generations x 10 simulated seconds.
+
+Karl Sims ran it on a 32-processor CM-5 in about three hours. This runs it with his operators
+and rates (:func:`coursekit.creatures.evolve_swimmers` at its defaults: the best fifth survive,
+offspring proportional to fitness, children 40 % mutated, 30 % recombined, 30 % grafted) on every
+core (one batch per worker process, :class:`~coursekit.creatures.evolution.SwimmerFitness`),
+and reports per generation the wall time and the best and mean fitness in m/s, with the best in
+body lengths per second; then the champion of each seed: its speed over 10 s, its pace (the
+second half's distance over the first half's) and its audit (:mod:`coursekit.creatures.audit`).
+
+Throughput is creature-seconds simulated per wall-second, counting the generation's evaluations
+(the re-scoring of the top three at half the step is extra work, not counted).
+
+    python benchmarks/sims_scale.py [--seeds 0 1 2] [--workers N] [--out DIR]
+    python benchmarks/sims_scale.py --quick          # 24 creatures x 3 generations x 2 s (CI)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from coursekit.atomic import atomic_write
+from coursekit.creatures import evolve_swimmers, simulate
+from coursekit.creatures.audit import audit, body_length
+
+
+def run(seed: int, population: int, generations: int, seconds: float, workers: int):
+    rows, start = [], time.perf_counter()
+
+    def record(result):
+        best = result.best
+        length = body_length(best.expand().body)
+        rows.append(dict(generation=result.generation, wall=time.perf_counter() - start, best=result.best_fitness,
+                         best_per_length=result.best_fitness / length, mean=float(np.mean(result.fitness))))
+
+    pool = ProcessPoolExecutor(workers) if workers > 1 else None
+    try:
+        result = evolve_swimmers(generations=generations, rng=np.random.default_rng(seed), population_size=population,
+                                 seconds=seconds, progress=False, callback=record, executor=pool)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    return result, rows, time.perf_counter() - start
+
+
+def champion(creature, seconds: float = 10.0) -> dict:
+    """Speed, pace and audit of a champion over ``seconds``."""
+    r = simulate([creature], seconds)
+    com = r.com[0]
+    half = len(com) // 2
+    first, second = (np.linalg.norm(com[b] - com[a]) for a, b in ((0, half), (half, -1)))
+    report = audit([creature], seconds)[0]
+    return dict(speed=report.speed, body_lengths_per_second=report.body_lengths_per_second, pace=second / max(first, 1e-12),
+                audit=str(report), passed=report.passed)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument("--population", type=int, default=300)
+    parser.add_argument("--generations", type=int, default=100)
+    parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--quick", action="store_true", help="24 creatures x 3 generations x 2 s")
+    parser.add_argument("--out", type=Path, help="folder for each seed's champion (JSON) and table")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.population, args.generations, args.seconds = 24, 3, 2.0
+    print(f"Sims' experiment: {args.population} creatures x {args.generations} generations x {args.seconds:g} s, "
+          f"{args.workers} worker process(es), seeds {args.seeds}")
+    summary = []
+    for seed in args.seeds:
+        result, rows, wall = run(seed, args.population, args.generations, args.seconds, args.workers)
+        evaluations = sum(result.history.evaluations)
+        print(f"\nseed {seed}")
+        print("gen   wall s   best m/s  best BL/s   mean m/s")
+        for r in rows:
+            print(f"{r['generation']:3d} {r['wall']:8.1f} {r['best']:10.4f} {r['best_per_length']:10.4f} {r['mean']:10.4f}")
+        champ = champion(result.best, max(args.seconds, 10.0))
+        g0, gN = rows[0]["best"], rows[-1]["best"]
+        print(f"wall {wall:.0f} s; {evaluations * args.seconds / wall:.1f} creature-seconds per wall-second; "
+              f"best fitness {g0:.4f} -> {gN:.4f} m/s ({gN / max(g0, 1e-12):.1f}x)")
+        print(f"champion over 10 s: {champ['speed']:.4f} m/s = {champ['body_lengths_per_second']:.3f} body lengths/s, "
+              f"pace {champ['pace']:.2f}; audit: {champ['audit']}")
+        entry = dict(seed=seed, wall=wall, evaluations=evaluations, generations=rows, champion=champ,
+                     command=f"python benchmarks/sims_scale.py --seeds {seed} --population {args.population} "
+                             f"--generations {args.generations} --seconds {args.seconds:g}")
+        summary.append(entry)
+        if args.out:
+            args.out.mkdir(parents=True, exist_ok=True)
+            atomic_write(args.out / f"champion-seed{seed}.json", result.best.to_json())
+    if args.out:
+        atomic_write(args.out / "sims_scale.json", json.dumps(summary, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
