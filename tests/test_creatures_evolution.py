@@ -90,3 +90,14 @@ def test_a_run_on_worker_processes_or_dask_equals_the_serial_run_bit_for_bit():
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, Client(cluster) as client:
         assert run(client) == serial
     assert serial[0].best[-1] > 0
+
+
+def test_a_run_stopped_after_a_generation_resumes_to_the_uninterrupted_result(tmp_path):
+    from coursekit.creatures import resume_swimmers
+
+    options = dict(population_size=6, seconds=0.5, progress=False, random_options=dict(max_parts=6))
+    whole = evolve_swimmers(generations=2, rng=np.random.default_rng(9), **options)
+    evolve_swimmers(generations=1, rng=np.random.default_rng(9), checkpoint=tmp_path / "run.ckpt", **options)
+    resumed = resume_swimmers(tmp_path / "run.ckpt", generations=2, seconds=0.5, progress=False)
+    assert resumed.history == whole.history
+    assert [c.to_json() for c in resumed.population] == [c.to_json() for c in whole.population]

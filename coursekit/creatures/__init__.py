@@ -19,7 +19,7 @@ from .neural import FUNCTION_NAMES, SENSORS, Input, Neuron
 from .phenotype import MAX_PARTS, Phenotype, expand, part_poses
 from .simulate import SimulationResult, simulate
 from .render import animate, render  # noqa: E402  (the function shadows the submodule's name on purpose)
-from .evolution import evolve_swimmers
+from .evolution import evolve_swimmers, resume_swimmers
 
 
 def to_mjcf(creature, **options) -> str:
@@ -31,6 +31,6 @@ def to_mjcf(creature, **options) -> str:
 
 __all__ = [
     "BodyTree", "animate", "Brain", "BrainBatch", "ChildLink", "Creature", "FORMAT", "FUNCTION_NAMES", "Input", "MAX_PARTS",
-    "Neuron", "Node", "Phenotype", "Recursion", "SENSORS", "SimulationResult", "Symmetry", "evolve_swimmers", "expand",
+    "Neuron", "Node", "Phenotype", "Recursion", "SENSORS", "SimulationResult", "Symmetry", "evolve_swimmers", "expand", "resume_swimmers",
     "operators", "part_poses", "render", "simulate", "to_mjcf",
 ]

@@ -1,7 +1,7 @@
 """Evolving swimmers: the paper's GA (section 2.2) driven by swimming speed (section 2.4).
 
 :func:`evolve_swimmers` plugs the creature operators into the shared engine
-(:func:`coursekit.ga.evolve`) with Sims' 1994 settings by default: survivors are the best fifth,
+(:func:`coursekit.ga.evolve`; :func:`resume_swimmers` continues its checkpoint) with Sims' 1994 settings by default: survivors are the best fifth,
 offspring per survivor proportional to fitness (:func:`coursekit.ga.sims_select`), survivors kept
 (elitism), and children made 40 % by mutation, 30 % by the paper's recombination and 30 % by
 grafting (mated children are mutated at a reduced rate, as Sims did). Fitness is evaluated for
@@ -157,6 +157,41 @@ def evolve_swimmers(
             raise ValueError(f"population_size: must be an integer >= 2, got {population_size!r}")
         population = [Creature.random(rng, **(random_options or {})) for _ in range(population_size)]
     population = list(population)
+    vary, evaluate = _breeding(seconds, mutate, crossover, graft, ratios, executor, simulate_options)
+    if elite is None:
+        elite = max(1, math.ceil(len(population) / 5))
+    return ga.evolve(
+        population, _unbatched, vary, generations=generations, rng=rng, select=select, elite=elite,
+        map=evaluate, checkpoint=checkpoint, progress=progress, callback=callback,
+    )
+
+
+def resume_swimmers(
+    checkpoint,
+    *,
+    generations: int,
+    seconds: float = 10.0,
+    mutate=operators.mutate,
+    crossover=operators.crossover,
+    graft=operators.graft,
+    ratios=(0.4, 0.3, 0.3),
+    progress: bool = True,
+    callback=None,
+    executor=None,
+    **simulate_options,
+) -> ga.EvolutionResult:
+    """Continue a run of :func:`evolve_swimmers` from its checkpoint (:func:`coursekit.ga.resume`).
+
+    Given the settings the run was started with (``seconds``, the operators, ``ratios`` and the
+    simulation options; selection and elitism come from the checkpoint), the result equals, bit
+    for bit, that of the uninterrupted run. ``generations`` is the total the run should reach.
+    """
+    vary, evaluate = _breeding(seconds, mutate, crossover, graft, ratios, executor, simulate_options)
+    return ga.resume(checkpoint, _unbatched, vary, generations=generations, map=evaluate, progress=progress, callback=callback)
+
+
+def _breeding(seconds, mutate, crossover, graft, ratios, executor, simulate_options):
+    """The variation (Sims' shares of mutated, recombined and grafted children) and the fitness."""
     if len(ratios) != 3 or any(not (r >= 0) for r in ratios):
         raise ValueError(f"ratios: need three shares >= 0 (mutation, crossover, grafting), got {ratios!r}")
     parts = [(ratios[0], mutate, 1)]
@@ -164,11 +199,4 @@ def evolve_swimmers(
         parts.append((ratios[1], Mated(crossover, mutate), 2))
     if graft is not None and ratios[2] > 0:
         parts.append((ratios[2], Mated(graft, mutate), 2))
-    vary = ga.Variation(parts)
-    if elite is None:
-        elite = max(1, math.ceil(len(population) / 5))
-    evaluate = SwimmerFitness(seconds, dict(simulate_options), executor=executor)
-    return ga.evolve(
-        population, _unbatched, vary, generations=generations, rng=rng, select=select, elite=elite,
-        map=evaluate, checkpoint=checkpoint, progress=progress, callback=callback,
-    )
+    return ga.Variation(parts), SwimmerFitness(seconds, dict(simulate_options), executor=executor)
