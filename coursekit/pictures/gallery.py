@@ -40,21 +40,33 @@ from .session import GALLERY_FORMAT, Ancestor, Evolution, GalleryState, Generati
 from .variety import random_population
 
 __all__ = ["GalleryState", "Evolution", "Gallery", "GALLERY_FORMAT", "Origin", "Generation", "Ancestor",
-           "png_bytes", "DEFAULT_WINDOW"]
+           "png_bytes", "thumbnail_bytes", "DEFAULT_WINDOW"]
 
 DEFAULT_WINDOW = (0.0, 0.0, 1.0, 1.0)
 _SELECTED, _CURSOR, _PLAIN = "#2e7d32", "#1565c0", "transparent"
 _ACTIONS = ("evolve", "undo", "redo", "new random")
 _ALIASES = {"next generation": "evolve"}  # the button's name before redo and lineage came
-_KEEP = 256  # thumbnails (PNG) kept per view: the parents of a generation are not rendered again
+_KEEP = 256  # thumbnails kept: the parents of a generation (and undone ones) are not rendered again
 
 
 def png_bytes(image: np.ndarray) -> bytes:
-    """Encode an (H, W, 3) float image in [0, 1] as PNG (fast compression: thumbnails)."""
+    """Encode an (H, W, 3) float image in [0, 1] as PNG."""
     from PIL import Image as PILImage
 
     buf = io.BytesIO()
     PILImage.fromarray(np.round(image * 255).astype(np.uint8)).save(buf, format="PNG", compress_level=1)
+    return buf.getvalue()
+
+
+def thumbnail_bytes(image: np.ndarray) -> bytes:
+    """Encode an (H, W, 3) float image in [0, 1] as a thumbnail: JPEG, quality 92, no chroma
+    subsampling. Measured on 128^2 random pictures: 0.16 ms and 7.7 kB each, against 1.4 ms
+    and 21 kB for PNG (fastest compression), which noise-like pictures hardly compress; a
+    thumbnail is for the eye (files keep every bit: :func:`~.files.save_image`)."""
+    from PIL import Image as PILImage
+
+    buf = io.BytesIO()
+    PILImage.fromarray(np.round(image * 255).astype(np.uint8)).save(buf, format="JPEG", quality=92, subsampling=0)
     return buf.getvalue()
 
 
@@ -101,11 +113,12 @@ class Gallery:
         self.window = tuple(float(v) for v in window)
         self.cursor = 0
         self._syncing = False
-        self._pngs: OrderedDict = OrderedDict()
+        self._pngs: OrderedDict = OrderedDict()  # id(genome) -> (genome, thumbnail bytes), this view
+        self._view = None
 
         self.images, self.toggles, self._clicks = [], [], []
         for i in range(self.evolution.size):
-            im = W.Image(format="png", layout=W.Layout(width=f"{size}px", height=f"{size}px",
+            im = W.Image(format="jpeg", layout=W.Layout(width=f"{size}px", height=f"{size}px",
                                                        border=f"3px solid {_PLAIN}"))
             click = Event(source=im, watched_events=["click"], prevent_default_action=True)
             click.on_dom_event(lambda event, i=i: self.click(i))
@@ -302,7 +315,7 @@ class Gallery:
         for g, items in by_gen.items():
             tiles = []
             for a, pic in items:
-                im = W.Image(value=png_bytes(pic), format="png",
+                im = W.Image(value=thumbnail_bytes(pic), format="jpeg",
                              layout=W.Layout(width=f"{self.lineage_size}px", height=f"{self.lineage_size}px"))
                 ev = Event(source=im, watched_events=["click"], prevent_default_action=True)
                 ev.on_dom_event(lambda e, g=a.generation, j=a.index: self.branch(g, j))
@@ -348,21 +361,30 @@ class Gallery:
         """The status line as plain text."""
         return html.unescape(self.status.value.replace("<b>", "").replace("</b>", ""))
 
-    def _thumbnails(self) -> list[bytes]:
-        """PNGs of the population in the current view: only pictures not shown before render."""
-        key = (self.size, self.window, tuple(sorted(self.render_options.items())))
-        pop = self.state.population
-        todo = [g for g in dict.fromkeys(pop) if (key, g) not in self._pngs]
+    def _cached(self, cache: OrderedDict, genomes, make) -> list:
+        """``make(missing genomes) -> values`` through ``cache`` (this view only). Genomes are
+        keyed by identity (kept ones are the same objects; hashing a genome costs more than
+        encoding its thumbnail), each entry holding its genome so that the id stays its own."""
+        view = (self.size, self.window, tuple(sorted(self.render_options.items())))
+        if self._view != view:
+            self._pngs.clear()
+            self._view = view
+        todo = list({id(g): g for g in genomes if cache.get(id(g), (None,))[0] is not g}.values())
         if todo:
-            for g, pic in zip(todo, render(todo, self.size, window=self.window, **self.render_options)):
-                self._pngs[(key, g)] = png_bytes(pic)
+            for g, value in zip(todo, make(todo)):
+                cache[id(g)] = (g, value)
         out = []
-        for g in pop:
-            self._pngs.move_to_end((key, g))
-            out.append(self._pngs[(key, g)])
-        while len(self._pngs) > _KEEP:
-            self._pngs.popitem(last=False)
+        for g in genomes:
+            cache.move_to_end(id(g))
+            out.append(cache[id(g)][1])
+        while len(cache) > _KEEP:
+            cache.popitem(last=False)
         return out
+
+    def _thumbnails(self) -> list[bytes]:
+        """Thumbnails of the population in the current view (each genome rendered once)."""
+        return self._cached(self._pngs, self.state.population, lambda todo: [
+            thumbnail_bytes(p) for p in render(todo, self.size, window=self.window, **self.render_options)])
 
     def _sync(self, message: str, images: bool = True):
         """Mirror the state in the widgets."""

@@ -42,9 +42,29 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)  # the evaluator's numbers are flo
 MAX_DEPTH = 100  # levels of an expression tree (deeper ones would exhaust Python's stack)
 
 
+class _CachedHash:
+    """Hashes an immutable value once (genomes are dictionary keys again and again: the
+    operators' caches, the gallery's); the cached hash never travels in a pickle, since
+    string hashes differ between processes."""
+
+    __slots__ = ()
+
+    def __hash__(self):
+        h = self.__dict__.get("_hash")
+        if h is None:
+            h = hash(tuple(getattr(self, f) for f in self.__dataclass_fields__))
+            object.__setattr__(self, "_hash", h)
+        return h
+
+    def __getstate__(self):
+        return {k: v for k, v in self.__dict__.items() if k != "_hash"}
+
+
 @dataclass(frozen=True)
-class Chromosome:
+class Chromosome(_CachedHash):
     """One primitive and its parameter values (floats, in the primitive's declared order)."""
+
+    __hash__ = _CachedHash.__hash__  # in the body, so that dataclass keeps it
 
     symbol: str
     params: tuple[float, ...] = ()
@@ -104,8 +124,10 @@ def _check_chromosomes(seq, where: str) -> tuple[Chromosome, ...]:
 
 
 @dataclass(frozen=True)
-class ChromosomeString:
+class ChromosomeString(_CachedHash):
     """A string of ``head_length + tail_length`` chromosomes; the tail holds terminals only."""
+
+    __hash__ = _CachedHash.__hash__  # in the body, so that dataclass keeps it
 
     head_length: int
     chromosomes: tuple[Chromosome, ...]
@@ -287,8 +309,10 @@ def _levels(children: list[tuple[int, ...]]) -> int:
 
 
 @dataclass(frozen=True)
-class Genome:
+class Genome(_CachedHash):
     """Chromosome strings linked by a PreHeader. Immutable: operators build new genomes."""
+
+    __hash__ = _CachedHash.__hash__  # in the body, so that dataclass keeps it
 
     strings: tuple[ChromosomeString, ...]
     preheader: tuple[Chromosome, ...] = ()
