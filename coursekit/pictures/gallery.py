@@ -308,13 +308,14 @@ class Gallery:
         ancestors = self.lineage(i)
         pics = render([a.genome for a in ancestors], self.lineage_size, window=self.window,
                       **self.render_options) if ancestors else []
-        rows, self.lineage_tiles = [], []
+        columns, self.lineage_tiles = [], []
         by_gen: dict[int, list] = {}
         for a, pic in zip(ancestors, pics):
             by_gen.setdefault(a.generation, []).append((a, pic))
-        for g, items in by_gen.items():
-            tiles = []
-            for a, pic in items:
+        width = f"{self.lineage_size + 44}px"
+        for g in sorted(by_gen):  # oldest first: read left to right, as the pictures were bred
+            tiles = [W.HTML(f"<b>gen {g}</b>")]
+            for a, pic in by_gen[g]:
                 im = W.Image(value=thumbnail_bytes(pic), format="jpeg",
                              layout=W.Layout(width=f"{self.lineage_size}px", height=f"{self.lineage_size}px"))
                 ev = Event(source=im, watched_events=["click"], prevent_default_action=True)
@@ -325,11 +326,11 @@ class Gallery:
                              layout=W.Layout(width=f"{self.lineage_size}px"))
                 b.on_click(lambda b, g=a.generation, j=a.index: self.branch(g, j))
                 self.lineage_tiles.append((a.generation, a.index, b))
-                tiles.append(W.VBox([im, b, W.HTML(f"<small>{html.escape(made.replace('_', ' '))}</small>",
-                                                   layout=W.Layout(width=f"{self.lineage_size + 40}px"))]))
-            rows.append(W.HBox([W.HTML(f"<b>gen {g}</b>", layout=W.Layout(width="60px"))] + tiles))
-        head = W.HTML(f"<b>lineage of #{i}</b> (newest first; click an ancestor to branch from it)")
-        self.lineage_box.children = [head] + rows
+                tiles += [im, b, W.HTML(f"<small>{html.escape(made.replace('_', ' '))}</small>",
+                                        layout=W.Layout(width=width))]
+            columns.append(W.VBox(tiles, layout=W.Layout(width=width, margin="0 4px 6px 0")))
+        head = W.HTML(f"<b>lineage of #{i}</b>: oldest generation on the left; click an ancestor to branch from it")
+        self.lineage_box.children = [head, W.HBox(columns, layout=W.Layout(flex_flow="row wrap"))]
         self._sync(f"lineage of #{i}: {len(ancestors)} picture(s) in {len(by_gen)} generation(s)", images=False)
         return ancestors
 
