@@ -305,6 +305,8 @@ def test_the_status_line_says_each_thing_once(gallery):
     gallery.apply("random_interpolation")
     assert gallery.status_text().count("generation 1") == 1
     assert all(b.layout.width == "auto" for name, b in gallery.buttons.items())  # labels are never cut
+    gallery.apply("zoom in")
+    assert gallery.status_text().count("2x") == 1, gallery.status_text()
 
 
 # ---- session files: every field checked, the random state kept --------------------------------

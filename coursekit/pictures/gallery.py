@@ -221,7 +221,7 @@ class Gallery:
         if not 1e-6 <= 2 * abs(hw) <= 1e6:
             return "the view cannot zoom further"
         self.window = (cx - hw, cy - hh, cx + hw, cy + hh)
-        self._sync(f"zoomed to {self._scale()}")
+        self._sync("zoomed in" if factor > 1 else "zoomed out")  # the view itself is in the status line
         return self.status_text()
 
     def pan(self, dx: float, dy: float) -> str:
