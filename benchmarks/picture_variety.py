@@ -24,6 +24,10 @@ mean absolute difference to a parent or to an earlier child of the same click is
 (a wasted slot), and it is *identical to a parent or a sibling* when that holds for a parent or
 for any other child of the click (the issue's definition: both children of a duplicate pair count).
 
+**Flat children** (the same sessions): the fraction of those children that are flat or black,
+and along a *chain*: session ``s`` evolves (mixed operators) from one random picture, then from
+one random child of that, four times; the fraction of flat or black children over the chain.
+
 Usage: ``python benchmarks/picture_variety.py [--genomes 600] [--sessions 30]``
 """
 
@@ -37,6 +41,7 @@ import numpy as np
 from coursekit.pictures import Genome, primitives, render
 from coursekit.pictures.gallery import Evolution, GalleryState
 from coursekit.pictures.genome import Chromosome, ChromosomeString
+from coursekit.pictures.variety import dull
 
 SIZE = 64
 SAME = 1.0 / 255.0
@@ -91,7 +96,7 @@ def first_generation(rng, n):
 def children_figures(sessions, n=20):
     """(children checked, fraction repeating, fraction identical to a parent or sibling, and
     per operator the fraction identical)."""
-    checked = repeats = identical = 0
+    checked = repeats = identical = flat = 0
     per_op: dict = {}
     for s in range(sessions):
         rng = np.random.default_rng(s)
@@ -111,10 +116,28 @@ def children_figures(sessions, n=20):
                 checked += 1
                 repeats += min(d_par + d_earlier) < SAME
                 identical += min(d_par + d_sib) < SAME
+                flat += bool(dull(kid[None])[0])
                 per_op.setdefault(name, []).append(min(d_par + d_sib) < SAME)
             ev.undo()
             ev.state.selected.clear()
-    return checked, repeats / checked, identical / checked, {k: float(np.mean(v)) for k, v in per_op.items()}
+    return (checked, repeats / checked, identical / checked, {k: float(np.mean(v)) for k, v in per_op.items()},
+            flat / checked)
+
+
+def chain_figures(sessions, n=20, depth=4):
+    """Fraction of flat or black children over chains of ``depth`` evolve clicks, each from one
+    random picture of the generation before (children checked, fraction)."""
+    checked = flat = 0
+    for s in range(sessions):
+        rng = np.random.default_rng(1000 + s)
+        ev = Evolution(GalleryState(first_generation(rng, n)), rng)
+        for _ in range(depth):
+            ev.select(int(rng.integers(1, n)) if ev.state.generation else int(rng.integers(n)), True)
+            assert ev.next_generation().startswith("generation")
+            kids = _render(ev.state.population[1:])
+            checked += len(kids)
+            flat += int(dull(kids).sum())
+    return checked, flat / checked
 
 
 def main(argv=None):
@@ -138,13 +161,15 @@ def main(argv=None):
                      picture_figures(_render(first), photos) + [with_photo(first)]))
     t2 = time.perf_counter()
     children = children_figures(args.sessions) if args.sessions > 0 else None
+    chain = chain_figures(args.sessions) if args.sessions > 0 else None
     t3 = time.perf_counter()
     print(f"random pictures: {args.genomes} genomes (seeds 0..{args.genomes - 1}) at {SIZE}^2")
     print(f"{'':38s} {'flat':>6s} {'black':>6s} {'grey':>6s} {'photo':>6s} {'photo in tree':>14s}")
     for name, (flat, black, grey, photo, tree) in rows:
         print(f"{name:38s} {flat:6.1%} {black:6.1%} {grey:6.1%} {photo:6.1%} {tree:14.1%}")
     if children is not None:
-        _print_children(args.sessions, *children)
+        _print_children(args.sessions, *children[:4])
+        print(f"  flat or black: {children[4]:.1%}; over chains of 4 evolve clicks ({chain[0]} children): {chain[1]:.1%}")
     print(f"(seconds: Genome.random {t1 - t0:.1f}, random_population {t2 - t1:.1f}, sessions {t3 - t2:.1f})")
 
 

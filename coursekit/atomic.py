@@ -3,12 +3,17 @@
 Every file coursekit writes (genomes, creatures, checkpoints, gallery sessions, pictures, grading
 results) goes to a temporary sibling first and is moved onto its name with ``os.replace`` only
 once complete, so a reader sees the old file or the new one, never half of one.
+
+A temporary sibling is named ``.NAME.PID.RANDOM.SUFFIX`` after the process writing it; a
+process killed mid-write cannot remove its own, so the next write of the same file removes
+the temporaries whose process is gone (or, without a process id, that are over an hour old).
 """
 
 from __future__ import annotations
 
 import os
 import tempfile
+import time
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -22,7 +27,8 @@ def atomic_path(path, suffix: str = ".tmp"):
     lets writers that choose a format by extension see the right one.
     """
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix)
+    sweep(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.{os.getpid()}.", suffix=suffix)
     os.close(fd)
     umask = os.umask(0)
     os.umask(umask)
@@ -33,6 +39,44 @@ def atomic_path(path, suffix: str = ".tmp"):
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's process
+        return True
+    return True
+
+
+def sweep(path, max_age: float = 3600.0) -> list[Path]:
+    """Remove the temporary siblings of ``path`` left by writers that died; returns them.
+
+    A temporary whose process id (in its name) is not running is removed; one without a
+    process id (written before names carried it) once it is ``max_age`` seconds old."""
+    path = Path(path)
+    prefix, gone = f".{path.name}.", []
+    try:
+        entries = list(os.scandir(path.parent))
+    except OSError:
+        return gone
+    for entry in entries:
+        if not entry.name.startswith(prefix) or not entry.is_file(follow_symlinks=False):
+            continue
+        tag = entry.name[len(prefix):].split(".", 1)[0]
+        try:
+            stale = not _alive(int(tag)) if tag.isdigit() else time.time() - entry.stat().st_mtime > max_age
+        except OSError:
+            continue
+        if stale:
+            try:
+                os.unlink(entry.path)
+                gone.append(Path(entry.path))
+            except OSError:
+                pass
+    return gone
 
 
 def atomic_write(path, data: bytes | str) -> Path:

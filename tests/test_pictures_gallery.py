@@ -24,7 +24,7 @@ def saved(tmp_path):
 
 def test_widgets_mirror_the_state(gallery):
     assert len(gallery.images) == 6
-    assert all(bytes(im.value).startswith(b"\x89PNG") for im in gallery.images)
+    assert all(bytes(im.value).startswith(b"\xff\xd8\xff") for im in gallery.images)  # JPEG thumbnails
     gallery.toggles[2].value = True
     gallery.toggles[4].value = True
     assert gallery.state.selected == [2, 4]
@@ -45,7 +45,7 @@ def test_clicking_a_picture_selects_it(gallery):
     assert "2e7d32" in gallery.images[3].layout.border and "transparent" in gallery.images[1].layout.border
     browser_click(3)
     assert gallery.state.selected == [0]
-    assert "transparent" in gallery.images[3].layout.border
+    assert "2e7d32" not in gallery.images[3].layout.border  # unselected (the keyboard cursor stays on it)
 
 
 def test_each_operator_button_breeds_from_the_selection(gallery, tmp_path):
@@ -76,7 +76,7 @@ def test_apply_from_code_breeds_and_redraws_like_the_buttons(gallery):
     gallery.click(2)
     before = [bytes(im.value) for im in gallery.images]
     msg = gallery.apply("substitution")
-    assert msg.startswith("generation 1") and msg in gallery.status.value
+    assert msg.startswith("generation 1") and msg.split(": ")[1] in gallery.status.value
     assert [bytes(im.value) for im in gallery.images] != before  # the pictures on screen follow
     assert gallery.apply("undo") == "back to generation 0"
     assert [bytes(im.value) for im in gallery.images] == before
@@ -87,17 +87,17 @@ def test_apply_from_code_breeds_and_redraws_like_the_buttons(gallery):
 def test_buttons_need_a_selection(gallery):
     pop = list(gallery.state.population)
     gallery.buttons["transposition"].click()
-    assert "select at least one" in gallery.status.value and gallery.state.population == pop
+    assert "select a picture" in gallery.status.value and gallery.state.population == pop
     gallery.toggles[0].value = True
     gallery.buttons["crossover"].click()
-    assert "at least two" in gallery.status.value and gallery.state.population == pop
+    assert "1 more picture to recombine" in gallery.status.value and gallery.state.population == pop
 
 
 def test_undo_walks_back_through_history(gallery, tmp_path):
     generations = [list(gallery.state.population)]
     for _ in range(3):
         gallery.toggles[0].value = True
-        gallery.buttons["next generation"].click()
+        gallery.buttons["evolve"].click()
         generations.append(list(gallery.state.population))
     for k in (2, 1, 0):
         gallery.buttons["undo"].click()
@@ -151,7 +151,7 @@ def test_same_seed_same_session():
         g = Gallery(np.random.default_rng(9), n=4, size=8, genome_params=SMALL)
         g.toggles[1].value = True
         g.toggles[2].value = True
-        g.buttons["next generation"].click()
+        g.buttons["evolve"].click()
         return [x.to_json() for x in g.state.population]
     assert run() == run()
 
@@ -159,7 +159,7 @@ def test_same_seed_same_session():
 def test_foreign_session_file_is_refused(tmp_path):
     p = tmp_path / "x.json"
     p.write_text(json.dumps({"format": "coursekit.genome/1"}))
-    with pytest.raises(ValueError, match="coursekit.gallery/1"):
+    with pytest.raises(ValueError, match="coursekit.gallery/2"):
         Gallery.load(p, np.random.default_rng(0))
     p.write_text("{truncated")
     with pytest.raises(ValueError, match="not a gallery session"):
@@ -173,3 +173,207 @@ def test_export_saves_a_picture_that_can_be_bred_again(gallery, tmp_path):
     assert load_genome(path) == gallery.state.population[3]
     with pytest.raises(ValueError, match="not a picture index"):
         gallery.export(6, tmp_path / "nope.png")
+
+
+# ---- redo, lineage, branching ---------------------------------------------------------------
+
+def test_redo_goes_forward_again_until_a_new_action(gallery, tmp_path):
+    assert gallery.buttons["redo"].disabled and gallery.buttons["undo"].disabled
+    gallery.click(1)
+    gallery.apply("substitution")
+    bred = list(gallery.state.population)
+    shown = [bytes(im.value) for im in gallery.images]
+    assert gallery.apply("undo") == "back to generation 0"
+    assert not gallery.buttons["redo"].disabled
+    assert gallery.redo() == "forward to generation 1"
+    assert gallery.state.population == bred and [bytes(im.value) for im in gallery.images] == shown
+    assert saved(tmp_path).population == bred and gallery.buttons["redo"].disabled
+    gallery.apply("undo")
+    gallery.click(4)
+    gallery.apply("transposition")  # a new action forgets the undone generation
+    assert gallery.state.future == [] and gallery.redo() == "nothing to redo"
+
+
+def test_lineage_names_the_picks_and_operators_that_made_a_picture(gallery):
+    start = list(gallery.state.population)
+    gallery.click(2)
+    gallery.apply("substitution")           # generation 1: #0 is start #2, the rest its mutants
+    gen1 = list(gallery.state.population)
+    gallery.click(3)
+    gallery.click(0)
+    gallery.apply("crossover")              # generation 2: #0, #1 are gen-1 #3, #0; the rest their crosses
+    child = gallery.lineage(4)
+    assert (child[0].generation, child[0].index, child[0].operator) == (2, 4, "crossover")
+    assert child[0].genome == gallery.state.population[4] and set(child[0].parents) <= {0, 3}
+    by_place = {(a.generation, a.index): a for a in child}
+    for a in child:
+        assert a.genome == ([start, gen1, gallery.state.population][a.generation][a.index])
+        for p in a.parents:  # every parent named is in the lineage, one generation earlier
+            assert (a.generation - 1, p) in by_place or by_place.get((a.generation - 1, p)) is None
+    assert by_place[(0, 2)].operator == "start"
+    if (1, 3) in by_place:
+        assert by_place[(1, 3)].operator == "substitution" and by_place[(1, 3)].parents == (2,)
+    kept = gallery.lineage(1)               # gen-1 #0 was kept twice: it is start #2
+    assert [(a.generation, a.index, a.operator) for a in kept] == [(0, 2, "start")]
+
+
+def test_clicking_an_ancestor_in_the_lineage_view_branches_from_it(gallery, tmp_path):
+    gallery.click(2)
+    gallery.apply("root_transposition")
+    gallery.click(5)
+    gallery.apply("evolve")
+    latest = list(gallery.state.population)
+    gallery.show_lineage(5)
+    assert gallery.lineage_box.children and gallery.lineage_tiles
+    generation, index, button = next(t for t in gallery.lineage_tiles if t[0] == 1)
+    button.click()
+    assert gallery.state.generation == 1 and gallery.state.selected == [index]
+    assert saved(tmp_path).selected == [index]
+    gallery.apply("transposition")          # the new branch grows from the ancestor
+    assert gallery.state.population[0] == gallery.state.history[-1].population[index]
+    assert gallery.state.population != latest and gallery.state.future == []
+
+
+# ---- zoom, keys, the evolve button, the status line -------------------------------------------
+
+def test_zoom_and_pan_re_evaluate_the_genomes_and_reset_comes_back(gallery, tmp_path):
+    from coursekit.pictures import render
+    from coursekit.pictures.files import load_render_settings
+    from coursekit.pictures.gallery import thumbnail_bytes
+
+    home = [bytes(im.value) for im in gallery.images]
+    gallery.apply("zoom in")
+    assert gallery.window == (0.25, 0.25, 0.75, 0.75)
+    want = render(gallery.state.population, 12, window=gallery.window)
+    assert [bytes(im.value) for im in gallery.images] == [thumbnail_bytes(p) for p in want]
+    gallery.key("ArrowRight", shift=True)   # shift + arrow pans a quarter of the view
+    assert gallery.window == (0.375, 0.25, 0.875, 0.75) and "view 2x" in gallery.status_text()
+    path = gallery.export(0, tmp_path / "zoomed.png", size=16)
+    assert load_render_settings(path)["window"] == list(gallery.window)
+    gallery.key("0")
+    assert gallery.window == (0.0, 0.0, 1.0, 1.0) and [bytes(im.value) for im in gallery.images] == home
+    assert "x at (" not in gallery.status_text()
+
+
+def test_keys_move_a_cursor_select_evolve_undo_and_redo(gallery):
+    def press(key, shift=False):  # a keydown over the gallery, as ipyevents delivers it
+        gallery._keys._handle_mouse_msg(None, {"event": "keydown", "type": "keydown", "key": key,
+                                               "shiftKey": shift}, [])
+    press("ArrowRight")
+    press("ArrowDown")                      # 3 columns: #1 -> #4
+    press(" ")
+    press("ArrowLeft")
+    press("Enter")
+    assert gallery.state.selected == [4, 3] and gallery.cursor == 3
+    assert "dashed" in gallery.images[3].layout.border
+    press("e")
+    assert gallery.state.generation == 1 and gallery.state.population[:2] == gallery.state.history[-1].population[4:2:-1]
+    press("u")
+    assert gallery.state.generation == 0 and gallery.state.selected == [4, 3]
+    press("y")
+    assert gallery.state.generation == 1
+    press("ArrowRight")
+    press(" ")
+    press("Escape")
+    assert gallery.state.selected == []
+    press("+")
+    assert gallery.window == (0.25, 0.25, 0.75, 0.75)
+
+
+def test_evolve_is_disabled_with_its_reason_until_the_selection_fits(gallery):
+    rec, mut = gallery.buttons["crossover"], gallery.buttons["substitution"]
+    assert gallery.buttons["evolve"].disabled and mut.disabled and rec.disabled
+    assert "select a picture" in gallery.hint.value and "select a picture" in gallery.buttons["evolve"].tooltip
+    gallery.click(0)
+    assert not gallery.buttons["evolve"].disabled and not mut.disabled and rec.disabled
+    assert "select 1 more picture to recombine" in gallery.hint.value and "1 more" in rec.tooltip
+    gallery.click(1)
+    assert not rec.disabled and "ready" in gallery.hint.value
+    for i in range(2, 6):
+        gallery.click(i)
+    assert gallery.buttons["evolve"].disabled and rec.disabled
+    assert "leaves no room for children" in gallery.hint.value
+    pop = list(gallery.state.population)
+    assert "no room" in gallery.apply("evolve") and gallery.state.population == pop  # code is refused too
+
+
+def test_the_status_line_says_each_thing_once(gallery):
+    gallery.click(2)
+    gallery.click(4)
+    text = gallery.status_text()
+    assert text.startswith("generation 0 · 2 selected (#2, #4) · ") and text.count("selected") == 1, text
+    gallery.apply("random_interpolation")
+    assert gallery.status_text().count("generation 1") == 1
+    assert all(b.layout.width == "auto" for name, b in gallery.buttons.items())  # labels are never cut
+    gallery.apply("zoom in")
+    assert gallery.status_text().count("2x") == 1, gallery.status_text()
+
+
+# ---- session files: every field checked, the random state kept --------------------------------
+
+def test_a_resumed_session_continues_exactly_as_the_original(tmp_path):
+    def play(g, steps):
+        for picks, button in steps:
+            for i in picks:
+                g.click(i)
+            g.apply(button)
+    first = [([1], "transposition"), ([0, 3], "crossover")]
+    then = [([2], "evolve"), ([], "new random"), ([0, 1], "random_copy")]
+    make = dict(n=5, size=8, genome_params=SMALL)
+    original = Gallery(np.random.default_rng(42), **make)
+    play(original, first + then)
+    interrupted = Gallery(np.random.default_rng(42), autosave=tmp_path / "s.json", **make)
+    play(interrupted, first)
+    del interrupted                          # the kernel dies
+    resumed = Gallery.load(tmp_path / "s.json", size=8, genome_params=SMALL)
+    play(resumed, then)
+    assert [g.to_json() for g in resumed.state.population] == [g.to_json() for g in original.state.population]
+    assert resumed.state.generation == original.state.generation == 5
+
+
+BAD_SESSIONS = [
+    (lambda d: d["history"][0].update(selected=[9]), r"history\[0\]\.selected\[0\] = 9 is not a picture index"),
+    (lambda d: d.update(population=[]), "population must be a non-empty list"),
+    (lambda d: d.update(selected=[0, 0]), "selects a picture twice"),
+    (lambda d: d.update(selected=[1.9]), r"selected\[0\] = 1.9 is not a picture index"),
+    (lambda d: d.update(selected=[True]), r"selected\[0\] = True is not a picture index"),
+    (lambda d: d.update(generation=-5), "generation = -5 must be an integer"),
+    (lambda d: d.update(generation="abc"), "generation = 'abc' must be an integer"),
+    (lambda d: d.update(generation=0), "generation = 0 must be an integer >= 1"),
+    (lambda d: d["history"][0]["population"].pop(), r"history\[0\]\.population must be a list of 5 genomes"),
+    (lambda d: d["population"][2].update(strings=7), r"population\[2\]: genome: 'strings'"),
+    (lambda d: d["origins"][1].update(parents=[8]), r"origins\[1\]\.parents\[0\] = 8"),
+    (lambda d: d.update(rng={"bit_generator": "PCG64", "state": "x"}), "rng: broken PCG64 state"),
+    (lambda d: d.update(rng=[1, 2]), "rng = .* is not a saved random state"),
+    (lambda d: d.pop("selected"), "'selected' is missing"),
+]
+
+
+@pytest.mark.parametrize("damage, message", BAD_SESSIONS)
+def test_a_broken_session_file_is_refused_naming_the_field_and_left_untouched(tmp_path, damage, message):
+    path = tmp_path / "s.json"
+    g = Gallery(np.random.default_rng(5), n=5, size=8, genome_params=SMALL, autosave=path)
+    g.click(0)
+    g.apply("substitution")
+    d = json.loads(path.read_text())
+    damage(d)
+    path.write_text(json.dumps(d))
+    before = path.read_bytes()
+    with pytest.raises(ValueError, match=message):
+        Gallery.load(path, size=8)
+    assert path.read_bytes() == before
+
+
+def test_a_session_of_the_first_format_still_loads(tmp_path):
+    g = Gallery(np.random.default_rng(6), n=4, size=8, genome_params=SMALL)
+    g.click(1)
+    g.apply("transposition")
+    old = {"format": "coursekit.gallery/1", "generation": 1, "selected": [2],
+           "population": [x.to_dict() for x in g.state.population],
+           "history": [{"population": [x.to_dict() for x in h.population], "selected": h.selected}
+                       for h in g.state.history]}
+    (tmp_path / "old.json").write_text(json.dumps(old))
+    resumed = Gallery.load(tmp_path / "old.json", np.random.default_rng(0), size=8)
+    assert resumed.state.population == g.state.population and resumed.state.selected == [2]
+    assert resumed.apply("undo") == "back to generation 0"
+    assert json.loads((tmp_path / "old.json").read_text())["format"] == "coursekit.gallery/2"

@@ -135,3 +135,49 @@ def test_constructors_refuse_invalid_genomes():
 def test_from_json_refuses_broken_or_foreign_text(text, match):
     with pytest.raises(ValueError, match=match):
         Genome.from_json(text)
+
+
+# ---- bad genomes are refused, naming the field --------------------------------------------------
+
+def test_overflowing_parameters_are_refused_naming_the_field():
+    from coursekit.pictures import render
+
+    with pytest.raises(ValueError, match=r"chromosome 'blur': sigma = 1e\+200 must be finite"):
+        C("blur", (1e200,))
+    with pytest.raises(ValueError, match="chromosome 'const': value = 1000"):
+        C("const", (10**400,))                           # an integer too big for a float
+    g = Genome.random(np.random.default_rng(0), n_strings=1, head_length=2)
+    d = g.to_dict()
+    d["strings"][0]["chromosomes"][-1] = ["const", [10**400]]
+    with pytest.raises(ValueError, match=r"strings\[0\]\.chromosomes\[4\]: chromosome 'const': value"):
+        Genome.from_json(json.dumps(d))                  # "1000...0" in the file: ValueError, not OverflowError
+    d["strings"][0]["chromosomes"][-1] = ["const", [1e400]]  # json writes Infinity
+    with pytest.raises(ValueError, match=r"chromosomes\[4\]"):
+        Genome.from_json(json.dumps(d))
+    edge = Genome((ChromosomeString(1, (C("blur", (3.4e38,)), C("x"), C("y"))),))
+    assert np.isfinite(render(edge, 8)).all()          # the largest allowed value renders
+
+
+def test_deep_nesting_is_refused_and_the_deepest_allowed_genome_works(tmp_path):
+    from coursekit.pictures import render, save_image, load_genome
+    from coursekit.pictures.genome import MAX_DEPTH
+
+    def chain(n):  # n nested sin over x: n + 1 levels
+        return Genome((ChromosomeString(n, tuple([C("sin")] * n + [C("x")] * (n + 1))),))
+    with pytest.raises(ValueError, match=f"333 levels deep; at most {MAX_DEPTH}"):
+        chain(332)
+    deepest = chain(MAX_DEPTH - 1)
+    assert deepest.depth() == MAX_DEPTH
+    assert Genome.from_json(deepest.to_json()) == deepest
+    assert load_genome(save_image(tmp_path / "deep.png", deepest, 8)) == deepest
+    assert np.isfinite(render(deepest, 8)).all()
+    with pytest.raises(ValueError, match="nested too deeply"):
+        Genome.from_json("[" * 100_000 + "]" * 100_000)
+
+
+def test_render_sizes_above_the_cap_get_a_clear_message():
+    from coursekit.pictures import render
+
+    g = Genome.random(np.random.default_rng(1))
+    with pytest.raises(ValueError, match=r"size: 4097 x 4096 is 16,781,312 pixels; a picture has at most 16,777,216"):
+        render(g, (4097, 4096))

@@ -58,7 +58,7 @@ def test_random_genomes_match_the_reference():
 
 
 def test_hostile_genomes_stay_finite_in_unit_range():
-    big, tiny = C("const", (1e300,)), C("const", (0.0,))
+    big, tiny = C("const", (3.4e38,)), C("const", (0.0,))  # the largest float32 a chromosome holds
     neg = C("const", (-1e30,))
     hostile = [
         one(C("divide"), C("log"), tiny, tiny, tiny, h=2),
@@ -69,6 +69,7 @@ def test_hostile_genomes_stay_finite_in_unit_range():
         one(C("blur", (0.02,)), C("expt"), big, neg, h=2),
         one(C("hsv-to-rgb"), big, h=1),
         one(C("swirl", (1e30, 1e-30)), C("turbulence", (1e30, 3, 0, 0)), h=1),
+        one(C("blur", (3.4e38,)), C("band-pass", (-3.4e38,)), C("x"), h=2),  # wider than any picture
         one(C("grad-dir"), C("divide"), C("x"), tiny, tiny, h=2),
         one(C("xor"), big, neg, h=1),
     ]

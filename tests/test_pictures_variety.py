@@ -206,3 +206,20 @@ def test_a_random_root_is_a_function_that_can_show_colour(seed, n, h):
     root = Genome.random(np.random.default_rng(seed), n_strings=n, head_length=h).decode()
     assert primitives.arity(root.symbol) > 0
     assert root.symbol not in {"bump", "grad-mag", "grad-dir", "round"}
+
+
+def test_evolving_on_from_a_child_keeps_giving_pictures_that_are_not_flat():
+    # chains of 4 evolve clicks, each from one random child: measured on 30 chains (2280 children)
+    # 4.2 % flat or black children before children were checked for it, 0.1 % after
+    checked = flat = 0
+    for s in range(5):
+        rng = np.random.default_rng(500 + s)
+        ev = Evolution(GalleryState(random_population(rng, 20)), rng)
+        for _ in range(4):
+            ev.select(int(rng.integers(1, 20)) if ev.state.generation else int(rng.integers(20)), True)
+            assert ev.next_generation().startswith("generation")
+            kids = preview(ev.state.population[1:])
+            checked += len(kids)
+            flat += int(dull(kids).sum())
+    assert checked == 5 * 4 * 19
+    assert flat / checked <= 0.01, f"{flat} of {checked} children are flat or black"

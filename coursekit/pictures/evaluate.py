@@ -68,7 +68,9 @@ import torch
 from . import textures as T
 from .genome import Genome, Node
 
-__all__ = ["clear_cache", "default_device", "render", "to_rgb"]
+__all__ = ["clear_cache", "default_device", "render", "to_rgb", "MAX_PIXELS"]
+
+MAX_PIXELS = 4096 * 4096  # pixels of one rendered picture at most (a 4096^2 poster: 192 MiB of float32)
 
 _BIG = 1e6
 TWO_PI = 2.0 * math.pi
@@ -767,6 +769,9 @@ def _parse_size(size):
         ok = False
     if not ok or h < 1 or w < 1:
         raise ValueError(f"size: {size!r} must be an int or (height, width) of positive ints")
+    if h * w > MAX_PIXELS:
+        raise ValueError(f"size: {h} x {w} is {h * w:,} pixels; a picture has at most {MAX_PIXELS:,} "
+                         f"(4096 x 4096): render a smaller size, or zoom with window= and tile")
     return h, w
 
 

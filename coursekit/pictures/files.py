@@ -1,11 +1,18 @@
 """Picture files that carry their genome (paper section 3.4: every picture can be bred further).
 
 Images are written with OpenImageIO as PNG (8 bit), TIFF (16 bit) or OpenEXR (32-bit float),
-rendered at any size from the genome (re-evaluated, never upscaled). The genome's JSON
-(``coursekit.genome/1``) travels in the file's metadata: in the ``coursekit:genome``
-attribute (PNG text chunk, EXR header) and in ``ImageDescription`` (all three formats; the
-only one TIFF keeps). The render settings (window, time) go in ``coursekit:render``.
-Files are written atomically: a temporary file in the same folder, then ``os.replace``.
+rendered at any size from the genome (re-evaluated, never upscaled; up to
+:data:`~coursekit.pictures.evaluate.MAX_PIXELS`, 4096 x 4096). The genome's JSON
+(``coursekit.genome/1``) and the render settings (window, time) travel in the file's
+metadata: together in ``ImageDescription`` (``coursekit.picture/1``: the one field all three
+formats keep, TIFF included), and for PNG and EXR also in the ``coursekit:genome`` and
+``coursekit:render`` attributes.
+
+A file never lies. It is written to a temporary sibling (:func:`coursekit.atomic.atomic_path`)
+and **read back** before it replaces the old file: the pixels must be those rendered (at the
+format's precision) and the genome and settings those given, else :func:`save_image` raises
+and the old file stays. This catches what a writer does not report: measured, OpenImageIO
+returned normally from a PNG written onto a full disk, leaving an unreadable file.
 """
 
 from __future__ import annotations
@@ -20,6 +27,8 @@ import OpenImageIO as oiio
 
 from .evaluate import render
 from .genome import FORMAT, Genome
+
+PICTURE_FORMAT = "coursekit.picture/1"
 
 __all__ = ["save_image", "load_genome", "load_render_settings", "FORMATS"]
 
@@ -53,11 +62,12 @@ def save_image(path, genome: Genome, size=(1024, 1024), *, window=(0.0, 0.0, 1.0
     fmt = _format(path)
     img = render([genome], size, window=window, time=time, device=device)[0]
     h, w = img.shape[:2]
+    settings = {"window": [float(v) for v in window], "time": float(time)}
     spec = oiio.ImageSpec(w, h, 3, fmt)
-    text = genome.to_json()
-    spec.attribute(GENOME_KEY, text)
-    spec.attribute("ImageDescription", text)
-    spec.attribute(RENDER_KEY, json.dumps({"window": [float(v) for v in window], "time": float(time)}))
+    spec.attribute(GENOME_KEY, genome.to_json())
+    spec.attribute(RENDER_KEY, json.dumps(settings))
+    spec.attribute("ImageDescription", json.dumps({"format": PICTURE_FORMAT, "genome": genome.to_dict(),
+                                                   "render": settings}))
     spec.attribute("Software", "coursekit.pictures")
     with atomic_path(path, path.suffix) as tmp:
         out = oiio.ImageOutput.create(str(tmp))
@@ -65,10 +75,47 @@ def save_image(path, genome: Genome, size=(1024, 1024), *, window=(0.0, 0.0, 1.0
             raise OSError(f"path: cannot write {str(path)!r}: {oiio.geterror() or (out and out.geterror())}")
         ok = out.write_image(np.ascontiguousarray(img))
         err = out.geterror()
-        out.close()
+        ok = out.close() and ok
+        err = err or out.geterror()
         if not ok:
-            raise OSError(f"path: writing {str(path)!r} failed: {err}")
+            raise OSError(f"path: writing {str(path)!r} failed: {err or oiio.geterror()}")
+        _verify(tmp, path, img, fmt, genome, settings)
     return path
+
+
+def _stored(img: np.ndarray, fmt) -> np.ndarray:
+    """The pixels a file of ``fmt`` holds for the float image ``img``."""
+    if fmt == oiio.UINT8:
+        return np.round(img * 255).astype(np.uint8)
+    if fmt == oiio.UINT16:
+        return np.round(img * 65535).astype(np.uint16)
+    return img
+
+
+def _verify(tmp: Path, path: Path, img, fmt, genome: Genome, settings: dict) -> None:
+    """Read the just-written ``tmp`` back; OSError unless it holds ``img``, the genome and the
+    settings (so a full disk or a writer that drops metadata never replaces a good file)."""
+    def fail(why):
+        raise OSError(f"path: {str(path)!r} was not written correctly ({why}); the old file, if any, is kept")
+    inp = oiio.ImageInput.open(str(tmp))
+    if inp is None:
+        fail(f"it cannot be read back: {oiio.geterror()}")
+    try:
+        spec = inp.spec()
+        if (spec.width, spec.height, spec.nchannels) != (img.shape[1], img.shape[0], 3):
+            fail(f"it reads back as {spec.width} x {spec.height} x {spec.nchannels}")
+        back = inp.read_image(fmt)
+        if back is None or not np.array_equal(np.asarray(back).reshape(img.shape), _stored(img, fmt)):
+            fail(f"its pixels read back differently: {inp.geterror() or 'changed'}")
+    finally:
+        inp.close()
+    try:
+        if load_genome(tmp) != genome:
+            fail("the genome in its metadata reads back differently")
+        if load_render_settings(tmp) != settings:
+            fail("the window and time in its metadata read back differently")
+    except ValueError as e:
+        fail(str(e))
 
 
 def _spec(path) -> oiio.ImageSpec:
@@ -92,9 +139,12 @@ def load_genome(path) -> Genome:
     spec = _spec(path)
     text = spec.getattribute(GENOME_KEY)
     if not text:
-        desc = spec.getattribute("ImageDescription")
-        if isinstance(desc, str) and FORMAT in desc:
-            text = desc
+        picture = _picture(path, spec)
+        text = picture.get("genome") if picture else None
+        if isinstance(text, dict):
+            text = json.dumps(text)
+        elif picture and picture.get("format") == FORMAT:  # the genome itself (older files)
+            text = spec.getattribute("ImageDescription")
     if not isinstance(text, str) or not text:
         raise ValueError(f"path: {str(path)!r} carries no coursekit genome in its metadata")
     try:
@@ -103,13 +153,32 @@ def load_genome(path) -> Genome:
         raise ValueError(f"path: {str(path)!r}: broken genome in metadata: {e}") from None
 
 
+def _picture(path, spec) -> dict | None:
+    """The JSON object in ``ImageDescription`` when it is coursekit's, else None."""
+    desc = spec.getattribute("ImageDescription")
+    if not isinstance(desc, str) or (PICTURE_FORMAT not in desc and FORMAT not in desc):
+        return None
+    try:
+        d = json.loads(desc)
+    except (json.JSONDecodeError, RecursionError):
+        raise ValueError(f"path: {str(path)!r}: broken genome in metadata (ImageDescription is not JSON)") from None
+    return d if isinstance(d, dict) else None
+
+
 def load_render_settings(path) -> dict:
     """``{'window': [...], 'time': t}`` stored by :func:`save_image` (defaults if absent)."""
-    text = _spec(path).getattribute(RENDER_KEY)
+    spec = _spec(path)
+    text = spec.getattribute(RENDER_KEY)
     settings = {"window": [0.0, 0.0, 1.0, 1.0], "time": 0.0}
     if isinstance(text, str) and text:
         try:
-            settings.update(json.loads(text))
+            stored = json.loads(text)
         except json.JSONDecodeError:
             raise ValueError(f"path: {str(path)!r}: broken {RENDER_KEY} metadata") from None
+    else:
+        picture = _picture(path, spec)
+        stored = picture.get("render", {}) if picture else {}
+    if not isinstance(stored, dict):
+        raise ValueError(f"path: {str(path)!r}: broken render settings in metadata")
+    settings.update({k: stored[k] for k in ("window", "time") if k in stored})
     return settings

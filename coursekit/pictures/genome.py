@@ -38,24 +38,58 @@ from . import primitives as P
 __all__ = ["Chromosome", "ChromosomeString", "Genome", "Node", "FORMAT", "random_chromosome"]
 
 FORMAT = "coursekit.genome/1"
+FLOAT32_MAX = float(np.finfo(np.float32).max)  # the evaluator's numbers are float32
+MAX_DEPTH = 100  # levels of an expression tree (deeper ones would exhaust Python's stack)
+
+
+class _CachedHash:
+    """Hashes an immutable value once (genomes are dictionary keys again and again: the
+    operators' caches, the gallery's); the cached hash never travels in a pickle, since
+    string hashes differ between processes."""
+
+    __slots__ = ()
+
+    def __hash__(self):
+        h = self.__dict__.get("_hash")
+        if h is None:
+            h = hash(tuple(getattr(self, f) for f in self.__dataclass_fields__))
+            object.__setattr__(self, "_hash", h)
+        return h
+
+    def __getstate__(self):
+        return {k: v for k, v in self.__dict__.items() if k != "_hash"}
 
 
 @dataclass(frozen=True)
-class Chromosome:
+class Chromosome(_CachedHash):
     """One primitive and its parameter values (floats, in the primitive's declared order)."""
+
+    __hash__ = _CachedHash.__hash__  # in the body, so that dataclass keeps it
 
     symbol: str
     params: tuple[float, ...] = ()
 
     def __post_init__(self):
         prim = P.get(self.symbol)
-        params = tuple(float(v) for v in self.params)
-        if len(params) != len(prim.params):
-            raise ValueError(f"chromosome {self.symbol!r}: params has {len(params)} values, "
+        raw = tuple(self.params)
+        if len(raw) != len(prim.params):
+            raise ValueError(f"chromosome {self.symbol!r}: params has {len(raw)} values, "
                              f"expected {len(prim.params)} ({', '.join(p.name for p in prim.params)})")
-        if not all(math.isfinite(v) for v in params):
-            raise ValueError(f"chromosome {self.symbol!r}: params {params} must be finite")
-        object.__setattr__(self, "params", params)
+        params = []
+        for spec, v in zip(prim.params, raw):
+            try:
+                f = float(v)
+            except OverflowError:
+                f = math.inf
+            except (TypeError, ValueError):
+                raise ValueError(f"chromosome {self.symbol!r}: {spec.name} = {v!r} is not a number") from None
+            if not math.isfinite(f) or abs(f) > FLOAT32_MAX:
+                shown = f"{v:.3g}" if isinstance(v, float) else (repr(v) if len(repr(v)) < 30 else f"{repr(v)[:20]}...")
+                raise ValueError(f"chromosome {self.symbol!r}: {spec.name} = {shown} must be finite and at most "
+                                 f"{FLOAT32_MAX:.4g} in size (the evaluator's float32; random values lie in "
+                                 f"[{spec.low:g}, {spec.high:g}])")
+            params.append(f)
+        object.__setattr__(self, "params", tuple(params))
 
     @property
     def arity(self) -> int:
@@ -90,8 +124,10 @@ def _check_chromosomes(seq, where: str) -> tuple[Chromosome, ...]:
 
 
 @dataclass(frozen=True)
-class ChromosomeString:
+class ChromosomeString(_CachedHash):
     """A string of ``head_length + tail_length`` chromosomes; the tail holds terminals only."""
+
+    __hash__ = _CachedHash.__hash__  # in the body, so that dataclass keeps it
 
     head_length: int
     chromosomes: tuple[Chromosome, ...]
@@ -262,9 +298,21 @@ def _karva(items: Sequence, arity_of) -> tuple[list[tuple[int, ...]], int]:
     return children, nxt
 
 
+def _levels(children: list[tuple[int, ...]]) -> int:
+    """Depth of the Karva tree rooted at 0 given its children lists (iterative)."""
+    depth, stack = 0, [(0, 1)]
+    while stack:
+        i, d = stack.pop()
+        depth = max(depth, d)
+        stack.extend((j, d + 1) for j in children[i])
+    return depth
+
+
 @dataclass(frozen=True)
-class Genome:
+class Genome(_CachedHash):
     """Chromosome strings linked by a PreHeader. Immutable: operators build new genomes."""
+
+    __hash__ = _CachedHash.__hash__  # in the body, so that dataclass keeps it
 
     strings: tuple[ChromosomeString, ...]
     preheader: tuple[Chromosome, ...] = ()
@@ -287,6 +335,29 @@ class Genome:
                              f"exactly {need}")
         object.__setattr__(self, "strings", strings)
         object.__setattr__(self, "preheader", pre)
+        if len(pre) + max(s.head_length for s in strings) + 1 > MAX_DEPTH:  # else no tree can be deeper
+            depth = self.depth()
+            if depth > MAX_DEPTH:
+                raise ValueError(f"genome: its expression is {depth} levels deep; at most {MAX_DEPTH} are allowed")
+
+    def depth(self) -> int:
+        """Levels of the expression tree (a terminal alone: 1), counted without recursion."""
+        levels = {}
+        for k, s in enumerate(self.strings):
+            kids, _ = _karva(s.chromosomes, lambda c: c.arity)
+            levels[k] = _levels(kids)
+        items = list(self.preheader) + list(range(len(self.strings)))
+        kids, _ = _karva(items, lambda it: 0 if isinstance(it, int) else it.arity)
+        depth, stack = 0, [(0, 1)]
+        while stack:
+            i, d = stack.pop()
+            it = items[i]
+            if isinstance(it, int):
+                depth = max(depth, d - 1 + levels[it])
+            else:
+                depth = max(depth, d)
+                stack.extend((j, d + 1) for j in kids[i])
+        return depth
 
     # ---- construction -------------------------------------------------------------------
     @classmethod
@@ -422,6 +493,8 @@ class Genome:
             d = json.loads(text)
         except (json.JSONDecodeError, UnicodeDecodeError, TypeError) as e:
             raise ValueError(f"genome: not valid JSON ({e})") from None
+        except RecursionError:
+            raise ValueError("genome: the JSON is nested too deeply to be a genome") from None
         return cls.from_dict(d)
 
     def replace_string(self, k, string: ChromosomeString | Iterable[Chromosome]) -> "Genome":

@@ -269,7 +269,7 @@ def _pairs(a: Genome, b: Genome, min_len: int = 1) -> list:
 
 
 def _differ(sa, sb) -> list[int]:
-    return [i for i, (x, y) in enumerate(zip(sa, sb)) if x != y]
+    return [i for i, (x, y) in enumerate(zip(sa, sb)) if x is not y and x != y]
 
 
 def crossover(a: Genome, b: Genome, rng: np.random.Generator, splits: int = 1) -> tuple[Genome, Genome]:

@@ -174,6 +174,9 @@ def functions() -> list[str]:
     return [p.name for p in _LIST if p.arity > 0]
 
 
+_MAX_ARITY = max(p.arity for p in _LIST)
+
+
 def max_arity() -> int:
     """n, the largest arity in the set (it fixes the tail length t = h (n - 1) + 1)."""
-    return max(p.arity for p in _LIST)
+    return _MAX_ARITY

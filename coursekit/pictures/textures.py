@@ -47,5 +47,7 @@ def pixmap_index(value: float) -> int:
 
 def box_radius(sigma_px: float, limit: int) -> int:
     """Radius r of the box whose three passes have variance sigma**2 (r (r+1) = sigma**2)."""
+    sigma_px = abs(float(sigma_px))
+    sigma_px = min(sigma_px, 4.0 * limit + 4.0) if sigma_px == sigma_px else 0.0  # inf: the limit; NaN: none
     r = int(round((-1.0 + (1.0 + 4.0 * sigma_px * sigma_px) ** 0.5) / 2.0))
     return max(0, min(r, limit))

@@ -10,7 +10,10 @@ thumbnails (:data:`PREVIEW`, 32 x 32) and never change what the genomes are:
   preview is *dull* (flat or black, :func:`dull`) or repeats another picture of the
   population, and a greyscale one once (grey pictures stay, as a minority).
 - :func:`distinct_children` takes children from an operator and redraws those whose preview
-  is within :data:`SAME` (mean absolute difference, 1/255) of a parent's or of another child's.
+  is within :data:`SAME` (mean absolute difference, 1/255) of a parent's or of another child's,
+  and those that are flat or black when a parent is not (a grey noise bred on by ``round``,
+  ``mod`` or a bit operation easily gives flat children: ``benchmarks/picture_variety.py``
+  measures them along chains of evolve clicks).
 
 The operators themselves (:mod:`.operators`) already aim at the coding part, so most children
 pass at once; the preview catches what the genome cannot tell, such as a changed constant under
@@ -114,7 +117,8 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *, 
     expression (:func:`~coursekit.pictures.operators.coding`) is not one already there: a
     parent's or another child's. The ``n`` children are then previewed at ``size``; slot by
     slot, one within :data:`SAME` (mean absolute difference) of a parent or of an already
-    accepted child is drawn again the same way, at most ``tries`` rounds (what is left then
+    accepted child, or one that is dull (:func:`dull`: flat or black) while not every parent
+    is, is drawn again the same way, at most ``tries`` rounds (what is left then
     stays). From round ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is
     replaced by ``again(c, accepted)`` instead (``accepted``: the children kept so far): the
     operator applied once more to it, for when the parents have fewer distinct children than
@@ -149,13 +153,15 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *, 
     if not kids:
         return kids
     refs = list(preview(parents, size)) if parents else []
+    lively = not parents or not dull(np.asarray(refs)).all()  # a child of a lively parent is not flat
     accepted: list[Genome] = []
     pending = list(range(n))
     for attempt in range(tries + 1):
         pics = preview([kids[i] for i in pending], size)
+        flat = dull(pics) & lively
         still = []
-        for i, pic in zip(pending, pics):
-            if _distance(pic, refs) < SAME and attempt < tries:
+        for i, pic, bad in zip(pending, pics, flat):
+            if (bad or _distance(pic, refs) < SAME) and attempt < tries:
                 still.append(i)
             else:
                 refs.append(pic)

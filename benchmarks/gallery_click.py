@@ -1,0 +1,68 @@
+"""Benchmark: how long does a click on Evolve (or an operator) take to put a new generation on screen?
+
+A :class:`~coursekit.pictures.gallery.Gallery` of 20 pictures at 128 x 128 (Sims' 4 x 5, the
+issue's case) is driven from code as a student drives it: two pictures clicked, then one
+button, cycling through evolve and the seven operators. Each click is timed from the button to
+the last thumbnail handed to its widget: breeding (operators, the previews that redraw children
+looking like a parent or a sibling), rendering the new pictures and encoding the thumbnails.
+What the browser adds (messages, decoding) is measured by ``tests/test_gallery_browser.py``.
+
+Prints the median, 95th percentile and largest wall-clock time per click and the CPU time of
+this process, for the renders in this process (``workers=1``) and split over worker processes
+(the default), after a few warm-up clicks (the worker pool starts once per session). On a
+machine shared with other work the wall-clock times are upper bounds: the load average is
+printed with them.
+
+Usage: ``python benchmarks/gallery_click.py [--clicks 60] [--size 128] [--n 20]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+
+from coursekit.pictures import operators as O
+from coursekit.pictures.gallery import Gallery
+
+BUTTONS = ["evolve", *O.MUTATIONS, *O.RECOMBINATIONS]
+
+
+def clicks(gallery: Gallery, count: int, seed: int = 0) -> tuple[np.ndarray, float]:
+    """Wall-clock seconds of ``count`` button clicks (two pictures selected before each) and
+    the CPU seconds of this process over them."""
+    rng = np.random.default_rng(seed)
+    times = []
+    cpu = time.process_time()
+    for k in range(count):
+        for i in rng.choice(gallery.evolution.size, size=2, replace=False):
+            gallery.click(int(i))
+        start = time.perf_counter()
+        msg = gallery.apply(BUTTONS[k % len(BUTTONS)])
+        times.append(time.perf_counter() - start)
+        assert msg.startswith("generation"), msg
+    return np.array(times), time.process_time() - cpu
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--clicks", type=int, default=60)
+    ap.add_argument("--size", type=int, default=128)
+    ap.add_argument("--n", type=int, default=20)
+    ap.add_argument("--warmup", type=int, default=8)
+    args = ap.parse_args(argv)
+    print(f"{args.n} pictures at {args.size}^2, {args.clicks} clicks after {args.warmup} warm-up clicks; "
+          f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
+    print(f"{'renders':24s} {'p50 ms':>8s} {'p95 ms':>8s} {'max ms':>8s} {'CPU ms/click':>13s}")
+    for label, options in (("in this process", {"workers": 1}), ("worker processes", {})):
+        gallery = Gallery(np.random.default_rng(1991), n=args.n, size=args.size, render_options=options)
+        clicks(gallery, args.warmup, seed=1)
+        t, cpu = clicks(gallery, args.clicks)
+        p50, p95 = np.percentile(t, [50, 95]) * 1000
+        print(f"{label:24s} {p50:8.1f} {p95:8.1f} {t.max() * 1000:8.1f} {cpu / args.clicks * 1000:13.1f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,540 @@
+"""A gallery session without widgets: population, selection, history, lineage (paper sections 3.3, 3.4).
+
+In the paper's GUI (Figure 10) the user picks pictures and one of the seven operators; the
+rest of the screen is bred from the picks. :class:`Evolution` is that loop as a plain Python
+object (the widgets of :mod:`.gallery` only mirror it): every action returns a message for the
+user, and :meth:`Evolution.why_not` says why an action does not fit the selection (the widget
+disables its button and shows the reason).
+
+:class:`GalleryState` is what a session is: the population, the selection in click order, the
+earlier generations (undo) and the undone ones (redo), each with the :class:`Origin` of every
+picture (the operator and the parents, indices into the generation before), from which
+:meth:`Evolution.lineage` rebuilds the picks and operators that made a picture. The random
+generator's state is part of the session: a resumed session continues exactly as the original
+would have.
+
+Sessions are saved as JSON (``coursekit.gallery/2``; ``coursekit.gallery/1`` files, which had
+no origins, redo or random state, still load). :meth:`GalleryState.from_dict` checks every
+field (types, indices, sizes) and names the bad one, so a broken file is refused before
+anything overwrites it.
+
+No slot is wasted (:mod:`.variety`): a random population is never flat or black, and a child
+whose preview looks like a parent's or another child's is bred again.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterator, Mapping, NamedTuple
+
+import numpy as np
+
+from coursekit.atomic import atomic_write
+
+from . import operators as O
+from .genome import Genome
+from .variety import distinct_children, random_population
+
+__all__ = ["GALLERY_FORMAT", "Origin", "Generation", "Ancestor", "GalleryState", "Evolution"]
+
+GALLERY_FORMAT = "coursekit.gallery/2"
+_OLD_FORMATS = ("coursekit.gallery/1",)
+_BIT_GENERATORS = ("PCG64", "PCG64DXSM", "MT19937", "Philox", "SFC64")
+
+
+@dataclass(frozen=True)
+class Origin:
+    """How a picture was made: ``operator`` (an operator's name, ``"kept"`` for a selected
+    picture carried over, ``"random"``, or ``"start"`` for a given first generation) and its
+    ``parents``, indices into the generation before."""
+
+    operator: str
+    parents: tuple[int, ...] = ()
+
+    def to_dict(self) -> dict:
+        return {"operator": self.operator, "parents": list(self.parents)}
+
+
+START = Origin("start")
+
+
+class Generation(NamedTuple):
+    """One screen of the session: its pictures, what was selected, and how each was made."""
+
+    population: list
+    selected: list
+    origins: list
+
+
+@dataclass(frozen=True)
+class Ancestor:
+    """A picture of :meth:`Evolution.lineage`: ``generation`` number, ``index`` in it, the
+    ``genome``, the ``operator`` that made it and its ``parents`` (indices in generation - 1)."""
+
+    generation: int
+    index: int
+    genome: Genome
+    operator: str
+    parents: tuple[int, ...]
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+
+
+def _check_selection(sel, n: int, where: str) -> list[int]:
+    if not isinstance(sel, list):
+        raise ValueError(f"gallery: {where} = {sel!r} must be a list of picture indices")
+    for k, i in enumerate(sel):
+        if not _is_int(i) or not 0 <= i < n:
+            raise ValueError(f"gallery: {where}[{k}] = {i!r} is not a picture index (an integer 0..{n - 1})")
+    if len(set(sel)) != len(sel):
+        raise ValueError(f"gallery: {where} = {sel!r} selects a picture twice")
+    return [int(i) for i in sel]
+
+
+def _check_origins(origins, n: int, where: str) -> list[Origin]:
+    if not isinstance(origins, list) or len(origins) != n:
+        raise ValueError(f"gallery: {where} must be a list of {n} origins (one per picture)")
+    for k, o in enumerate(origins):
+        if not isinstance(o, Origin) or not isinstance(o.operator, str):
+            raise ValueError(f"gallery: {where}[{k}] = {o!r} is not an Origin")
+        for j, p in enumerate(o.parents):
+            if not _is_int(p) or not 0 <= p < n:
+                raise ValueError(f"gallery: {where}[{k}].parents[{j}] = {p!r} is not a picture index "
+                                 f"(an integer 0..{n - 1})")
+    return origins
+
+
+@dataclass
+class GalleryState:
+    """Population, selection (in click order), earlier generations (``history``, oldest
+    first), undone ones (``future``, the next redo last), the :class:`Origin` of every
+    picture, the generation number and the random generator's state (``rng_state``)."""
+
+    population: list[Genome]
+    selected: list[int] = field(default_factory=list)
+    history: list[Generation] = field(default_factory=list)
+    generation: int = 0
+    future: list[Generation] = field(default_factory=list)
+    origins: list[Origin] | None = None
+    rng_state: dict | None = None
+
+    def __post_init__(self):
+        self.population = list(self.population)
+        if self.origins is None:
+            self.origins = [START] * len(self.population)
+        self.history = [Generation(*h) if len(h) == 3 else Generation(h[0], h[1], [START] * len(h[0]))
+                        for h in self.history]
+        self.future = [Generation(*h) for h in self.future]
+        self.check()
+
+    @property
+    def first_generation(self) -> int:
+        """The number of ``history[0]`` (older generations were dropped)."""
+        return self.generation - len(self.history)
+
+    def check(self) -> None:
+        """ValueError naming the first field that is not a valid session."""
+        pop = self.population
+        if not isinstance(pop, list) or not pop:
+            raise ValueError("gallery: population must be a non-empty list of genomes")
+        n = len(pop)
+        for k, g in enumerate(pop):
+            if not isinstance(g, Genome):
+                raise ValueError(f"gallery: population[{k}] is a {type(g).__name__}, not a Genome")
+        self.selected = _check_selection(self.selected, n, "selected")
+        self.origins = _check_origins(self.origins, n, "origins")
+        if not _is_int(self.generation) or self.generation < len(self.history):
+            raise ValueError(f"gallery: generation = {self.generation!r} must be an integer >= "
+                             f"{len(self.history)} (the number of earlier generations kept)")
+        self.generation = int(self.generation)
+        for name, steps in (("history", self.history), ("future", self.future)):
+            for k, (p, s, o) in enumerate(steps):
+                if not isinstance(p, list) or len(p) != n:
+                    raise ValueError(f"gallery: {name}[{k}].population must be a list of {n} genomes "
+                                     f"(the size of the gallery)")
+                for j, g in enumerate(p):
+                    if not isinstance(g, Genome):
+                        raise ValueError(f"gallery: {name}[{k}].population[{j}] is a {type(g).__name__}, "
+                                         f"not a Genome")
+                _check_selection(s, n, f"{name}[{k}].selected")
+                _check_origins(o, n, f"{name}[{k}].origins")
+        if self.rng_state is not None:
+            _generator(self.rng_state)
+
+    # ---- files ----------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        """JSON-ready dict (``"format": "coursekit.gallery/2"``)."""
+        def gen(g: Generation):
+            return {"population": [x.to_dict() for x in g.population], "selected": list(g.selected),
+                    "origins": [o.to_dict() for o in g.origins]}
+        d = {"format": GALLERY_FORMAT, "generation": self.generation, **gen(self.current),
+             "history": [gen(h) for h in self.history], "future": [gen(f) for f in self.future]}
+        if self.rng_state is not None:
+            d["rng"] = self.rng_state
+        return d
+
+    @property
+    def current(self) -> Generation:
+        return Generation(self.population, self.selected, self.origins)
+
+    @classmethod
+    def from_dict(cls, d) -> GalleryState:
+        """Inverse of :meth:`to_dict`: every field checked, ValueError naming the bad one."""
+        if not isinstance(d, dict):
+            raise ValueError(f"gallery: expected a JSON object, got {type(d).__name__}")
+        fmt = d.get("format")
+        if fmt != GALLERY_FORMAT and fmt not in _OLD_FORMATS:
+            raise ValueError(f"gallery: format {fmt!r} is not {GALLERY_FORMAT!r}")
+        for key in ("generation", "population", "selected", "history"):
+            if key not in d:
+                raise ValueError(f"gallery: the field {key!r} is missing")
+
+        def genomes(v, where):
+            if not isinstance(v, list) or not v:
+                raise ValueError(f"gallery: {where} must be a non-empty list of genomes")
+            out = []
+            for k, g in enumerate(v):
+                try:
+                    out.append(Genome.from_dict(g))
+                except ValueError as e:
+                    raise ValueError(f"gallery: {where}[{k}]: {e}") from None
+            return out
+
+        def origins(v, n, where):
+            if v is None:
+                return [START] * n
+            if not isinstance(v, list):
+                raise ValueError(f"gallery: {where} must be a list of origins")
+            out = []
+            for k, o in enumerate(v):
+                if (not isinstance(o, dict) or not isinstance(o.get("operator"), str)
+                        or not isinstance(o.get("parents"), list)):
+                    raise ValueError(f"gallery: {where}[{k}] = {o!r} is not "
+                                     f"{{'operator': name, 'parents': [indices]}}")
+                out.append(Origin(o["operator"], tuple(o["parents"])))
+            return out
+
+        def generation(h, where):
+            if not isinstance(h, dict):
+                raise ValueError(f"gallery: {where} must be an object with 'population' and 'selected'")
+            pop = genomes(h.get("population"), f"{where}.population")
+            return Generation(pop, h.get("selected"), origins(h.get("origins"), len(pop), f"{where}.origins"))
+
+        pop = genomes(d["population"], "population")
+        steps = {}
+        for name in ("history", "future"):
+            v = d.get(name, [])
+            if not isinstance(v, list):
+                raise ValueError(f"gallery: {name} must be a list of generations")
+            steps[name] = [generation(h, f"{name}[{k}]") for k, h in enumerate(v)]
+        return cls(pop, d["selected"], steps["history"], d["generation"], steps["future"],
+                   origins(d.get("origins"), len(pop), "origins"), d.get("rng"))
+
+    @classmethod
+    def load(cls, path) -> GalleryState:
+        """Read and check a session file; ValueError naming the file and the bad field."""
+        path = Path(path)
+        try:
+            d = json.loads(path.read_text(encoding="utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:
+            raise ValueError(f"path: {str(path)!r} is not a gallery session ({type(e).__name__}: {e})") from None
+        try:
+            return cls.from_dict(d)
+        except ValueError as e:
+            raise ValueError(f"path: {str(path)!r}: {e}") from None
+
+
+def _generator(state) -> np.random.Generator:
+    """A Generator in the saved ``bit_generator.state``; ValueError naming the field."""
+    name = state.get("bit_generator") if isinstance(state, dict) else None
+    if name not in _BIT_GENERATORS:
+        raise ValueError(f"gallery: rng = {state!r} is not a saved random state "
+                         f"(its bit_generator must be one of {', '.join(_BIT_GENERATORS)})")
+    bg = getattr(np.random, name)()
+    try:
+        bg.state = state
+    except (TypeError, ValueError, KeyError, OverflowError) as e:
+        raise ValueError(f"gallery: rng: broken {name} state ({e})") from None
+    return np.random.Generator(bg)
+
+
+class Evolution:
+    """The gallery's logic without widgets: every action returns a message for the user.
+
+    Args:
+        state: the session.
+        rng: the random generator; default: the one saved in ``state`` (a resumed session
+            then continues as the original would have), else a fresh one.
+        mutations, recombinations: ``{name: operator}``; default the paper's seven.
+        genome_params: keyword arguments of :meth:`Genome.random` for random pictures.
+        autosave: JSON file the session is written to after every change (atomically).
+        max_history: earlier generations kept for undo.
+    """
+
+    def __init__(self, state: GalleryState, rng: np.random.Generator | None = None, *,
+                 mutations: Mapping[str, Callable] | None = None,
+                 recombinations: Mapping[str, Callable] | None = None,
+                 genome_params: Mapping | None = None, autosave=None, max_history: int = 50):
+        if rng is None:
+            rng = _generator(state.rng_state) if state.rng_state is not None else np.random.default_rng()
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng: expected numpy.random.Generator, got {type(rng).__name__}")
+        state.check()
+        self.state, self.rng = state, rng
+        self.mutations = dict(O.MUTATIONS if mutations is None else mutations)
+        self.recombinations = dict(O.RECOMBINATIONS if recombinations is None else recombinations)
+        clash = set(self.mutations) & set(self.recombinations)
+        if clash:
+            raise ValueError(f"recombinations: {sorted(clash)} are also mutations' names")
+        self.genome_params = dict(genome_params or {})
+        self.autosave = Path(autosave) if autosave is not None else None
+        self.max_history = max_history
+        self.save()
+
+    @property
+    def size(self) -> int:
+        return len(self.state.population)
+
+    def save(self) -> None:
+        """Write the session (with the random state) to the autosave file, if one was given."""
+        self.state.rng_state = self.rng.bit_generator.state
+        if self.autosave is not None:
+            atomic_write(self.autosave, json.dumps(self.state.to_dict()))
+
+    # ---- selection ------------------------------------------------------------------------
+    def select(self, i: int, on: bool | None = None) -> str:
+        """Toggle (or set) the selection of picture ``i``."""
+        if not _is_int(i) or not 0 <= i < self.size:
+            raise ValueError(f"i: {i!r} is not a picture index (0..{self.size - 1})")
+        sel = self.state.selected
+        on = (i not in sel) if on is None else on
+        if on and i not in sel:
+            sel.append(int(i))
+        elif not on and i in sel:
+            sel.remove(i)
+        self.save()
+        return self.why_not("evolve") or "choose an operator"
+
+    def clear_selection(self) -> str:
+        self.state.selected.clear()
+        self.save()
+        return "selection cleared"
+
+    def why_not(self, action: str) -> str | None:
+        """Why ``action`` (an operator's name, ``"evolve"``, ``"undo"``, ``"redo"``, ``"new
+        random"``) does not fit now, or None when it does."""
+        k, n = len(self.state.selected), self.size
+        if action in self.mutations or action == "evolve":
+            if k == 0:
+                return "select a picture to breed from (click it)"
+        elif action in self.recombinations:
+            if k < 2:
+                return f"select {2 - k} more picture{'s' if k == 0 else ''} to recombine"
+        elif action == "undo":
+            return None if self.state.history else "nothing to undo"
+        elif action == "redo":
+            return None if self.state.future else "nothing to redo"
+        elif action == "new random":
+            return None
+        else:
+            raise ValueError(f"action: {action!r} is not an operator, 'evolve', 'undo', 'redo' or 'new random'")
+        if k >= n:
+            return f"unselect a picture: all {n} are kept, which leaves no room for children"
+        return None
+
+    # ---- breeding -------------------------------------------------------------------------
+    def _commit(self, population: list, origins: list[Origin], message: str) -> str:
+        bad = [type(g).__name__ for g in population if not isinstance(g, Genome)]
+        if bad:
+            return f"the operator returned {bad[0]}, not a Genome: nothing changed"
+        s = self.state
+        s.history.append(s.current)
+        del s.history[: max(0, len(s.history) - self.max_history)]
+        s.future.clear()
+        s.population, s.selected, s.origins = list(population), [], list(origins)
+        s.generation += 1
+        self.save()
+        return message
+
+    def _parents(self) -> list[Genome]:
+        return [self.state.population[i] for i in self.state.selected]
+
+    def _breed(self, name: str, make: Callable, again: Callable | None) -> tuple[list, list] | str:
+        """Children from ``make()`` -> (genome, Origin) through :func:`distinct_children`;
+        the parents (the selection) open the new generation as ``kept``."""
+        sel = list(self.state.selected)
+        parents = self._parents()
+        made: dict[int, tuple] = {}  # id(child) -> (child, Origin): the origin of every draw
+
+        def children() -> Iterator:
+            while True:
+                child, origin = make()
+                made[id(child)] = (child, origin)
+                yield child
+
+        def redo(child, kept):
+            new, extra, label = again(child, kept)
+            if isinstance(extra, Genome):  # crossed with a sibling: its parents
+                extra = made.get(id(extra), (None, Origin(name)))[1].parents
+            old = made.get(id(child), (None, Origin(name)))[1]
+            parents_ = tuple(sorted(set(old.parents) | set(extra)))
+            made[id(new)] = (new, Origin(old.operator if label is None else f"{old.operator}+{label}", parents_))
+            return new
+        try:
+            kids = distinct_children(parents, children(), self.size - len(parents),
+                                     again=redo if again is not None else None)
+        except Exception as e:  # a student's operator: report, keep the gallery alive
+            return f"{name} failed: {type(e).__name__}: {e}"
+        origins = [Origin("kept", (i,)) for i in sel]
+        origins += [made.get(id(k), (k, Origin(name)))[1] for k in kids]
+        return list(parents) + list(kids), origins
+
+    def mutate(self, name: str) -> str:
+        """Parents (the selection) stay; the rest are children by mutation ``name``, none
+        looking like a parent or another child (:func:`~.variety.distinct_children`)."""
+        if name not in self.mutations:
+            raise ValueError(f"name: {name!r} is not one of the mutations {list(self.mutations)}")
+        reason = self.why_not(name)
+        if reason:
+            return reason
+        op, sel = self.mutations[name], list(self.state.selected)
+        count = iter(range(10**9))
+
+        def make():
+            j = sel[next(count) % len(sel)]
+            return op(self.state.population[j], self.rng), Origin(name, (j,))
+        out = self._breed(name, make, lambda c, kept: (op(c, self.rng), (), None))
+        if isinstance(out, str):
+            return out
+        return self._commit(*out, f"generation {self.state.generation + 1}: {name} of {len(sel)} parent(s)")
+
+    def recombine(self, name: str) -> str:
+        """Parents stay; the rest are children of random parent pairs by ``name``, none looking
+        like a parent or another child (:func:`~.variety.distinct_children`)."""
+        if name not in self.recombinations:
+            raise ValueError(f"name: {name!r} is not one of the recombinations {list(self.recombinations)}")
+        reason = self.why_not(name)
+        if reason:
+            return reason
+        op, sel = self.recombinations[name], list(self.state.selected)
+        pending: list = []
+
+        def make():
+            if not pending:
+                i, j = self.rng.choice(len(sel), size=2, replace=False)
+                pair = op(self.state.population[sel[i]], self.state.population[sel[j]], self.rng)
+                pending.extend((c, Origin(name, (sel[i], sel[j]))) for c in pair)
+            return pending.pop(0)
+
+        def again(child, kept):  # crossed once more, with a parent or a sibling kept so far
+            mates = [(p, (i,)) for i, p in zip(sel, self._parents())] + [(k, k) for k in kept]
+            mate, extra = mates[int(self.rng.integers(len(mates)))]
+            return op(child, mate, self.rng)[0], extra, None
+        out = self._breed(name, make, again)
+        if isinstance(out, str):
+            return out
+        return self._commit(*out, f"generation {self.state.generation + 1}: {name} of {len(sel)} parents")
+
+    def next_generation(self) -> str:
+        """Evolve: children by a random operator each (recombination too when two or more are
+        selected)."""
+        reason = self.why_not("evolve")
+        if reason:
+            return reason
+        sel = list(self.state.selected)
+        ops = [(name, op, False) for name, op in self.mutations.items()]
+        if len(sel) > 1:
+            ops += [(name, op, True) for name, op in self.recombinations.items()]
+        last = [ops[0][0]]
+
+        def make():
+            name, op, pair = ops[int(self.rng.integers(len(ops)))]
+            last[0] = name
+            if pair:
+                i, j = self.rng.choice(len(sel), size=2, replace=False)
+                kids = op(self.state.population[sel[i]], self.state.population[sel[j]], self.rng)
+                return kids[int(self.rng.integers(2))], Origin(name, (sel[i], sel[j]))
+            j = sel[int(self.rng.integers(len(sel)))]
+            return op(self.state.population[j], self.rng), Origin(name, (j,))
+
+        def again(child, kept):  # one more mutation
+            name = list(self.mutations)[int(self.rng.integers(len(self.mutations)))]
+            return self.mutations[name](child, self.rng), (), name
+        out = self._breed("evolve", make, again if self.mutations else None)
+        if isinstance(out, str):
+            return out.replace("evolve failed", f"{last[0]} failed")
+        return self._commit(*out, f"generation {self.state.generation + 1}: mixed operators")
+
+    def randomize(self) -> str:
+        """A new random population (the old one goes to the history), none flat or black."""
+        pop = random_population(self.rng, self.size, **self.genome_params)
+        return self._commit(pop, [Origin("random")] * len(pop), "new random population")
+
+    # ---- undo, redo, branch ---------------------------------------------------------------
+    def undo(self) -> str:
+        """Back to the previous generation (any number of steps; redo goes forward again)."""
+        s = self.state
+        if not s.history:
+            return "nothing to undo"
+        s.future.append(s.current)
+        s.population, s.selected, s.origins = s.history.pop()
+        s.generation -= 1
+        self.save()
+        return f"back to generation {s.generation}"
+
+    def redo(self) -> str:
+        """Forward again to the generation the last undo left."""
+        s = self.state
+        if not s.future:
+            return "nothing to redo"
+        s.history.append(s.current)
+        s.population, s.selected, s.origins = s.future.pop()
+        s.generation += 1
+        self.save()
+        return f"forward to generation {s.generation}"
+
+    def branch(self, generation: int, index: int) -> str:
+        """Go back to ``generation`` (undo, so redo returns) with only picture ``index`` of it
+        selected: the next operator breeds a new branch from that ancestor."""
+        s = self.state
+        if not _is_int(generation) or not s.first_generation <= generation <= s.generation:
+            raise ValueError(f"generation: {generation!r} is not a generation kept in the session "
+                             f"({s.first_generation}..{s.generation})")
+        if not _is_int(index) or not 0 <= index < self.size:
+            raise ValueError(f"index: {index!r} is not a picture index (0..{self.size - 1})")
+        while s.generation > generation:
+            self.undo()
+        s.selected[:] = [int(index)]
+        self.save()
+        return f"branch from generation {generation}, picture #{index}: choose an operator"
+
+    def lineage(self, i: int) -> list[Ancestor]:
+        """The pictures that made picture ``i``: itself, then its parents, their parents ...,
+        newest generation first, as far back as the history goes. A picture kept from the
+        generation before is followed to its first appearance (its origin there)."""
+        if not _is_int(i) or not 0 <= i < self.size:
+            raise ValueError(f"i: {i!r} is not a picture index (0..{self.size - 1})")
+        s = self.state
+        steps = s.history + [s.current]
+        out: list[Ancestor] = []
+        wanted = {int(i)}
+        for back in range(len(steps) - 1, -1, -1):
+            gen, number = steps[back], s.generation - (len(steps) - 1 - back)
+            nxt: set[int] = set()
+            for j in sorted(wanted):
+                o = gen.origins[j]
+                if o.operator == "kept" and back > 0:
+                    nxt.update(o.parents)  # the same picture one generation earlier
+                    continue
+                out.append(Ancestor(number, j, gen.population[j], o.operator, tuple(o.parents)))
+                if back > 0:
+                    nxt.update(o.parents)
+            wanted = nxt
+            if not wanted:
+                break
+        return out
