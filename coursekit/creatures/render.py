@@ -8,7 +8,9 @@ matplotlib's ``viridis``), with every joint's axis as a short red line through i
 
 from __future__ import annotations
 
+import importlib.util
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +60,40 @@ def world_poses(body: BodyTree, qpos) -> tuple[np.ndarray, np.ndarray]:
     return R0 @ R, t @ R0.T + qpos[:3]
 
 
+def frame(points, azimuth: float, elevation: float, aspect: float, *, view_angle: float = 30.0,
+          margin: float = 0.9) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A perspective camera looking from ``azimuth``/``elevation`` (degrees) at ``points`` that
+    they fill: their projection spans ``margin`` of the frame's width or height, whichever binds.
+
+    A bounding-sphere fit (VTK's ``reset_camera``) leaves a long thin creature small in a large
+    empty frame; this fits the projected extent instead, with the view centred on it.
+
+    Args:
+        points: (N, 3) world points to frame (e.g. every box corner).
+        aspect: width / height of the picture.
+        view_angle: the camera's vertical view angle (VTK's default: 30 degrees).
+        margin: fraction of the frame the points may span.
+
+    Returns:
+        ``(eye, focal_point, view_up)``, as pyvista's ``camera_position`` takes them.
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    az, el = np.radians(azimuth), np.radians(elevation)
+    back = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])  # centre -> eye
+    world_up = np.array([0.0, 0.0, 1.0]) if abs(back[2]) < 0.999 else np.array([0.0, 1.0, 0.0])
+    right = np.cross(-back, world_up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, -back)
+    centre = 0.5 * (pts.min(0) + pts.max(0))
+    x, y = (pts - centre) @ right, (pts - centre) @ up
+    centre = centre + right * 0.5 * (x.max() + x.min()) + up * 0.5 * (y.max() + y.min())
+    p = pts - centre
+    x, y, z = np.abs(p @ right), np.abs(p @ up), p @ back
+    t = np.tan(np.radians(view_angle) / 2) * margin
+    distance = max(float(np.max(z + x / (t * aspect))), float(np.max(z + y / t)), 1e-3)
+    return centre + distance * back, centre, up
+
+
 def _check_size(size):
     if len(size) != 2 or not all(isinstance(s, (int, np.integer)) and 16 <= s <= 4096 for s in size):
         raise ValueError(f"render.size: need (width, height) integers in [16, 4096], got {size!r}")
@@ -102,12 +138,24 @@ class _Scene:
         local = _BOX_CORNERS[None, :, :] * body.half_extents[:, None, :]
         return (np.einsum("bij,bkj->bki", R, local) + t[:, None, :]).reshape(-1, 3)
 
-    def look(self, centre, radius, azimuth, elevation, fit=True):
+    def look(self, centre, radius, azimuth, elevation):
+        """Look at ``centre`` from ``radius`` away (animation: the same distance every frame)."""
         az, el = np.radians(azimuth), np.radians(elevation)
         eye = centre + radius * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
         self.pl.camera_position = [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)]
-        if fit:
-            self.pl.reset_camera()  # keep the direction, fit the distance to the bounds
+
+
+def _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation) -> _Scene:
+    """A scene of ``obj`` in pose ``q``, the camera framing it (:func:`frame`)."""
+    body = _body_of(obj)
+    _check_size(size)
+    scene = _Scene(body, size, background, joint_axes and body.n_bodies > 1)
+    corners = scene.pose(*part_poses(body, q))
+    points = np.concatenate([corners] + [np.asarray(line.points) for _, line in scene.axes])
+    eye, centre, up = frame(points, azimuth, elevation, size[0] / size[1], view_angle=scene.pl.camera.view_angle)
+    scene.pl.camera_position = [tuple(eye), tuple(centre), tuple(up)]
+    scene.pl.renderer.reset_camera_clipping_range()
+    return scene
 
 
 def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, background: str = "white",
@@ -129,13 +177,8 @@ def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, 
     Example:
         >>> img = render(Creature.figure1_snake())  # doctest: +SKIP
     """
-    body = _body_of(obj)
-    _check_size(size)
-    scene = _Scene(body, size, background, joint_axes and body.n_bodies > 1)
+    scene = _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation)
     try:
-        corners = scene.pose(*part_poses(body, q))
-        lo, hi = corners.min(0), corners.max(0)
-        scene.look(0.5 * (lo + hi), max(float(np.linalg.norm(hi - lo)), 0.1), azimuth, elevation)
         if path is None:
             return np.asarray(scene.pl.screenshot(return_img=True))[..., :3].copy()
         with atomic_path(path, ".png") as tmp:
@@ -143,6 +186,38 @@ def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, 
         return Path(path)
     finally:
         scene.pl.close()
+
+
+def view(obj, *, interactive: bool = False, size=(480, 360), q=None, joint_axes: bool = True,
+         background: str = "white", azimuth: float = 30.0, elevation: float = 25.0):
+    """A creature for a notebook to display: its picture, or (opt-in) a 3D view the mouse rotates.
+
+    The interactive view is pyvista's ``html`` notebook backend (through ``trame-pyvista``,
+    ``pip install 'coursekit[interactive]'``): the scene is exported to the page, so it rotates in
+    any browser with no widget front-end and no running kernel. Without that backend the view
+    degrades to the static picture, with a warning saying what to install.
+
+    Args:
+        obj: a :class:`~coursekit.creatures.genotype.Creature`, :class:`Phenotype` or BodyTree.
+        interactive: ask for the rotatable view.
+        size, q, joint_axes, background, azimuth, elevation: as for :func:`render`.
+
+    Returns:
+        What the notebook displays: pyvista's HTML view, or an :class:`IPython.display.Image`.
+    """
+    if interactive:
+        if importlib.util.find_spec("trame_pyvista") is None:
+            warnings.warn("view(interactive=True) needs pyvista's notebook backend "
+                          "(pip install 'coursekit[interactive]'); showing the static picture", stacklevel=2)
+        else:
+            scene = _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation)
+            return scene.pl.show(jupyter_backend="html", return_viewer=True)
+    from IPython.display import Image
+
+    from coursekit.pictures.gallery import png_bytes
+
+    return Image(data=png_bytes(render(obj, size=size, q=q, joint_axes=joint_axes, background=background,
+                                       azimuth=azimuth, elevation=elevation) / 255.0), format="png")
 
 
 def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes: bool = False,
@@ -190,7 +265,7 @@ def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes
             scene.pl.open_gif(str(tmp), fps=fps)
             for R, t in poses:
                 c = scene.pose(R, t)
-                scene.look(0.5 * (c.min(0) + c.max(0)), radius, azimuth, elevation, fit=False)
+                scene.look(0.5 * (c.min(0) + c.max(0)), radius, azimuth, elevation)
                 scene.pl.write_frame()
             scene.pl.mwriter.close()  # flush the GIF before it is moved into place
             scene.pl.mwriter = None
