@@ -84,13 +84,24 @@ def frame(points, azimuth: float, elevation: float, aspect: float, *, view_angle
     right = np.cross(-back, world_up)
     right /= np.linalg.norm(right)
     up = np.cross(right, -back)
+    # Exactly: move the camera by (sx, sy) in its image plane and to ``distance`` from the box
+    # centre; point i lands at (x_i - sx) / (distance - z_i) horizontally. The smallest distance
+    # with every point inside +-m on both axes is the largest (max_i(x_i/m + z_i) +
+    # max_j(z_j - x_j/m)) / 2 over the axes; the shift then centres the points on the binding axis.
+    # (Box corners seen from outside never bind the near limit below.)
     centre = 0.5 * (pts.min(0) + pts.max(0))
-    x, y = (pts - centre) @ right, (pts - centre) @ up
-    centre = centre + right * 0.5 * (x.max() + x.min()) + up * 0.5 * (y.max() + y.min())
     p = pts - centre
-    x, y, z = np.abs(p @ right), np.abs(p @ up), p @ back
+    z = p @ back
     t = np.tan(np.radians(view_angle) / 2) * margin
-    distance = max(float(np.max(z + x / (t * aspect))), float(np.max(z + y / t)), 1e-3)
+    axes = [(right, p @ right, t * aspect), (up, p @ up, t)]
+    distance = max(float(np.max(x / m + z) + np.max(z - x / m)) / 2 for _, x, m in axes)
+    # Nothing closer to the eye than a quarter of the points' radius (a near point along the line
+    # of sight would otherwise let the camera come up to it).
+    near = 0.25 * max(float(np.linalg.norm(p, axis=1).max()), 1e-3)
+    distance = max(distance, float(z.max()) + near)
+    for direction, x, m in axes:
+        lo, hi = np.max(x - m * (distance - z)), np.min(x + m * (distance - z))
+        centre = centre + direction * 0.5 * (lo + hi)
     return centre + distance * back, centre, up
 
 
@@ -102,12 +113,12 @@ def _check_size(size):
 class _Scene:
     """One off-screen plotter with a creature's boxes and joint axes, re-posable for animation."""
 
-    def __init__(self, body: BodyTree, size, background, joint_axes):
+    def __init__(self, body: BodyTree, size, background, joint_axes, notebook: bool = False):
         import matplotlib
         import pyvista as pv
 
         self.body = body
-        self.pl = pv.Plotter(off_screen=True, window_size=list(size))
+        self.pl = pv.Plotter(off_screen=True, notebook=notebook, window_size=list(size))
         self.pl.set_background(background)
         depth = body.depth
         cmap = matplotlib.colormaps["viridis"]
@@ -145,11 +156,11 @@ class _Scene:
         self.pl.camera_position = [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)]
 
 
-def _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation) -> _Scene:
+def _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation, notebook=False) -> _Scene:
     """A scene of ``obj`` in pose ``q``, the camera framing it (:func:`frame`)."""
     body = _body_of(obj)
     _check_size(size)
-    scene = _Scene(body, size, background, joint_axes and body.n_bodies > 1)
+    scene = _Scene(body, size, background, joint_axes and body.n_bodies > 1, notebook)
     corners = scene.pose(*part_poses(body, q))
     points = np.concatenate([corners] + [np.asarray(line.points) for _, line in scene.axes])
     eye, centre, up = frame(points, azimuth, elevation, size[0] / size[1], view_angle=scene.pl.camera.view_angle)
@@ -188,14 +199,36 @@ def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, 
         scene.pl.close()
 
 
+class View:
+    """What :func:`view` returns: the picture, and (opt-in) a rotatable 3D widget over it.
+
+    A notebook with a widget front-end shows the widget; any other (a notebook viewer, an HTML
+    export, a front-end without ipywidgets) shows the static picture that travels with it.
+
+    Attributes:
+        png: the static picture (PNG bytes).
+        widget: pyvista's notebook widget, or ``None`` for the static picture alone.
+    """
+
+    def __init__(self, png: bytes, widget=None):
+        self.png, self.widget = png, widget
+
+    def _repr_mimebundle_(self, include=None, exclude=None) -> dict:
+        bundle = {"image/png": self.png, "text/plain": "<creature view>"}
+        if self.widget is not None:
+            data = self.widget._repr_mimebundle_()
+            bundle.update(data[0] if isinstance(data, tuple) else data)
+        return bundle
+
+
 def view(obj, *, interactive: bool = False, size=(480, 360), q=None, joint_axes: bool = True,
-         background: str = "white", azimuth: float = 30.0, elevation: float = 25.0):
+         background: str = "white", azimuth: float = 30.0, elevation: float = 25.0) -> View:
     """A creature for a notebook to display: its picture, or (opt-in) a 3D view the mouse rotates.
 
-    The interactive view is pyvista's ``html`` notebook backend (through ``trame-pyvista``,
-    ``pip install 'coursekit[interactive]'``): the scene is exported to the page, so it rotates in
-    any browser with no widget front-end and no running kernel. Without that backend the view
-    degrades to the static picture, with a warning saying what to install.
+    The interactive view is pyvista's notebook backend (``client``: the geometry is sent to the
+    page once and turns there; ``pip install 'coursekit[interactive]'``). Without that backend
+    the view is the static picture, with a warning saying what to install; with it, the picture
+    still travels with the widget for front-ends that cannot show widgets.
 
     Args:
         obj: a :class:`~coursekit.creatures.genotype.Creature`, :class:`Phenotype` or BodyTree.
@@ -203,21 +236,20 @@ def view(obj, *, interactive: bool = False, size=(480, 360), q=None, joint_axes:
         size, q, joint_axes, background, azimuth, elevation: as for :func:`render`.
 
     Returns:
-        What the notebook displays: pyvista's HTML view, or an :class:`IPython.display.Image`.
+        A :class:`View`.
     """
-    if interactive:
-        if importlib.util.find_spec("trame_pyvista") is None:
-            warnings.warn("view(interactive=True) needs pyvista's notebook backend "
-                          "(pip install 'coursekit[interactive]'); showing the static picture", stacklevel=2)
-        else:
-            scene = _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation)
-            return scene.pl.show(jupyter_backend="html", return_viewer=True)
-    from IPython.display import Image
-
     from coursekit.pictures.gallery import png_bytes
 
-    return Image(data=png_bytes(render(obj, size=size, q=q, joint_axes=joint_axes, background=background,
-                                       azimuth=azimuth, elevation=elevation) / 255.0), format="png")
+    options = dict(size=size, q=q, joint_axes=joint_axes, background=background, azimuth=azimuth, elevation=elevation)
+    png = png_bytes(render(obj, **options) / 255.0)
+    if not interactive:
+        return View(png)
+    if importlib.util.find_spec("trame_pyvista") is None:
+        warnings.warn("view(interactive=True) needs pyvista's notebook backend "
+                      "(pip install 'coursekit[interactive]'); showing the static picture", stacklevel=2)
+        return View(png)
+    scene = _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation, notebook=True)
+    return View(png, scene.pl.show(jupyter_backend="client", return_viewer=True))
 
 
 def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes: bool = False,
