@@ -367,8 +367,8 @@ class Genome:
     def __repr__(self) -> str:
         """Short: the shape and the start of the expression (``to_json`` has everything).
 
-        >>> Genome.from_json(Genome.random(np.random.default_rng(0), n_strings=1, head_length=1).to_json())
-        Genome(1 string, head 1, 1 coding chromosome: x)
+        >>> Genome.random(np.random.default_rng(0), n_strings=1, head_length=1)
+        Genome(1 string, head 1, 3 coding chromosomes: (divide y (const 0.01653)))
         """
         n, k = len(self.strings), self.size()
         expr = self.expression()
