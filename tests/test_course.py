@@ -135,3 +135,16 @@ def test_the_installed_wheel_copies_the_course_and_runs_a_lesson_outside_the_che
     assert run.returncode == 0, run.stderr[-3000:]
     assert "course in" in run.stdout and "ran" in run.stdout
     assert f"kernel coursekit: {site / 'coursekit' / '__init__.py'}" in run.stdout  # the wheel's, not the checkout's
+
+
+def test_ci_runs_the_readmes_commands_as_written():
+    """`.ci/run` runs the README's test command verbatim (no torch installed first)."""
+    import re
+
+    readme = (ROOT / "README.md").read_text()
+    blocks = re.findall(r"```bash\n(.*?)\n```", readme, re.S)
+    install, test = blocks[0], blocks[1]
+    assert install == "python3 -m venv .venv && .venv/bin/pip install -e . && .venv/bin/coursekit lab"
+    ci = (ROOT / ".ci" / "run").read_text()
+    assert any(line == test or line.startswith(test + " || exit") for line in ci.splitlines())
+    assert "torch" not in "".join(line for line in ci.splitlines() if "pip install" in line)
