@@ -186,7 +186,9 @@ def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, 
         The ``(height, width, 3)`` uint8 image when ``path`` is None, else the written path.
 
     Example:
-        >>> img = render(Creature.figure1_snake())  # doctest: +SKIP
+        >>> from coursekit.creatures import Creature
+        >>> render(Creature.figure1_snake()).shape
+        (360, 480, 3)
     """
     scene = _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation)
     try:
