@@ -8,32 +8,47 @@ import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parent.parent  # the checkout, where solutions/ and exercises/ are authored
+DEFAULT_COURSE_DIR = "coursekit-course"
 
 
-def _lab(open_path: Path, no_browser: bool, extra: list[str]) -> int:
-    """JupyterLab serving the whole course (lessons link to ../exercises), opened at ``open_path``.
+def _lab(folder: Path, open_rel: str, no_browser: bool, extra: list[str]) -> int:
+    """JupyterLab serving the working folder ``folder`` (lessons link to ../exercises), opened at ``open_rel``.
 
-    It runs in this process (not a child): stopping ``coursekit lab`` stops the server."""
+    It runs in this process (not a child): stopping ``coursekit lab`` stops the server. JupyterLab's
+    news pop-up and update check are off (``--LabApp.news_url=None``, ``--LabApp.check_for_updates_class``)."""
     from jupyterlab.labapp import LabApp
 
-    argv = [f"--ServerApp.root_dir={ROOT}", f"--LabApp.default_url=/lab/tree/{open_path.relative_to(ROOT).as_posix()}"]
+    argv = [f"--ServerApp.root_dir={folder}", f"--LabApp.default_url=/lab/tree/{open_rel}",
+            "--LabApp.news_url=None", "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate"]
     if no_browser:
         argv.append("--no-browser")
     if hasattr(os, "geteuid") and os.geteuid() == 0:  # containers and CI machines run as root
         argv.append("--allow-root")
-    print("coursekit: starting JupyterLab on", open_path)
+    print(f"coursekit: starting JupyterLab on {folder / open_rel}")
     LabApp.launch_instance(argv=argv + list(extra))
     return 0
 
 
+def _working_copy(folder: str) -> Path | None:
+    """Copy the course into ``folder`` (never overwriting a student's changes) and say what happened."""
+    from coursekit.course import copy_course
+
+    try:
+        report = copy_course(folder)
+    except (OSError, FileNotFoundError) as e:
+        print(f"coursekit: {e}", file=sys.stderr)
+        return None
+    print(f"coursekit: {report}")
+    return report.folder
+
+
 def _cmd_lab(args: argparse.Namespace) -> int:
-    """Open JupyterLab on the lessons folder."""
-    lessons = Path(args.dir).resolve()
-    if not lessons.is_dir():
-        print(f"coursekit lab: no lessons folder at {lessons}", file=sys.stderr)
+    """Copy the course into the working folder and open JupyterLab on its lessons."""
+    folder = _working_copy(args.dir)
+    if folder is None:
         return 2
-    return _lab(lessons, args.no_browser, args.extra)
+    return _lab(folder, "lessons", args.no_browser, args.extra)
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
@@ -47,7 +62,10 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         print(f"audit: {summary['audit']}")
         print(f"wrote {', '.join(summary['files'])} to {args.out or 'swimmers-demo'}/")
         return 0
-    return _lab(ROOT / "demos" / "picture_breeding.ipynb", args.no_browser, args.extra)
+    folder = _working_copy(args.dir)
+    if folder is None:
+        return 2
+    return _lab(folder, "demos/picture_breeding.ipynb", args.no_browser, args.extra)
 
 
 def _cmd_grade(args: argparse.Namespace) -> int:
@@ -62,17 +80,39 @@ def _cmd_exercises(args: argparse.Namespace) -> int:
     return authoring_main(args)
 
 
+#: What each benchmark needs beyond coursekit's own dependencies: (module, how to install it).
+BENCH_NEEDS = {"swimmers": [("mujoco", "pip install 'coursekit[mujoco]'")]}
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
-    bench_dir = ROOT / "benchmarks"
-    names = args.names or sorted(p.stem for p in bench_dir.glob("*.py") if not p.stem.startswith("_"))
+    """Run ``benchmarks/NAME.py`` (from the checkout, or as installed with the wheel)."""
+    import importlib.util
+
+    from coursekit.course import source
+
+    try:
+        bench_dir = source() / "benchmarks"
+    except FileNotFoundError as e:
+        print(f"coursekit bench: {e}", file=sys.stderr)
+        return 2
+    have = sorted(p.stem for p in bench_dir.glob("*.py") if not p.stem.startswith("_"))
+    if not have:
+        print(f"coursekit bench: no benchmark scripts in {bench_dir}; reinstall coursekit or run from a checkout", file=sys.stderr)
+        return 2
+    names = args.names or have
+    unknown = [n for n in names if n not in have]
+    if unknown:
+        print(f"coursekit bench: no benchmark named {unknown[0]!r}; have {', '.join(have)}", file=sys.stderr)
+        return 2
+    missing = [(n, mod, how) for n in names for mod, how in BENCH_NEEDS.get(n, []) if importlib.util.find_spec(mod) is None]
+    if missing:
+        for n, mod, how in missing:
+            print(f"coursekit bench: {n} needs {mod} (it measures against it); install it with: {how}", file=sys.stderr)
+        return 2
     rc = 0
     for name in names:
-        script = bench_dir / f"{name}.py"
-        if not script.is_file():
-            print(f"coursekit bench: no benchmark named {name!r}; have {sorted(p.stem for p in bench_dir.glob('*.py'))}", file=sys.stderr)
-            return 2
-        print(f"== benchmarks/{name}.py")
-        rc |= subprocess.call([sys.executable, str(script)], env={**os.environ, "PYTHONPATH": str(ROOT)})
+        print(f"== benchmarks/{name}.py {' '.join(args.extra)}".rstrip(), flush=True)
+        rc |= subprocess.call([sys.executable, str(bench_dir / f"{name}.py"), *args.extra])
     return rc
 
 
@@ -80,14 +120,17 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="coursekit", description="Genetic algorithms for computer graphics: swimmers and genetic pictures.")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
-    s = sub.add_parser("lab", help="open JupyterLab on the lessons")
-    s.add_argument("--dir", default=str(ROOT / "lessons"), help="lessons folder (default: the repository's lessons/)")
+    s = sub.add_parser("lab", help="copy the course into a working folder and open JupyterLab on its lessons")
+    s.add_argument("dir", nargs="?", default=DEFAULT_COURSE_DIR,
+                   help=f"your working folder (default ./{DEFAULT_COURSE_DIR}); the course is copied there, "
+                        "and a file you changed is never overwritten")
     s.add_argument("--no-browser", action="store_true", help="do not open a browser window")
     s.set_defaults(func=_cmd_lab)
 
     s = sub.add_parser("demo", help="instructor demos: evolve swimmers (files), breed pictures (JupyterLab)")
     s.add_argument("name", choices=["swimmers", "pictures"])
     s.add_argument("--out", help="output folder (swimmers: default swimmers-demo/)")
+    s.add_argument("--dir", default=DEFAULT_COURSE_DIR, help=f"pictures: the working folder the course is copied to (default ./{DEFAULT_COURSE_DIR})")
     s.add_argument("--population", type=int, help="population size (default by COURSEKIT_PROFILE)")
     s.add_argument("--generations", type=int, help="generations (default by COURSEKIT_PROFILE)")
     s.add_argument("--seconds", type=float, help="swimming seconds per evaluation")
@@ -118,7 +161,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--exercises", default=str(ROOT / "exercises"))
     s.set_defaults(func=_cmd_exercises)
 
-    s = sub.add_parser("bench", help="run the benchmarks (tables against a reference, same run)")
+    s = sub.add_parser("bench", help="run the benchmarks (tables against a reference, same run); other options go to the scripts")
     s.add_argument("names", nargs="*", help="benchmark names (default: all)")
     s.set_defaults(func=_cmd_bench)
     return p
@@ -129,6 +172,8 @@ def main(argv: list[str] | None = None) -> int:
     args, unknown = parser.parse_known_args(argv)
     if args.command == "lab" or (args.command == "demo" and args.name == "pictures"):
         args.extra = unknown  # everything else goes to JupyterLab (--port=..., --ServerApp.*)
+    elif args.command == "bench":
+        args.extra = unknown  # options of the benchmark scripts (--quick, --batches ...)
     elif unknown:
         parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     if not getattr(args, "func", None):

@@ -1,12 +1,16 @@
 """The `coursekit` command and the size profiles."""
 
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from coursekit import profile
 from coursekit.cli import build_parser
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_help_lists_every_subcommand():
@@ -30,11 +34,12 @@ def test_profiles(monkeypatch):
         profile.current()
 
 
-@pytest.mark.parametrize("command, opens", [(["lab"], "/lab/tree/lessons"),
-                                            (["demo", "pictures"], "/lab/tree/demos/picture_breeding.ipynb")])
+@pytest.mark.parametrize("command, opens", [(["lab", "{course}"], "/lab/tree/lessons"),
+                                            (["demo", "pictures", "--dir", "{course}"], "/lab/tree/demos/picture_breeding.ipynb")])
 def test_lab_serves_the_course_and_opens_the_lessons(tmp_path, command, opens):
-    """`coursekit lab` (the README's first command) really serves JupyterLab on lessons/; the
-    pictures demo opens its notebook the same way."""
+    """`coursekit lab DIR` (the README's first command) copies the course into DIR and really
+    serves JupyterLab there, opened on lessons/, with JupyterLab's news pop-up off; the pictures
+    demo opens its notebook the same way. The solutions are not part of the student's copy."""
     import json
     import socket
     import time
@@ -44,6 +49,8 @@ def test_lab_serves_the_course_and_opens_the_lessons(tmp_path, command, opens):
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
+    course = tmp_path / "my course"
+    command = [c.format(course=course) for c in command]
     env = {**__import__("os").environ, "JUPYTER_RUNTIME_DIR": str(tmp_path), "JUPYTER_CONFIG_DIR": str(tmp_path)}
     proc = subprocess.Popen(
         [sys.executable, "-m", "coursekit", *command, "--no-browser", f"--ServerApp.port={port}", "--ServerApp.token=t", "--ServerApp.ip=127.0.0.1"],
@@ -64,6 +71,13 @@ def test_lab_serves_the_course_and_opens_the_lessons(tmp_path, command, opens):
                 time.sleep(0.5)
         names = {c["name"] for c in listing["content"]}
         assert {"lessons", "exercises"} <= names  # lessons link to ../exercises: both must be reachable
+        assert "solutions" not in names
+        assert sorted(p.name for p in (course / "lessons").glob("*.ipynb")) == sorted(
+            p.name for p in (ROOT / "lessons").glob("*.ipynb"))
+        page = urllib.request.urlopen(f"{base}/lab?token=t", timeout=5).read().decode()
+        config = json.loads(re.search(r'<script id="jupyter-config-data" type="application/json">(.*?)</script>',
+                                      page, re.S).group(1))
+        assert config["news"] == {"disabled": True}  # no "get notified about Jupyter news?" pop-up
 
         class NoRedirect(urllib.request.HTTPRedirectHandler):
             def redirect_request(self, *a, **k):
@@ -100,3 +114,33 @@ def test_swimmers_demo_writes_what_a_lecture_shows(tmp_path):
     assert best.expand().body.n_bodies == summary["best_parts"]
     assert summary["best_fitness"] == max(summary["history_best"])
     assert Image.open(out / "best.gif").n_frames > 1
+
+
+def test_bench_names_what_it_has_and_what_it_needs():
+    """`coursekit bench` runs the packaged (or checked-out) scripts; a wrong name is refused with the list."""
+    run = subprocess.run([sys.executable, "-m", "coursekit", "bench", "no_such_bench"], capture_output=True, text=True)
+    assert run.returncode == 2
+    assert "no benchmark named 'no_such_bench'" in run.stderr
+    for name in ("pictures", "swimmers", "brain"):
+        assert name in run.stderr
+
+
+def test_bench_runs_a_benchmark_and_passes_its_options():
+    run = subprocess.run([sys.executable, "-m", "coursekit", "bench", "picture_variety", "--genomes", "2", "--sessions", "1"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert "== benchmarks/picture_variety.py --genomes 2 --sessions 1" in run.stdout
+    assert "children: 126 checked (1 sessions x 7 operators" in run.stdout  # the options reached the script
+
+
+def test_bench_says_what_a_benchmark_needs(monkeypatch, capsys):
+    """Without MuJoCo the simulator benchmark is refused with the command that installs it."""
+    import importlib.util
+
+    from coursekit.cli import main
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "mujoco" else real(name, *a))
+    assert main(["bench", "swimmers"]) == 2
+    err = capsys.readouterr().err
+    assert "swimmers needs mujoco" in err and "pip install 'coursekit[mujoco]'" in err

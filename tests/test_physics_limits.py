@@ -1,25 +1,25 @@
 """Joint limits hold, and limits and contacts never create energy or momentum (the exploit evolution found first).
 
-A 3-box, 41 g creature with two narrow prismatic joints (tests/data/limit_exploit_creature.json,
+A 3-box, 41 g creature with two narrow prismatic joints (coursekit/data/limit_exploit_creature.json,
 bred by `coursekit demo swimmers` before the fix) "swam" 8.7 m/s -- with the water switched off
 it still travelled 42 m in 5 s: limit dampers tuned to the parts' own inertias were explicitly
 unstable for a joint whose effective inertia in the free-floating body was 6x smaller.
 """
 
-from pathlib import Path
 
 import mujoco  # in the [test] extra: the cross-check must run, never skip
 import numpy as np
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+import coursekit.data
 from coursekit.creatures import Creature, simulate, to_mjcf
 from coursekit.creatures.physics.integrate import State
 from coursekit.creatures.physics.limits import effective_inertia
 from coursekit.creatures.physics.model import Model
 from coursekit.creatures.physics.world import World
 
-EXPLOIT = Creature.from_json((Path(__file__).parent / "data" / "limit_exploit_creature.json").read_text())
+EXPLOIT = coursekit.data.creature("limit_exploit_creature")
 
 
 def test_effective_inertia_is_the_inverse_diagonal_of_mujocos_inverse_mass_matrix():

@@ -379,6 +379,60 @@ class Creature:
     def copy(self) -> "Creature":
         return copy.deepcopy(self)
 
+    # ------------------------------------------------------------------------ display
+    #: (width, height) of the picture a notebook shows for a creature, in pixels.
+    REPR_SIZE = (400, 300)
+
+    def summary(self) -> dict:
+        """What a person wants to know first, from the expanded body: ``parts``, ``joints``,
+        ``dof`` (the joints' degrees of freedom; the free root adds 6 more), ``mass`` (kg),
+        ``neurons`` (expanded, central brain included), and the genotype's ``nodes``.
+
+        >>> Creature.figure1_snake().summary()["parts"]
+        6
+        """
+        ph = self.expand()
+        body = ph.body
+        dof = sum(JOINT_DOF[self.nodes[int(i)].joint_type] for i in body.node_id[1:]) if body.node_id is not None else body.n_joints
+        return {"parts": body.n_bodies, "joints": body.n_joints, "dof": int(dof), "mass": float(body.mass.sum()),
+                "neurons": int(ph.brain.n_neurons), "nodes": len(self.nodes)}
+
+    def __repr__(self) -> str:
+        """Short: the genotype's size (``to_json`` has everything).
+
+        >>> Creature.figure1_snake()
+        Creature(2 nodes, 1 brain neuron)
+        """
+        n, k = len(self.nodes), len(self.brain)
+        return f"Creature({n} node{'s' * (n != 1)}, {k} brain neuron{'s' * (k != 1)})"
+
+    def _repr_png_(self) -> bytes:
+        """Its rendering (``REPR_SIZE``), for notebooks."""
+        return self._repr_mimebundle_()["image/png"]
+
+    def _repr_html_(self) -> str:
+        """Its rendering with a one-line summary (parts, joints, DOF, mass, neurons), for notebooks."""
+        return self._repr_mimebundle_()["text/html"]
+
+    def _repr_mimebundle_(self, include=None, exclude=None) -> dict:
+        """PNG, HTML (the PNG with its summary below) and text, from one rendering."""
+        import base64
+        import html
+
+        from coursekit.pictures.gallery import png_bytes
+
+        from .render import render
+
+        png = png_bytes(render(self, size=self.REPR_SIZE) / 255.0)
+        s = self.summary()
+        caption = (f"{s['parts']} parts, {s['joints']} joints, {s['dof']} DOF (+6 free root), "
+                   f"{s['mass']:.3g} kg, {s['neurons']} neurons; genotype of {s['nodes']} nodes")
+        data = base64.b64encode(png).decode("ascii")
+        page = (f'<figure style="margin:0"><img src="data:image/png;base64,{data}" width="{self.REPR_SIZE[0]}" '
+                f'alt="{html.escape(repr(self))}"><figcaption style="font-size:smaller">{html.escape(caption)}'
+                "</figcaption></figure>")
+        return {"image/png": png, "text/html": page, "text/plain": repr(self)}
+
     # --------------------------------------------------------------------------- files
     def to_dict(self) -> dict:
         return {"format": FORMAT, "nodes": [n.to_dict() for n in self.nodes], "brain": [n.to_dict() for n in self.brain]}

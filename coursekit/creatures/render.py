@@ -8,7 +8,9 @@ matplotlib's ``viridis``), with every joint's axis as a short red line through i
 
 from __future__ import annotations
 
+import importlib.util
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +60,51 @@ def world_poses(body: BodyTree, qpos) -> tuple[np.ndarray, np.ndarray]:
     return R0 @ R, t @ R0.T + qpos[:3]
 
 
+def frame(points, azimuth: float, elevation: float, aspect: float, *, view_angle: float = 30.0,
+          margin: float = 0.9) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A perspective camera looking from ``azimuth``/``elevation`` (degrees) at ``points`` that
+    they fill: their projection spans ``margin`` of the frame's width or height, whichever binds.
+
+    A bounding-sphere fit (VTK's ``reset_camera``) leaves a long thin creature small in a large
+    empty frame; this fits the projected extent instead, with the view centred on it.
+
+    Args:
+        points: (N, 3) world points to frame (e.g. every box corner).
+        aspect: width / height of the picture.
+        view_angle: the camera's vertical view angle (VTK's default: 30 degrees).
+        margin: fraction of the frame the points may span.
+
+    Returns:
+        ``(eye, focal_point, view_up)``, as pyvista's ``camera_position`` takes them.
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    az, el = np.radians(azimuth), np.radians(elevation)
+    back = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])  # centre -> eye
+    world_up = np.array([0.0, 0.0, 1.0]) if abs(back[2]) < 0.999 else np.array([0.0, 1.0, 0.0])
+    right = np.cross(-back, world_up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, -back)
+    # Exactly: move the camera by (sx, sy) in its image plane and to ``distance`` from the box
+    # centre; point i lands at (x_i - sx) / (distance - z_i) horizontally. The smallest distance
+    # with every point inside +-m on both axes is the largest (max_i(x_i/m + z_i) +
+    # max_j(z_j - x_j/m)) / 2 over the axes; the shift then centres the points on the binding axis.
+    # (Box corners seen from outside never bind the near limit below.)
+    centre = 0.5 * (pts.min(0) + pts.max(0))
+    p = pts - centre
+    z = p @ back
+    t = np.tan(np.radians(view_angle) / 2) * margin
+    axes = [(right, p @ right, t * aspect), (up, p @ up, t)]
+    distance = max(float(np.max(x / m + z) + np.max(z - x / m)) / 2 for _, x, m in axes)
+    # Nothing closer to the eye than a quarter of the points' radius (a near point along the line
+    # of sight would otherwise let the camera come up to it).
+    near = 0.25 * max(float(np.linalg.norm(p, axis=1).max()), 1e-3)
+    distance = max(distance, float(z.max()) + near)
+    for direction, x, m in axes:
+        lo, hi = np.max(x - m * (distance - z)), np.min(x + m * (distance - z))
+        centre = centre + direction * 0.5 * (lo + hi)
+    return centre + distance * back, centre, up
+
+
 def _check_size(size):
     if len(size) != 2 or not all(isinstance(s, (int, np.integer)) and 16 <= s <= 4096 for s in size):
         raise ValueError(f"render.size: need (width, height) integers in [16, 4096], got {size!r}")
@@ -66,12 +113,12 @@ def _check_size(size):
 class _Scene:
     """One off-screen plotter with a creature's boxes and joint axes, re-posable for animation."""
 
-    def __init__(self, body: BodyTree, size, background, joint_axes):
+    def __init__(self, body: BodyTree, size, background, joint_axes, notebook: bool = False):
         import matplotlib
         import pyvista as pv
 
         self.body = body
-        self.pl = pv.Plotter(off_screen=True, window_size=list(size))
+        self.pl = pv.Plotter(off_screen=True, notebook=notebook, window_size=list(size))
         self.pl.set_background(background)
         depth = body.depth
         cmap = matplotlib.colormaps["viridis"]
@@ -102,12 +149,24 @@ class _Scene:
         local = _BOX_CORNERS[None, :, :] * body.half_extents[:, None, :]
         return (np.einsum("bij,bkj->bki", R, local) + t[:, None, :]).reshape(-1, 3)
 
-    def look(self, centre, radius, azimuth, elevation, fit=True):
+    def look(self, centre, radius, azimuth, elevation):
+        """Look at ``centre`` from ``radius`` away (animation: the same distance every frame)."""
         az, el = np.radians(azimuth), np.radians(elevation)
         eye = centre + radius * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
         self.pl.camera_position = [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)]
-        if fit:
-            self.pl.reset_camera()  # keep the direction, fit the distance to the bounds
+
+
+def _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation, notebook=False) -> _Scene:
+    """A scene of ``obj`` in pose ``q``, the camera framing it (:func:`frame`)."""
+    body = _body_of(obj)
+    _check_size(size)
+    scene = _Scene(body, size, background, joint_axes and body.n_bodies > 1, notebook)
+    corners = scene.pose(*part_poses(body, q))
+    points = np.concatenate([corners] + [np.asarray(line.points) for _, line in scene.axes])
+    eye, centre, up = frame(points, azimuth, elevation, size[0] / size[1], view_angle=scene.pl.camera.view_angle)
+    scene.pl.camera_position = [tuple(eye), tuple(centre), tuple(up)]
+    scene.pl.renderer.reset_camera_clipping_range()
+    return scene
 
 
 def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, background: str = "white",
@@ -127,15 +186,12 @@ def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, 
         The ``(height, width, 3)`` uint8 image when ``path`` is None, else the written path.
 
     Example:
-        >>> img = render(Creature.figure1_snake())  # doctest: +SKIP
+        >>> from coursekit.creatures import Creature
+        >>> render(Creature.figure1_snake()).shape
+        (360, 480, 3)
     """
-    body = _body_of(obj)
-    _check_size(size)
-    scene = _Scene(body, size, background, joint_axes and body.n_bodies > 1)
+    scene = _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation)
     try:
-        corners = scene.pose(*part_poses(body, q))
-        lo, hi = corners.min(0), corners.max(0)
-        scene.look(0.5 * (lo + hi), max(float(np.linalg.norm(hi - lo)), 0.1), azimuth, elevation)
         if path is None:
             return np.asarray(scene.pl.screenshot(return_img=True))[..., :3].copy()
         with atomic_path(path, ".png") as tmp:
@@ -143,6 +199,59 @@ def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, 
         return Path(path)
     finally:
         scene.pl.close()
+
+
+class View:
+    """What :func:`view` returns: the picture, and (opt-in) a rotatable 3D widget over it.
+
+    A notebook with a widget front-end shows the widget; any other (a notebook viewer, an HTML
+    export, a front-end without ipywidgets) shows the static picture that travels with it.
+
+    Attributes:
+        png: the static picture (PNG bytes).
+        widget: pyvista's notebook widget, or ``None`` for the static picture alone.
+    """
+
+    def __init__(self, png: bytes, widget=None):
+        self.png, self.widget = png, widget
+
+    def _repr_mimebundle_(self, include=None, exclude=None) -> dict:
+        bundle = {"image/png": self.png, "text/plain": "<creature view>"}
+        if self.widget is not None:
+            data = self.widget._repr_mimebundle_()
+            bundle.update(data[0] if isinstance(data, tuple) else data)
+        return bundle
+
+
+def view(obj, *, interactive: bool = False, size=(480, 360), q=None, joint_axes: bool = True,
+         background: str = "white", azimuth: float = 30.0, elevation: float = 25.0) -> View:
+    """A creature for a notebook to display: its picture, or (opt-in) a 3D view the mouse rotates.
+
+    The interactive view is pyvista's notebook backend (``client``: the geometry is sent to the
+    page once and turns there; ``pip install 'coursekit[interactive]'``). Without that backend
+    the view is the static picture, with a warning saying what to install; with it, the picture
+    still travels with the widget for front-ends that cannot show widgets.
+
+    Args:
+        obj: a :class:`~coursekit.creatures.genotype.Creature`, :class:`Phenotype` or BodyTree.
+        interactive: ask for the rotatable view.
+        size, q, joint_axes, background, azimuth, elevation: as for :func:`render`.
+
+    Returns:
+        A :class:`View`.
+    """
+    from coursekit.pictures.gallery import png_bytes
+
+    options = dict(size=size, q=q, joint_axes=joint_axes, background=background, azimuth=azimuth, elevation=elevation)
+    png = png_bytes(render(obj, **options) / 255.0)
+    if not interactive:
+        return View(png)
+    if importlib.util.find_spec("trame_pyvista") is None:
+        warnings.warn("view(interactive=True) needs pyvista's notebook backend "
+                      "(pip install 'coursekit[interactive]'); showing the static picture", stacklevel=2)
+        return View(png)
+    scene = _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation, notebook=True)
+    return View(png, scene.pl.show(jupyter_backend="client", return_viewer=True))
 
 
 def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes: bool = False,
@@ -190,7 +299,7 @@ def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes
             scene.pl.open_gif(str(tmp), fps=fps)
             for R, t in poses:
                 c = scene.pose(R, t)
-                scene.look(0.5 * (c.min(0) + c.max(0)), radius, azimuth, elevation, fit=False)
+                scene.look(0.5 * (c.min(0) + c.max(0)), radius, azimuth, elevation)
                 scene.pl.write_frame()
             scene.pl.mwriter.close()  # flush the GIF before it is moved into place
             scene.pl.mwriter = None

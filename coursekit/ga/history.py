@@ -90,6 +90,35 @@ class History:
     def from_json(cls, text: str) -> "History":
         return cls.from_dict(json.loads(text))
 
+    def __repr__(self) -> str:
+        """Short: how long the run is and its best (the lists are in the fields).
+
+        >>> h = History(); h.record(0, [1.0, 3.0], 1.0, 2); h.record(1, [2.0, 4.0], 0.5, 2); h
+        History(2 generations, best 4 in generation 1)
+        """
+        if not self.generation:
+            return "History(no generations)"
+        k = int(np.argmax(self.best))
+        n = len(self.generation)
+        return f"History({n} generation{'s' * (n != 1)}, best {self.best[k]:.4g} in generation {self.generation[k]})"
+
+    def _repr_png_(self) -> bytes | None:
+        """The plot of :meth:`plot`, so a notebook shows a history as its fitness curve."""
+        if not self.generation:
+            return None
+        import io
+
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=(6, 3.5), dpi=100)  # not pyplot: the figure is not also shown by the inline backend
+        FigureCanvasAgg(fig)
+        self.plot(ax=fig.add_subplot())
+        fig.tight_layout()
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png")
+        return buf.getvalue()
+
     def plot(self, ax=None, *, label: str | None = None, diversity: bool = True):
         """Plot best / mean / median fitness (mean +- std shaded) and diversity per generation.
 

@@ -29,7 +29,7 @@ def largest_remainder(weights, total: int) -> np.ndarray:
     Floors of the exact quotas first, then one more each for the largest remainders (ties: the
     earlier weight). The result sums to ``total`` and each count is within 1 of its quota.
 
-    >>> largest_remainder([0.4, 0.3, 0.3], 9).tolist()
+    >>> largest_remainder([0.5, 0.3, 0.2], 9).tolist()  # quotas 4.5, 2.7, 1.8: the two largest remainders round up
     [4, 3, 2]
     """
     w = np.asarray(weights, dtype=np.float64)

@@ -431,6 +431,30 @@ class Genome(_CachedHash):
         """Number of coding chromosomes (nodes of the expression tree)."""
         return self.decode().size()
 
+    # ---- display ------------------------------------------------------------------------
+    #: Side of the picture a notebook shows for a genome (``_repr_png_``), in pixels.
+    REPR_SIZE = 160
+
+    def __repr__(self) -> str:
+        """Short: the shape and the start of the expression (``to_json`` has everything).
+
+        >>> Genome.random(np.random.default_rng(0), n_strings=1, head_length=1)
+        Genome(1 string, head 1, 3 coding chromosomes: (divide y (const 0.01653)))
+        """
+        n, k = len(self.strings), self.size()
+        expr = self.expression()
+        if len(expr) > 60:
+            expr = expr[:57] + "..."
+        return (f"Genome({n} string{'s' * (n != 1)}, head {self.strings[0].head_length}, "
+                f"{k} coding chromosome{'s' * (k != 1)}: {expr})")
+
+    def _repr_png_(self) -> bytes:
+        """The picture, for notebooks (``REPR_SIZE`` pixels square, rendered in this process)."""
+        from .evaluate import render
+        from .gallery import png_bytes
+
+        return png_bytes(render([self], size=(self.REPR_SIZE, self.REPR_SIZE), workers=1)[0])
+
     # ---- files --------------------------------------------------------------------------
     def to_dict(self) -> dict:
         """The JSON-ready dict of :meth:`to_json`."""

@@ -10,11 +10,6 @@ from __future__ import annotations
 import numpy as np
 import array_api_compat
 
-try:  # scipy's CSR kernel, ``y += A x`` in place (private, stable for a decade; guarded)
-    from scipy.sparse._sparsetools import csr_matvecs as _csr_matvecs
-except ImportError:  # pragma: no cover
-    _csr_matvecs = None
-
 BACKENDS = ("numpy", "torch")
 
 
@@ -71,10 +66,9 @@ class Segments:
             :meth:`add_weighted`.
         parent_level: ``(start, stop)`` of the parents (a contiguous slice of bodies).
 
-    numpy sums with a sparse (parents x children) 0/1 matrix product -- several times faster
-    than ``np.add.reduceat`` or ``np.add.at`` on stacks of 6x6 matrices -- accumulated straight
-    into the target rows by scipy's CSR kernel (``y += A x``, no temporary; half the time of
-    ``A @ x`` through ``scipy.sparse`` at these sizes); torch uses an accumulating ``index_put_``.
+    numpy sums with a sparse (parents x children) 0/1 matrix product through ``scipy.sparse``'s
+    public API -- several times faster than ``np.add.reduceat`` or ``np.add.at`` on stacks of
+    6x6 matrices; torch uses an accumulating ``index_put_``.
     """
 
     def __init__(self, xp, parent: np.ndarray, parent_level: tuple[int, int], device=None):
@@ -101,11 +95,7 @@ class Segments:
             target.index_put_((self.parent,), values.reshape((-1,) + tuple(target.shape[1:])), accumulate=True)
             return
         rows = target[self.start : self.stop]
-        if _csr_matvecs is not None and values.dtype == rows.dtype == np.float64 and values.flags.c_contiguous and rows.flags.c_contiguous:
-            A = self.matrix  # called once per tree level and sweep: kept lean
-            _csr_matvecs(A.shape[0], n, values.size // n, A.indptr, A.indices, A.data, values.reshape(-1), rows.reshape(-1))
-        else:
-            rows += (self.matrix @ np.asarray(values, dtype=np.float64).reshape(n, -1)).reshape(rows.shape)
+        rows += (self.matrix @ np.asarray(values, dtype=np.float64).reshape(n, -1)).reshape(rows.shape)
 
     def add_weighted(self, target, weights, values) -> None:
         """``target[parent[k]] += sum_t weights[k, t] values[k, t]`` (in place) for (n, k) weights
@@ -119,26 +109,23 @@ class Segments:
             terms = (weights[:, :, None] * values.reshape(n, k, -1)).sum(1)
             target.index_put_((self.parent,), terms.reshape((n,) + tuple(target.shape[1:])), accumulate=True)
             return
-        x = np.ascontiguousarray(values, dtype=np.float64).reshape(n * k, -1)
+        x = np.asarray(values, dtype=np.float64).reshape(n * k, -1)
         rows = target[self.start : self.stop]
-        if _csr_matvecs is None or target.dtype != np.float64 or not rows.flags.c_contiguous:
-            rows += (self._weighted_matrix(k, weights) @ x).reshape(rows.shape)
-            return
-        if k not in self._pattern:
-            A = self._weighted_matrix(k, np.ones((n, k)))
-            self._pattern[k] = (A.indptr, A.indices)
-        indptr, indices = self._pattern[k]
-        data = np.ascontiguousarray(weights, dtype=np.float64).reshape(-1)
-        _csr_matvecs(self.stop - self.start, n * k, x.shape[1], indptr, indices, data, x.reshape(-1), rows.reshape(-1))
+        rows += (self._weighted_matrix(k, weights) @ x).reshape(rows.shape)
 
     def _weighted_matrix(self, k, weights):
         """(parents x n k) CSR matrix with entry ``weights[i, t]`` at (parent of i, i k + t); its
-        entries are stored in exactly that order (children are sorted by parent)."""
+        entries are stored in exactly that order (children are sorted by parent), so the index
+        structure is built once per ``k`` and only the weights change."""
         import scipy.sparse
 
         n = weights.shape[0]
-        rows = np.repeat(self._rows, k)
-        return scipy.sparse.csr_matrix((np.asarray(weights, dtype=np.float64).reshape(-1), (rows, np.arange(n * k))), shape=(self.stop - self.start, n * k))
+        shape = (self.stop - self.start, n * k)
+        if k not in self._pattern:
+            A = scipy.sparse.csr_matrix((np.ones(n * k), (np.repeat(self._rows, k), np.arange(n * k))), shape=shape)
+            self._pattern[k] = (A.indptr, A.indices)
+        indptr, indices = self._pattern[k]
+        return scipy.sparse.csr_matrix((np.asarray(weights, dtype=np.float64).reshape(-1), indices, indptr), shape=shape)
 
 
 def scatter_add(xp, target, idx, values) -> None:

@@ -1,0 +1,35 @@
+"""Data files the lessons and tests share, installed with the package (not read from ``tests/``).
+
+- ``limit_exploit_creature.json`` -- the 3-box swimmer that evolution bred to push its prismatic
+  joints far past their limits before joint limits were constraints (lesson 08's exploit).
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+
+def path(name: str) -> Path:
+    """The installed data file ``name``.
+
+    Raises:
+        FileNotFoundError: no such file, naming the files there are.
+    """
+    folder = resources.files(__name__)
+    found = folder / name
+    if not found.is_file():
+        have = sorted(p.name for p in folder.iterdir() if p.name.endswith(".json"))
+        raise FileNotFoundError(f"coursekit.data: no file {name!r}; have {', '.join(have)}")
+    return Path(str(found))
+
+
+def creature(name: str):
+    """The :class:`~coursekit.creatures.Creature` stored in ``<name>.json`` (e.g. ``"limit_exploit_creature"``).
+
+    >>> creature("limit_exploit_creature").expand().body.n_bodies
+    3
+    """
+    from coursekit.creatures import Creature
+
+    return Creature.from_json(path(f"{name}.json").read_text())
