@@ -107,6 +107,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--notebook-timeout", type=float, default=3600.0,
                    help="seconds allowed for a whole notebook, cells and graded calls (default 3600); "
                         "past them it is stopped and reported as not graded")
+    s.add_argument("--seed", type=int, help="seed of the grading cases (default: fresh ones every run; "
+                   "the results name each notebook's seed, so a run can be repeated exactly)")
     s.add_argument("--unsafe", action="store_true",
                    help="grade even where the bubblewrap sandbox cannot be set up (notebooks can then read "
                         "solutions/ and other submissions)")

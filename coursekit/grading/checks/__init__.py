@@ -15,13 +15,17 @@ the summative grader (:mod:`coursekit.grading.grader`) generates cases and judge
 process and lets only the calls happen next to student code. Points per check and the list of
 checks per exercise notebook live here, never in a notebook.
 
-Adding checks for a new exercise topic: write ``coursekit/grading/checks/<topic>.py`` that calls
-:func:`register` for each check and :func:`exercise` for the notebook stem, and import it in
-:func:`_load` below.
+Adding checks for a new exercise ``NN_topic.ipynb``: write ``coursekit/grading/checks/exNN_topic.py``
+that calls :func:`register` for each check and :func:`exercise` for ``"NN_topic"``; it is found on
+disk (:func:`check_modules`), one module per exercise. Property builders every exercise needs
+(determinism for a seed, inputs unchanged, seeds and encoded arrays) are in :mod:`.properties`.
 """
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
+import re
 from dataclasses import dataclass
 from typing import Callable
 
@@ -234,11 +238,24 @@ def exercise(stem: str, names: list[str]) -> None:
     EXERCISES[stem] = tuple(names)
 
 
+#: A check module: ``ex<NN>_<topic>`` grades the exercise notebook ``<NN>_<topic>.ipynb``.
+CHECK_MODULE = re.compile(r"^ex(\d+_\w+)$")
+_LOADED = False
+
+
+def check_modules() -> list[str]:
+    """The names of this package's check modules (``ex01_selection``, ...), found on disk, sorted."""
+    return sorted(m.name for m in pkgutil.iter_modules(__path__) if CHECK_MODULE.match(m.name))
+
+
 def _load() -> None:
-    from coursekit.grading.checks import ga  # noqa: F401  (registers its checks on import)
-    from coursekit.grading.checks import pictures  # noqa: F401
-    from coursekit.grading.checks import creatures  # noqa: F401
-    from coursekit.grading.checks import physics  # noqa: F401
+    """Import every check module once (each registers its checks and declares its exercise)."""
+    global _LOADED
+    if _LOADED:
+        return
+    for name in check_modules():
+        importlib.import_module(f"{__name__}.{name}")
+    _LOADED = True
 
 
 def get(name: str) -> Check:

@@ -29,27 +29,7 @@ import numpy as np
 
 from coursekit.creatures.physics import odes
 from coursekit.grading.checks import Check, exercise, register
-
-
-def _arr(values):
-    return {"ndarray": np.asarray(values, dtype=np.float64).tolist(), "dtype": "float64"}
-
-
-def _seed(rng):
-    return int(rng.integers(0, 2**31))
-
-
-def _unmodified(cids, positions):
-    """Array arguments at ``positions`` ({index: name}) are unchanged after the call."""
-    def prop(ctx):
-        for cid in cids:
-            after = ctx.record(cid).get("inputs_after") or []
-            for i, name in positions.items():
-                if i >= len(after) or after[i] != ctx.case(cid)["args"][i]:
-                    return False, f"the {name} argument was changed by your function; compute new arrays instead of updating it in place (e.g. no {name} += ...)"
-        return True, "inputs left unchanged"
-
-    return prop
+from coursekit.grading.checks.properties import NEW_ARRAYS, array, seeds, unmodified
 
 
 # -- drag on a box -------------------------------------------------------------------------------
@@ -102,11 +82,10 @@ DRAG_K = (0.0, 0.5, 3.7, 20.0)
 def _drag_cases(rng):
     cases = []
     for i, kind in enumerate(["any", "any", "any", "any", "plate", "rod"]):
-        cases.append({"id": f"unit{i}", "args": [_arr(_box(rng, kind)), 1.0], "seeds": [_seed(rng)],
-                      "check_inputs": i == 0, "max_len": 100})
-    box = _arr(_box(rng, "any"))
+        cases.append({"id": f"unit{i}", "args": [array(_box(rng, kind)), 1.0], "seeds": seeds(rng, 1), "max_len": 100})
+    box = array(_box(rng, "any"))
     for i, k in enumerate(DRAG_K):
-        cases.append({"id": f"k{i}", "args": [box, k], "seeds": [_seed(rng)], "max_len": 100})
+        cases.append({"id": f"k{i}", "args": [box, k], "seeds": seeds(rng, 1), "max_len": 100})
     return cases
 
 
@@ -193,7 +172,7 @@ register(Check(
         ("turning drag matches the face integral (k = 1)", _drag_values("angular")),
         ("proportional to k", _drag_linear_in_k),
         ("never adds energy", _drag_dissipative),
-        ("inputs unchanged", _unmodified(["unit0"], {0: "half_extents"})),
+        ("inputs unchanged", unmodified({0: "half_extents"}, NEW_ARRAYS)),
     ),
 ))
 
@@ -211,18 +190,18 @@ def _rkn_cases(rng):
     cases = []
     for i, h in enumerate((0.3, 0.7, 1.1)):
         cases.append({"id": f"poly{i}", "args": [{"function": ODE + "time_forcing"}, float(rng.uniform(-2, 2)),
-                                                 _arr(rng.normal(size=3)), _arr(rng.normal(size=3)), h],
-                      "seeds": [_seed(rng)], "max_len": 100})
+                                                 array(rng.normal(size=3)), array(rng.normal(size=3)), h],
+                      "seeds": seeds(rng, 1), "max_len": 100})
     for ode in ("harmonic", "drag"):
         for s in range(2):
-            t0, y0, v0 = float(rng.uniform(-2, 2)), _arr(rng.normal(size=2)), _arr(rng.normal(size=2))
+            t0, y0, v0 = float(rng.uniform(-2, 2)), array(rng.normal(size=2)), array(rng.normal(size=2))
             for j, h in enumerate(ORDER_STEPS):
                 cases.append({"id": f"{ode}{s}_{j}", "args": [{"function": ODE + ode}, t0, y0, v0, h],
-                              "seeds": [_seed(rng)], "max_len": 100})
+                              "seeds": seeds(rng, 1), "max_len": 100})
     counter = {"object": ODE + "CountingODE", "json": odes.CountingODE("damped").to_json()}
-    cases.append({"id": "count", "args": [counter, float(rng.uniform(-2, 2)), _arr(rng.normal(size=2)),
-                                          _arr(rng.normal(size=2)), 0.25],
-                  "seeds": [_seed(rng)], "check_inputs": True, "max_len": 100})
+    cases.append({"id": "count", "args": [counter, float(rng.uniform(-2, 2)), array(rng.normal(size=2)),
+                                          array(rng.normal(size=2)), 0.25],
+                  "seeds": seeds(rng, 1), "max_len": 100})
     return cases
 
 
@@ -314,7 +293,7 @@ register(Check(
         ("fourth order for position-dependent forces", _rkn_order("harmonic", "y'' = -omega^2 y (a spring)")),
         ("fourth order for velocity-dependent forces", _rkn_order("drag", "y'' = -c y' (water drag)")),
         ("evaluates f 4 times per step", _rkn_calls),
-        ("inputs unchanged", _unmodified(["count"], {2: "y", 3: "v"})),
+        ("inputs unchanged", unmodified({2: "y", 3: "v"}, NEW_ARRAYS)),
     ),
 ))
 
