@@ -679,7 +679,7 @@ def main(args) -> int:
     3 when a notebook was not graded (its cells were skipped for time, memory or a crash) and
     1 when the results file could not be written.
     """
-    for name in ("timeout", "cell_timeout", "memory_mb", "notebook_timeout"):
+    for name in ("timeout", "cell_timeout", "memory_mb", "notebook_timeout", "max_processes", "disk_mb"):
         v = getattr(args, name, None)
         if v is not None and not v > 0:
             print(f"coursekit grade: --{name.replace('_', '-')} must be positive, got {v}", file=sys.stderr)
@@ -715,7 +715,9 @@ def main(args) -> int:
                                           memory_mb=getattr(args, "memory_mb", 4096), exercise=exercise,
                                           sandboxed=not unsafe, hide_files=hide,
                                           notebook_timeout=getattr(args, "notebook_timeout", 3600.0),
-                                          seed=getattr(args, "seed", None)))
+                                          seed=getattr(args, "seed", None),
+                                          max_processes=getattr(args, "max_processes", supervisor.MAX_PROCESSES),
+                                          disk_mb=getattr(args, "disk_mb", supervisor.DISK_MB)))
             results[-1].notes.append(f"graded in {time.monotonic() - t0:.1f} s (cases drawn with --seed {results[-1].seed})")
     except supervisor.Terminated as exc:  # the notebook's processes and private folder are gone already
         print(f"coursekit grade: {exc}; no results written", file=sys.stderr)
