@@ -100,13 +100,29 @@ def encode_array(a):
     return {"ndarray": a.tolist(), "dtype": str(a.dtype)}
 
 
+_REAL_TYPES = (int, float, bool) + _INT_TYPES + tuple({np.dtype(c).type for c in "efdg?"})
+
+
 def _array(out, what, max_len):
-    if type(out) is not np.ndarray:
-        raise BadOutput(f"{what} has type {type(out).__name__}; expected a numpy array (np.ndarray)")
+    if type(out) in (list, tuple):
+        # a list or tuple of plain numbers is what an array holds: accepted as one (exact types only,
+        # so an object with a rigged __eq__ or __float__ is not read as a number)
+        if len(out) > max_len:
+            raise BadOutput(f"{what} has {len(out)} values, far more than the {max_len} allowed")
+        if not all(type(v) in _REAL_TYPES for v in out):
+            bad = next(v for v in out if type(v) not in _REAL_TYPES)
+            raise BadOutput(f"{what} is a {type(out).__name__} holding a {type(bad).__name__}; expected numbers: "
+                            "return np.array([...]) of floats")
+        out = np.array(out, dtype=np.float64 if any(type(v) not in (int, bool) + _INT_TYPES for v in out) else np.int64)
+    elif type(out) is not np.ndarray:
+        how = "result.detach().cpu().numpy()" if type(out).__module__.startswith("torch") else "np.asarray(result, dtype=float)"
+        raise BadOutput(f"{what} has type {type(out).__name__}; expected a numpy array (np.ndarray): convert it with {how}")
     if out.ndim != 1:
-        raise BadOutput(f"{what} has shape {out.shape}; expected a 1-D array")
+        fix = " (flatten it with result.ravel())" if out.size <= max_len and out.ndim > 1 else ""
+        raise BadOutput(f"{what} has shape {out.shape}; expected a 1-D array{fix}")
     if out.dtype.kind not in "biuf":
-        raise BadOutput(f"{what} has dtype {out.dtype}; expected numbers (bool, int or float)")
+        raise BadOutput(f"{what} has dtype {out.dtype}; expected numbers (bool, int or float): convert it with "
+                        "result.astype(float)")
     if out.size > max_len:
         raise BadOutput(f"{what} has {out.size} values, far more than the {max_len} allowed")
     if out.dtype.kind == "b":
@@ -142,7 +158,7 @@ def convert(kind, out, max_len):
 
     Args:
         kind: ``"indices"`` (1-D integer array or list/tuple of ints), ``"array"`` (1-D numpy
-            array of numbers), ``"array_pair"`` (a tuple or list of two such arrays), ``"json"``
+            array of numbers, or a list/tuple of plain numbers), ``"array_pair"`` (a tuple or list of two such arrays), ``"json"``
             (an object with ``to_json()`` or plain JSON data) or ``"json_pair"`` (two of those).
         out: the function's return value.
         max_len: largest number of values accepted (characters of JSON text for the json kinds).

@@ -64,6 +64,9 @@ class Check:
             order). When a gate fails the check scores 0 and the later properties are not
             judged, so no property can pass vacuously: a do-nothing, identity or copy
             implementation keeps inputs unchanged and is deterministic, and earns nothing for it.
+        hints: ``((property, (hint, ...)), ...)``: the hint ladder of a property, from a nudge to a
+            concrete pointer, never the answer (formative ``hint(...)``). Shared properties have
+            ladders in :data:`.properties.HINTS`.
         reference: ``"module:attr"`` names of coursekit's own implementations of the function.
             The summative grader refuses them while the student's function runs (an import, an
             alias or a wrapper of the library's version scores 0), and refuses a graded function
@@ -80,11 +83,23 @@ class Check:
     props: tuple
     gates: int = 1
     reference: tuple = ()
+    hints: tuple = ()
 
     def __post_init__(self):
         if type(self.gates) is not int or not 1 <= self.gates <= max(1, len(self.props)):
             raise ValueError(f"check {self.name!r}: gates must be an int in 1..{max(1, len(self.props))} "
                              f"(at most the number of props), got {self.gates!r}")
+        names = {p for p, _ in self.props}
+        unknown = [p for p, _ in self.hints if p not in names]
+        if unknown:
+            raise ValueError(f"check {self.name!r}: hints name unknown properties {unknown}; properties: {sorted(names)}")
+
+    def ladder(self, prop: str) -> tuple:
+        """The hints for property ``prop`` (its own, else the shared ones for its kind), in order."""
+        from coursekit.grading.checks.properties import HINTS
+
+        own = dict(self.hints).get(prop)
+        return tuple(own) if own else HINTS.get(prop, ())
 
 
 @dataclass

@@ -26,6 +26,44 @@ from coursekit.grading.checks import Check, exercise, register
 from coursekit.grading.checks.properties import COPY_ARRAY, RNG, array, deterministic, seeds, unmodified
 
 
+#: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
+HINTS = {
+    "ga.truncation": (
+        ("prefers fitter individuals", (
+            "Truncation keeps only the best: the parents are drawn from the top fraction `survival` of the population.",
+            "Sort the indices by fitness (np.argsort sorts ascending: the best are at the end) and keep the top ones.",
+            "Then draw k parents uniformly from those survivors with the rng (rng.integers or rng.choice).")),
+        ("rounds the survivor count up", ("With 7 individuals and survival 0.2, 1.4 individuals survive: round up (math.ceil).",)),
+    ),
+    "ga.tournament": (
+        ("prefers fitter individuals", (
+            "A tournament picks `size` individuals at random and keeps the fittest of them; repeat k times.",
+            "rng.integers(0, n, size=(k, size)) draws all tournaments at once; then find each row's fittest.",
+            "np.argmax(fitness[contestants], axis=1) tells which contestant of each row won.")),
+        ("honours the size parameter (size=2)", ("Use the size argument, not a fixed 3.",)),
+    ),
+    "ga.roulette": (
+        ("prefers fitter individuals", (
+            "Roulette-wheel selection picks an individual with probability proportional to its fitness.",
+            "Turn the fitness into probabilities that sum to 1, then draw k indices with them.",
+            "rng.choice(n, size=k, p=...) draws with given probabilities.")),
+    ),
+    "ga.one_point_crossover": (
+        ("children hold genes of both parents", (
+            "A child is the start of one parent followed by the end of the other.",
+            "Draw one cut position c at random (1 to len-1), then join a[:c] with b[c:], and b[:c] with a[c:].")),
+        ("cut point uniform", ("Every cut from 1 to len(a) - 1 must be possible and equally likely: check rng.integers' bounds.",)),
+    ),
+    "ga.point_mutation": (
+        ("changes the genome", (
+            "Each bit flips (0 -> 1, 1 -> 0) with probability `rate`, independently of the others.",
+            "rng.random(len(genome)) < rate says, bit by bit, which ones flip.",
+            "1 - genome is the flipped genome; np.where picks flipped or kept bit by bit.")),
+        ("default rate is 1/len", ("When rate is None, use 1 / len(genome): about one flip per call.",)),
+    ),
+}
+
+
 def _pct(x):
     return f"{100 * x:.1f}%"
 
@@ -132,6 +170,7 @@ def _truncation_uniform(ctx):
 
 
 register(Check(
+    hints=HINTS.get("ga.truncation", ()),
     name="ga.truncation", function="truncation", params=("fitness", "k", "rng"), points=2.0,
     title="truncation selection", output="indices", cases=_truncation_cases, gates=2,
     reference=('coursekit.ga.selection:truncation',),
@@ -184,6 +223,7 @@ def _tournament_rates(cid):
 
 
 register(Check(
+    hints=HINTS.get("ga.tournament", ()),
     name="ga.tournament", function="tournament", params=("fitness", "k", "rng"), points=2.0,
     title="tournament selection", output="indices", cases=_tournament_cases, gates=2,
     reference=('coursekit.ga.selection:tournament',),
@@ -238,6 +278,7 @@ def _roulette_proportional(ctx):
 
 
 register(Check(
+    hints=HINTS.get("ga.roulette", ()),
     name="ga.roulette", function="roulette", params=("fitness", "k", "rng"), points=2.0,
     title="roulette-wheel selection", output="indices", cases=_roulette_cases, gates=2,
     reference=('coursekit.ga.selection:roulette',),
@@ -327,6 +368,7 @@ def _crossover_uniform(ctx):
 
 
 register(Check(
+    hints=HINTS.get("ga.one_point_crossover", ()),
     name="ga.one_point_crossover", function="one_point_crossover", params=("a", "b", "rng"), points=2.0,
     title="one-point crossover", output="array_pair", cases=_crossover_cases, gates=2,
     reference=('coursekit.ga.operators:one_point_crossover',),
@@ -432,6 +474,7 @@ def _mutation_rate(ctx):
 
 
 register(Check(
+    hints=HINTS.get("ga.point_mutation", ()),
     name="ga.point_mutation", function="point_mutation", params=("genome", "rng"), points=2.0,
     title="point mutation", output="array", cases=_mutation_cases, gates=2,
     reference=('coursekit.ga.operators:point_mutation',),

@@ -43,6 +43,24 @@ from coursekit.grading.checks.picture_genomes import (
 from coursekit.grading.checks.properties import NEW_GENOME, RNG, deterministic, seeds, unmodified
 
 
+#: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
+_CHANGES = ("A mutation must change the genome: return a new genome with one change, not the input or a copy of it.",
+            "Pick a string at random with the rng, then a position (or two) in it, then build the changed string.",
+            "Genomes are immutable: build new chromosome tuples and a new ChromosomeString / Genome from them.")
+HINTS = {
+    "pictures.decode": (
+        ("builds a tree below the root", (
+            "A function symbol takes as many children as its arity (P.arity(name)); read them from the string.",
+            "Read breadth-first: the root's children are the next symbols, then their children, level by level.",
+            "A queue (collections.deque) of nodes still waiting for their children does it in one pass.")),
+    ),
+    "pictures.transposition": (("changes the genome", _CHANGES),),
+    "pictures.root_transposition": (("changes the genome", _CHANGES),),
+    "pictures.substitution": (("changes a chromosome", _CHANGES),),
+    "pictures.head_tail_rotation": (("changes the genome", _CHANGES),),
+}
+
+
 # -- decoding (section 3.1) ----------------------------------------------------------------------
 
 
@@ -166,6 +184,7 @@ def _decode_karva(ctx):
 
 
 register(Check(
+    hints=HINTS.get("pictures.decode", ()),
     name="pictures.decode", function="decode", params=("symbols",), points=2.0,
     title="Karva decoding of a chromosome string", output="json", cases=_decode_cases, gates=2,
     reference=('coursekit.pictures.genome:_karva',),
@@ -252,6 +271,7 @@ def _transposition_both(ctx):
 
 
 register(Check(
+    hints=HINTS.get("pictures.transposition", ()),
     name="pictures.transposition", function="transposition", params=("genome", "rng"), points=2.0,
     title="transposition", output="json", cases=_mutation_cases, gates=2,
     reference=('coursekit.pictures.operators:transposition',),
@@ -309,6 +329,7 @@ def _root_both(ctx):
 
 
 register(Check(
+    hints=HINTS.get("pictures.root_transposition", ()),
     name="pictures.root_transposition", function="root_transposition", params=("genome", "rng"), points=2.0,
     title="root transposition", output="json", cases=_mutation_cases, gates=2,
     reference=('coursekit.pictures.operators:root_transposition',),
@@ -380,6 +401,7 @@ def _substitution_anywhere(ctx):
 
 
 register(Check(
+    hints=HINTS.get("pictures.substitution", ()),
     name="pictures.substitution", function="substitution", params=("genome", "rng"), points=2.0,
     title="substitution", output="json", cases=_mutation_cases, gates=2,
     reference=('coursekit.pictures.operators:substitution',),
@@ -433,6 +455,7 @@ def _rotation_varies(ctx):
 
 
 register(Check(
+    hints=HINTS.get("pictures.head_tail_rotation", ()),
     name="pictures.head_tail_rotation", function="head_tail_rotation", params=("genome", "rng"), points=2.0,
     title="head/tail rotation", output="json", cases=_mutation_cases, gates=2,
     reference=('coursekit.pictures.operators:head_tail_rotation',),

@@ -41,6 +41,21 @@ from coursekit.grading.checks.picture_genomes import (
 from coursekit.grading.checks.properties import NEW_GENOME, RNG, deterministic, seeds, unmodified
 
 
+#: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
+_MIXES = ("Each child must hold material of both parents; returning the parents (or copies) does not recombine.",
+          "Work position by position on aligned strings of the two parents: what does child 1 take from a, and from b?",
+          "Child 2 gets what child 1 did not take: build both in the same loop.")
+HINTS = {
+    "pictures.crossover": (("children hold material of both parents", _MIXES),),
+    "pictures.random_copy": (("children hold material of both parents", _MIXES),),
+    "pictures.random_interpolation": (
+        ("blends a pair", (
+            "Interpolation mixes the parameters of one aligned pair of chromosomes: u * p_a + (1 - u) * p_b.",
+            "Draw u with the rng for the pair, and give child 2 the complementary blend.")),
+    ),
+}
+
+
 # -- recombinations (section 3.3.2) --------------------------------------------------------------
 
 REC_CASES = ("basic", "many", "single")
@@ -130,6 +145,7 @@ def _split_varies(ctx):
 
 
 register(Check(
+    hints=HINTS.get("pictures.crossover", ()),
     name="pictures.crossover", function="crossover", params=("a", "b", "rng"), points=2.0,
     title="crossover", output="json_pair", cases=_recombination_cases, gates=2,
     reference=('coursekit.pictures.operators:crossover',),
@@ -201,6 +217,7 @@ def _copy_arbitrary(ctx):
 
 
 register(Check(
+    hints=HINTS.get("pictures.random_copy", ()),
     name="pictures.random_copy", function="random_copy", params=("a", "b", "rng"), points=2.0,
     title="random copy", output="json_pair", cases=_recombination_cases, gates=2,
     reference=('coursekit.pictures.operators:random_copy',),
@@ -326,6 +343,7 @@ def _u_random(ctx):
 
 
 register(Check(
+    hints=HINTS.get("pictures.random_interpolation", ()),
     name="pictures.random_interpolation", function="random_interpolation", params=("a", "b", "rng"), points=2.0,
     title="random interpolation", output="json_pair", cases=_interpolation_cases, gates=2,
     reference=('coursekit.pictures.operators:random_interpolation',),

@@ -45,6 +45,26 @@ CREATURE = "coursekit.creatures.genotype:Creature"
 MAX_JSON = 2_000_000
 
 
+#: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
+HINTS = {
+    "creatures.expand": (
+        ("expands more than the root", (
+            "Expanding follows the genotype's links from the root: each link makes a child part of the node it points to.",
+            "Walk the graph depth-first from node 0, one part record per visit, until the recursion limits stop it.")),
+    ),
+    "creatures.crossover": (
+        ("the child holds nodes of both parents", (
+            "The child takes nodes from a and from b in alternating blocks, not all from one parent.",
+            "Draw the block lengths with the rng, then copy the nodes of the current parent for each block.")),
+    ),
+    "creatures.mutate": (
+        ("changes the creature", (
+            "Mutation must change something: a node's value, a link, a new or deleted node.",
+            "Work on a copy of the creature and change each value with a probability that grows with rate.")),
+    ),
+}
+
+
 def _obj(creature):
     return {"object": CREATURE, "json": creature.to_json()}
 
@@ -323,6 +343,7 @@ def _expand_cap(ctx):
 
 
 register(Check(
+    hints=HINTS.get("creatures.expand", ()),
     name="creatures.expand", function="expand", params=("creature", "max_parts"), points=4.0,
     title="phenotype expansion", output="json", cases=_expand_cases, gates=2,
     reference=('coursekit.creatures.phenotype:expand', 'coursekit.creatures.genotype:Creature.expand'),
@@ -508,6 +529,7 @@ def _random_blocks(ctx):
 
 
 register(Check(
+    hints=HINTS.get("creatures.crossover", ()),
     name="creatures.crossover", function="crossover", params=("a", "b", "rng"), points=4.0,
     title="LR recombination", output="json", cases=_crossover_cases, gates=2,
     reference=('coursekit.creatures.operators:crossover',),
@@ -709,6 +731,7 @@ def _all_kinds(ctx):
 
 
 register(Check(
+    hints=HINTS.get("creatures.mutate", ()),
     name="creatures.mutate", function="mutate", params=("c", "rng"), points=4.0,
     title="creature mutation", output="json", cases=_mutation_cases, gates=2,
     reference=('coursekit.creatures.operators:mutate',),

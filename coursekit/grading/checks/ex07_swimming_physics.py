@@ -32,6 +32,29 @@ from coursekit.grading.checks import Check, exercise, register
 from coursekit.grading.checks.properties import NEW_ARRAYS, array, seeds, unmodified
 
 
+#: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
+_FACES = ("Each face resists motion along its normal: the force per area is -k (n . v(x)) n, integrated over the face.",
+          "A box of half-extents (a, b, c) has faces of area 4bc, 4ca and 4ab, at distances a, b and c from the centre.",
+          "Count both faces of each pair, and keep half-extents and full side lengths apart: a factor of 2 slips in easily.")
+HINTS = {
+    "physics.box_drag": (
+        ("the water resists sliding", ("Sliding along x meets the two faces whose normal is x: their area sets D_vx.",) + _FACES[1:]),
+        ("sliding drag matches the face integral (k = 1)", _FACES),
+        ("turning drag matches the face integral (k = 1)", (
+            "Spinning about x moves the faces whose normals are y and z: the speed grows with the distance from the axis.",
+            "Integrate (n . (omega x r))^2 over each such face: it gives a term in the face's area times a length squared.",
+            "Gauss-Legendre or a fine sum over the face checks your closed form numerically.")),
+    ),
+    "physics.rkn_step": (
+        ("of higher order than explicit Euler", (
+            "Runge-Kutta-Nystrom evaluates the force several times inside the step and combines them.",
+            "Compare your step with the lesson's Runge-Kutta-Nystrom formula stage by stage: at which time and position "
+            "is each force evaluated?",
+            "The position update needs the velocity *and* the forces (times h squared); the velocity update only the forces.")),
+    ),
+}
+
+
 # -- drag on a box -------------------------------------------------------------------------------
 
 COMPONENTS = ("D_wx", "D_wy", "D_wz", "D_vx", "D_vy", "D_vz")
@@ -114,6 +137,20 @@ def _drag_resists(ctx):
     return True, f"D_vx, D_vy, D_vz are not 0 on {len(UNIT)} boxes in water: something resists sliding"
 
 
+def _how_far(got, want):
+    """How a wrong drag entry compares with the right one, in words that do not give the right one away."""
+    if want == 0:
+        return "is not 0, but is 0 in", ""
+    ratio = got / want
+    side = "is larger than" if ratio > 1 else "is smaller than"
+    if abs(ratio - 1) < 0.05:
+        side = "is close to, but not exactly,"
+    power = math.log2(ratio) if ratio > 0 else 0.5
+    extra = " -- by a power of two: half-extents against side lengths, or faces counted once?" if \
+        round(power) != 0 and abs(power - round(power)) < 1e-6 else ""
+    return side, extra
+
+
 def _drag_values(part):
     idx = range(3, 6) if part == "linear" else range(3)
 
@@ -124,10 +161,10 @@ def _drag_values(part):
             got = np.abs(np.asarray(ctx.out(cid)[0], dtype=np.float64))
             for i in idx:
                 if not math.isclose(got[i], want[i], rel_tol=1e-9, abs_tol=1e-15):
-                    ratio = f" (yours is {got[i] / want[i]:.3g} times that)" if want[i] else ""
+                    side, extra = _how_far(got[i], want[i])
                     return False, (f"for a box with half_extents={np.round(h, 4).tolist()} and k=1, the resistance to "
-                                   f"{MEANING[i]} {COMPONENTS[i]} has size {got[i]:.9g}, but integrating -k (n.v(x)) n "
-                                   f"over the six faces gives {want[i]:.9g}{ratio}")
+                                   f"{MEANING[i]} ({COMPONENTS[i]} = {got[i]:.6g}) {side} what integrating -k (n.v(x)) n "
+                                   f"over the six faces gives{extra}; hint(\"physics.box_drag\") guides you")
         if part == "linear":
             return True, f"sliding drag matches the face integral on {len(UNIT)} boxes"
         return True, f"turning drag matches the face integral on {len(UNIT)} boxes"
@@ -162,6 +199,7 @@ def _drag_dissipative(ctx):
 
 
 register(Check(
+    hints=HINTS.get("physics.box_drag", ()),
     name="physics.box_drag", function="box_drag", params=("half_extents", "k"), points=4.0,
     title="Sims' water drag on a box", output="array", cases=_drag_cases, gates=2,
     reference=('coursekit.creatures.physics.water:drag_diagonal',),
@@ -283,6 +321,7 @@ def _rkn_calls(ctx):
 
 
 register(Check(
+    hints=HINTS.get("physics.rkn_step", ()),
     name="physics.rkn_step", function="rkn_step", params=("f", "t", "y", "v", "h"), points=6.0,
     title="one Runge-Kutta-Nystrom step", output="array_pair", cases=_rkn_cases, gates=2,
     reference=('coursekit.creatures.physics.integrate:_nystrom',),

@@ -25,6 +25,29 @@ COPY_OBJECT = "work on a copy (copy.deepcopy({name}) or {name}.copy())"
 NEW_GENOME = "build and return a new Genome instead"
 
 
+#: Hint ladders of the properties every check shares (see ``Check.hints``): a nudge first, then
+#: where to look; never the answer.
+HINTS = {
+    "runs": ("The message names the exact call that failed, with its arguments and seed: paste that call into a cell "
+             "and run it there, where you can print what happens.",
+             "Shrink the input: try the smallest example that still fails and check each line of your function on it.",
+             "An error raised inside numpy usually means an array of the wrong shape or dtype reached it: print "
+             "x.shape and x.dtype just before the failing line."),
+    "deterministic for a seed": (
+        "Two calls with the same rng seed must return the same result.",
+        "Every random number must come from the rng argument you are given: rng.random(), rng.integers(...), "
+        "rng.choice(...), rng.permutation(...).",
+        "Search your function (and the helpers it calls) for np.random. and random.: those draw from a global "
+        "generator that the seed does not control."),
+    "inputs unchanged": (
+        "Your function changed an argument it was given; the caller (the evolution loop) still needs the original.",
+        "Assignments like x[i] = ..., x += ..., x.sort() or list.append change the object in place.",
+        "Copy first (x = x.copy(), or copy.deepcopy(x) for a genome or creature), or build the result as a new "
+        "object (np.where, np.concatenate, a new list)."),
+}
+HINTS["input unchanged"] = HINTS["inputs unchanged"]
+
+
 def seeds(rng, n: int) -> list[int]:
     """``n`` seeds for the calls of a case, drawn from the grader's generator."""
     return [int(s) for s in rng.integers(0, 2**31, size=n)]
