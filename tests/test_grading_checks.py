@@ -313,12 +313,19 @@ class RiggedArray(np.ndarray):
 @pytest.mark.parametrize("kind,value", [
     ("indices", [EvilInt(1)]), ("indices", [True, False]), ("indices", [1.0, 2.0]), ("indices", np.zeros(3)),
     ("indices", np.zeros(3, int).view(RiggedArray)), ("indices", np.zeros((2, 2), int)), ("indices", {1, 2}),
-    ("indices", list(range(11))), ("array", [0, 1]), ("array", np.array(["a"])), ("array", np.array([np.nan])),
-    ("array_pair", (np.zeros(2),)), ("array_pair", [np.zeros(2), [0, 1]]), ("array", np.zeros(11)),
+    ("indices", list(range(11))), ("array", [EvilInt(1)]), ("array", np.array(["a"])), ("array", np.array([np.nan])),
+    ("array_pair", (np.zeros(2),)), ("array_pair", [np.zeros(2), ["0", 1]]), ("array", np.zeros(11)),
+    ("array", [0.0] * 11), ("array", [float("inf")]), ("array", np.zeros(2).view(RiggedArray)),
 ])
 def test_convert_refuses_anything_but_plain_numbers(kind, value):
     with pytest.raises(runner.BadOutput):
         runner.convert(kind, value, max_len=10)
+
+
+def test_a_list_or_tuple_of_plain_numbers_is_read_as_an_array():
+    assert runner.convert("array", [0, 1], 10) == [0, 1] and runner.convert("array", (0.5, np.float32(2)), 10) == [0.5, 2.0]
+    assert runner.convert("array_pair", [np.zeros(2), [0, 1]], 10) == [[0.0, 0.0], [0, 1]]
+    assert runner.convert("array", [True, False], 10) == [1, 0]
 
 
 @settings(max_examples=50, deadline=None)
