@@ -4,6 +4,7 @@ exactly like the uninterrupted run."""
 
 import functools
 import hashlib
+import hmac
 import os
 import pickle
 import signal
@@ -270,19 +271,29 @@ def test_checkpoint_write_is_atomic(tmp_path, monkeypatch):
     assert ga.load_checkpoint(ckpt)["generation"] == 2
 
 
-def test_corrupt_truncated_and_foreign_checkpoints_are_refused(tmp_path):
+@pytest.fixture
+def own_key(tmp_path, monkeypatch):
+    """A private checkpoint key for the test (the key file of the user running the tests stays untouched)."""
+    key = tmp_path / "keys" / "checkpoint.key"
+    monkeypatch.setenv("COURSEKIT_CHECKPOINT_KEY", str(key))
+    return key
+
+
+def test_corrupt_truncated_and_foreign_checkpoints_are_refused(tmp_path, own_key):
     ckpt = tmp_path / "run.ckpt"
     run(generations=1, checkpoint=ckpt)
+    assert own_key.stat().st_mode & 0o077 == 0  # the key is this user's alone
     data = ckpt.read_bytes()
     bad = tmp_path / "bad.ckpt"
     cases = [
         (data[: len(data) // 2], "truncated or padded"),
         (data[:30], r"truncated \(header incomplete\)"),
-        (data[:-1] + bytes([data[-1] ^ 1]), "corrupted"),
+        (data[:-1] + bytes([data[-1] ^ 1]), "not signed with this user's key"),
         (b"", "not a coursekit GA checkpoint"),
         (b'{"format": "coursekit.genome/1"}', "not a coursekit GA checkpoint"),
-        (pickle.dumps({"format": "coursekit.ga.checkpoint/1"}), "not a coursekit GA checkpoint"),
-        (data.replace(b"checkpoint/1\n", b"checkpoint/9\n", 1), "format version '9' is not supported"),
+        (pickle.dumps({"format": "coursekit.ga.checkpoint/2"}), "not a coursekit GA checkpoint"),
+        (data.replace(b"checkpoint/2\n", b"checkpoint/9\n", 1), "format version '9' is not supported"),
+        (data.replace(b"checkpoint/2\n", b"checkpoint/1\n", 1), "format 1 .* no longer loaded"),
     ]
     for content, message in cases:
         bad.write_bytes(content)
@@ -290,11 +301,63 @@ def test_corrupt_truncated_and_foreign_checkpoints_are_refused(tmp_path):
             ga.load_checkpoint(bad)
         with pytest.raises(ValueError, match=message):
             ga.resume(bad, FITNESS, VARY, generations=3, progress=False)
-    # a well-formed file whose payload is not a checkpoint state
+    # a well-formed, signed file whose payload is not a checkpoint state
     payload = pickle.dumps(["not", "a", "state"])
-    bad.write_bytes(b"coursekit.ga.checkpoint/1\n" + struct.pack("<Q32s", len(payload), hashlib.sha256(payload).digest()) + payload)
-    with pytest.raises(ValueError, match="no 'coursekit.ga.checkpoint/1' format field"):
+    mac = hmac.new(own_key.read_bytes(), payload, hashlib.sha256).digest()
+    bad.write_bytes(b"coursekit.ga.checkpoint/2\n" + struct.pack("<Q32s", len(payload), mac) + payload)
+    with pytest.raises(ValueError, match="no 'coursekit.ga.checkpoint/2' format field"):
         ga.load_checkpoint(bad)
+
+
+class _Payload:
+    """A pickle that runs code when loaded: it creates the file ``marker``."""
+
+    def __init__(self, marker):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (open, (self.marker, "w"))
+
+
+def test_a_forged_checkpoint_runs_no_code(tmp_path, own_key):
+    """Forged payloads -- SHA-256 recomputed, the old unsigned format, another machine's key -- are
+    refused before unpickling: the payload's code never runs. Only trust_foreign=True loads them."""
+    ckpt = tmp_path / "run.ckpt"
+    run(generations=1, checkpoint=ckpt)
+    marker = tmp_path / "pwned"
+    state = ga.load_checkpoint(ckpt)
+    payload = pickle.dumps({**state, "population": [_Payload(marker)]}, protocol=5)
+    forged = {
+        "sha256 recomputed": b"coursekit.ga.checkpoint/2\n" + struct.pack("<Q32s", len(payload), hashlib.sha256(payload).digest()) + payload,
+        "format 1": b"coursekit.ga.checkpoint/1\n" + struct.pack("<Q32s", len(payload), hashlib.sha256(payload).digest()) + payload,
+        "another key": b"coursekit.ga.checkpoint/2\n" + struct.pack("<Q32s", len(payload), hmac.new(b"k" * 32, payload, hashlib.sha256).digest()) + payload,
+    }
+    for what, content in forged.items():
+        ckpt.write_bytes(content)
+        with pytest.raises(ValueError):
+            ga.load_checkpoint(ckpt)
+        with pytest.raises(ValueError):
+            ga.resume(ckpt, FITNESS, VARY, generations=3, progress=False)
+        assert not marker.exists(), what
+    # the explicit escape hatch for a trusted author does unpickle (and so would run the code)
+    ckpt.write_bytes(forged["another key"])
+    ga.load_checkpoint(ckpt, trust_foreign=True)
+    assert marker.exists()
+
+
+def test_checkpoints_need_the_key_that_signed_them(tmp_path, monkeypatch):
+    ckpt = tmp_path / "run.ckpt"
+    monkeypatch.setenv("COURSEKIT_CHECKPOINT_KEY", str(tmp_path / "alice.key"))
+    run(generations=2, checkpoint=ckpt)
+    assert ga.load_checkpoint(ckpt)["generation"] == 2
+    monkeypatch.setenv("COURSEKIT_CHECKPOINT_KEY", str(tmp_path / "bob.key"))
+    with pytest.raises(ValueError, match="not signed with this user's key"):
+        ga.load_checkpoint(ckpt)
+    assert not (tmp_path / "bob.key").exists()  # reading never creates a key
+    assert ga.load_checkpoint(ckpt, trust_foreign=True)["generation"] == 2
+    (tmp_path / "bob.key").write_bytes(b"short")
+    with pytest.raises(ValueError, match="expected 32 bytes"):
+        run(generations=1, checkpoint=ckpt)
 
 
 # --- history ---------------------------------------------------------------------------------

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from coursekit.grading import checks, evaluate, runner, stats
 from coursekit.grading.formative import check as formative_check
-from coursekit.grading.grader import read_channel, validate_record
+from coursekit.grading.grader import make_plan, read_results, validate_call
 
 ROOT = Path(__file__).resolve().parent.parent
 NAMES = ["ga.truncation", "ga.tournament", "ga.roulette", "ga.one_point_crossover", "ga.point_mutation"]
@@ -313,12 +313,19 @@ class RiggedArray(np.ndarray):
 @pytest.mark.parametrize("kind,value", [
     ("indices", [EvilInt(1)]), ("indices", [True, False]), ("indices", [1.0, 2.0]), ("indices", np.zeros(3)),
     ("indices", np.zeros(3, int).view(RiggedArray)), ("indices", np.zeros((2, 2), int)), ("indices", {1, 2}),
-    ("indices", list(range(11))), ("array", [0, 1]), ("array", np.array(["a"])), ("array", np.array([np.nan])),
-    ("array_pair", (np.zeros(2),)), ("array_pair", [np.zeros(2), [0, 1]]), ("array", np.zeros(11)),
+    ("indices", list(range(11))), ("array", [EvilInt(1)]), ("array", np.array(["a"])), ("array", np.array([np.nan])),
+    ("array_pair", (np.zeros(2),)), ("array_pair", [np.zeros(2), ["0", 1]]), ("array", np.zeros(11)),
+    ("array", [0.0] * 11), ("array", [float("inf")]), ("array", np.zeros(2).view(RiggedArray)),
 ])
 def test_convert_refuses_anything_but_plain_numbers(kind, value):
     with pytest.raises(runner.BadOutput):
         runner.convert(kind, value, max_len=10)
+
+
+def test_a_list_or_tuple_of_plain_numbers_is_read_as_an_array():
+    assert runner.convert("array", [0, 1], 10) == [0, 1] and runner.convert("array", (0.5, np.float32(2)), 10) == [0.5, 2.0]
+    assert runner.convert("array_pair", [np.zeros(2), [0, 1]], 10) == [[0.0, 0.0], [0, 1]]
+    assert runner.convert("array", [True, False], 10) == [1, 0]
 
 
 @settings(max_examples=50, deadline=None)
@@ -333,41 +340,59 @@ def test_convert_keeps_integer_values_exactly(values, how):
     assert out == values and all(type(v) is int for v in out)
 
 
-def _case_records():
+def _plan():
     check = checks.get("ga.tournament")
     cases = check.cases(np.random.default_rng(3))
-    return check, cases, {c["id"]: c for c in cases}
+    _, lookup = make_plan([check], {check.name: cases}, np.random.default_rng(0))
+    basic = next(cid for cid, (case, i, _) in lookup[check.name].items() if case == "basic" and i == 0)
+    return check, cases, lookup, basic
 
 
 @pytest.mark.parametrize("mutate", [
-    lambda r: r.update(check="ga.roulette"), lambda r: r.update(case="nope"), lambda r: r.update(case=["basic"]),
-    lambda r: r.update(status="passed"), lambda r: r.update(outputs=[[0] * 20]),
-    lambda r: r.update(outputs=[[True] * 20, [0] * 20]), lambda r: r.update(outputs=[[0.5] * 20, [0] * 20]),
-    lambda r: r.update(outputs=[[0] * 5000, [0] * 20]), lambda r: r.pop("inputs_after"),
+    lambda r: r.update(check="ga.roulette"), lambda r: r.update(id="nope"), lambda r: r.update(id=["x"]),
+    lambda r: r.update(status="passed"), lambda r: r.pop("output"),
+    lambda r: r.update(output=[True] * 20), lambda r: r.update(output=[0.5] * 20),
+    lambda r: r.update(output=[0] * 5000), lambda r: r.pop("inputs_after"),
     lambda r: r.update(inputs_after=[{"ndarray": ["x"], "dtype": "float64"}, None, None]),
-    lambda r: r.update(error=5), lambda r: r.update(call=7),
+    lambda r: r.update(inputs_after=[None, None]), lambda r: r.update(error=5),
 ], ids=range(12))
-def test_validate_record_refuses_malformed_records(mutate):
-    check, cases, by_id = _case_records()
-    good = {"check": "ga.tournament", "case": "basic", "status": "ok", "outputs": [[0] * 20, [0] * 20],
+def test_validate_call_refuses_malformed_records(mutate):
+    check, cases, lookup, basic = _plan()
+    call = lookup[check.name][basic][2]
+    good = {"check": "ga.tournament", "id": basic, "status": "ok", "output": [0] * 20,
             "inputs_after": [cases[0]["args"][0], None, None]}
-    assert validate_record(dict(good), check, by_id) is not None
+    assert validate_call(dict(good), check, call) is not None
     bad = json.loads(json.dumps(good))
     mutate(bad)
-    assert validate_record(bad, check, by_id) is None
+    assert validate_call(bad, check, lookup[check.name].get(bad["id"], (0, 0, None))[2] if type(bad["id"]) is str else None) is None
 
 
-def test_read_channel_ignores_garbage_and_keeps_first_record(tmp_path):
-    check, cases, _ = _case_records()
-    lines = [b"not json", b'{"check": "ga.tournament", "case": "basic", "status": "ok", "outputs": [[NaN]]}',
-             json.dumps({"check": "ga.tournament", "case": "size3", "status": "error", "error": "boom"}).encode(),
-             json.dumps({"check": "ga.tournament", "case": "size3", "status": "ok", "outputs": [[0]]}).encode(),
+def test_read_results_ignores_garbage_and_records_for_calls_never_sent():
+    check, cases, lookup, basic = _plan()
+    other = next(cid for cid, (case, _, _) in lookup[check.name].items() if case == "size3")
+    lines = [b"not json", b'{"check": "ga.tournament", "id": "%s", "status": "ok", "output": [NaN]}' % basic.encode(),
+             json.dumps({"check": "ga.tournament", "id": other, "status": "error", "error": "boom"}).encode(),
+             json.dumps({"check": "ga.tournament", "id": other, "status": "ok", "output": [0]}).encode(),
+             # a forged record in the old format, for a case name instead of a call id: never sent, never counted
+             json.dumps({"check": "ga.tournament", "case": "basic", "status": "ok", "outputs": [[0] * 20]}).encode(),
+             json.dumps({"report": {"format": "coursekit.execution/1", "harvested": True}}).encode(),
              b"[" * 100000]
-    (tmp_path / "c").write_bytes(b"\n".join(lines))
-    records, rejected = read_channel(tmp_path / "c", [check], {check.name: cases})
-    assert rejected == 3 and records == {"ga.tournament": {"size3": {"case": "size3", "status": "error", "error": "boom"}}}
-    os.mkfifo(tmp_path / "fifo")  # a FIFO would block a naive reader forever
-    assert read_channel(tmp_path / "fifo", [check], {check.name: cases}) == ({"ga.tournament": {}}, 0)
+    results, report, rejected = read_results(b"\n".join(lines), [check], lookup)
+    assert rejected == 5 and report == {"format": "coursekit.execution/1", "harvested": True}
+    assert results == {"ga.tournament": {("size3", 0): {"id": other, "status": "error", "error": "boom"}}}
+
+
+def test_every_call_has_an_opaque_id_and_the_order_is_shuffled():
+    check = checks.get("ga.one_point_crossover")
+    cases = check.cases(np.random.default_rng(3))
+    plans, lookup = make_plan([check], {check.name: cases}, np.random.default_rng(1))
+    calls = plans[0]["calls"]
+    assert len(calls) == sum(len(c["seeds"]) for c in cases) == len(lookup[check.name])
+    assert all(len(c["id"]) == 16 and not any(case["id"] in c["id"] for case in cases) for c in calls)
+    order = [lookup[check.name][c["id"]][:2] for c in calls]
+    assert order != sorted(order, key=lambda ci: ([c["id"] for c in cases].index(ci[0]), ci[1]))
+    again, _ = make_plan([check], {check.name: cases}, np.random.default_rng(1))
+    assert {c["id"] for c in again[0]["calls"]}.isdisjoint({c["id"] for c in calls})  # fresh ids every run
 
 
 # -- statistics --------------------------------------------------------------------------------------

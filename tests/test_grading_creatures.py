@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from coursekit.creatures import Creature, operators
 from coursekit.creatures.genotype import random_link, random_node, renumber
 from coursekit.grading import checks, evaluate
-from coursekit.grading.checks import creatures as cc
+from coursekit.grading.checks import ex05_creature_operators as cc
 
 ROOT = Path(__file__).resolve().parent.parent
 NAMES = ["creatures.expand", "creatures.crossover", "creatures.mutate"]

@@ -91,24 +91,36 @@ def adversarial(tmp_path_factory):
     out = tmp_path_factory.mktemp("adversarial") / "results.json"
     paths = [ADV / f"{name}.ipynb" for name in NOTEBOOKS]
     # notebooks with cells skipped (a loop past the cell timeout, os._exit, a segfault) are not graded: status 3
-    stdout, results = grade(paths, out, "--exercise", "01_selection", "--timeout", "3", "--cell-timeout", "10", status=3)
+    stdout, results = grade(paths, out, "--exercise", "01_selection", "--timeout", "3", "--cell-timeout", "10",
+                            "--disk-mb", "64", status=3)
     time.sleep(1.5)  # a surviving daemon from write_output.ipynb would overwrite the file within 0.05 s
     return results, json.loads(out.read_text())
 
 
-@pytest.mark.parametrize("name", list(NOTEBOOKS))
+GRADED = [name for name in NOTEBOOKS if "not_graded" not in NOTEBOOKS[name]]
+
+
+@pytest.mark.parametrize("name", GRADED)
 def test_adversarial_notebook_gets_exactly_its_honest_score(adversarial, name):
+    """Honest functions 2 points each, sabotaged ones 0; one that does its job but breaks one property
+    ("fails") loses that property's share, and the property says FAIL."""
     results, _ = adversarial
     tests = per_check(results, f"{name}.ipynb")
-    sabotaged = set(NOTEBOOKS[name]["sabotaged"])
-    expected = {CHECK_OF[f]: (0.0 if f in sabotaged else 2.0) for f in HONEST}
+    spec = NOTEBOOKS[name]
+    fails = spec.get("fails", {})
+    expected = {CHECK_OF[f]: (0.0 if f in spec["sabotaged"] and f not in fails else 2.0) for f in HONEST}
+    for f, prop in fails.items():
+        t = tests[CHECK_OF[f]]
+        assert 0 < t["score"] < 2.0 and f"FAIL {prop}:" in t["output"], t["output"]
+        expected[CHECK_OF[f]] = t["score"]
     assert {c: t["score"] for c, t in tests.items()} == expected, {c: t["output"][:300] for c, t in tests.items()}
 
 
 #: adversarial notebooks some of whose top-level cells had to be skipped, and why
 SKIPPED = {"infinite_loop": "skipped: did not finish within 10 s", "exits": "skipped: stopped the kernel",
            "crash_and_memory": "skipped: stopped the kernel",
-           "breaks_harvest": "calling truncation failed inside the kernel (TypeError"}  # not a silent 0
+           "breaks_harvest": "calling truncation failed inside the kernel (TypeError",  # not a silent 0
+           **{name: spec["not_graded"] for name, spec in NOTEBOOKS.items() if "not_graded" in spec}}
 
 
 @pytest.mark.parametrize("name", list(NOTEBOOKS))
@@ -125,7 +137,16 @@ def test_results_file_is_the_graders_and_survives_the_notebooks(adversarial):
     results, reread = adversarial
     assert reread == results
     assert_gradescope_shape(results)
-    assert results["score"] == sum(2.0 * (5 - len(nb["sabotaged"])) for nb in NOTEBOOKS.values())
+    graded = {Path(nb["path"]).stem: nb for nb in results["extra_data"]["notebooks"]}
+    assert sum(graded[name]["score"] for name in GRADED) == pytest.approx(
+        sum(2.0 * (5 - len(NOTEBOOKS[name]["sabotaged"])) for name in GRADED)
+        + sum(s for name in GRADED for c, s in _partial(results, name)))
+
+
+def _partial(results, name):
+    """(check, score) of the functions of ``name`` that do their job but break one property."""
+    tests = per_check(results, f"{name}.ipynb")
+    return [(CHECK_OF[f], tests[CHECK_OF[f]]["score"]) for f in NOTEBOOKS[name].get("fails", {})]
 
 
 @pytest.mark.parametrize("stem", list(EXERCISES))

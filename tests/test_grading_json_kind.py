@@ -8,14 +8,14 @@ import numpy as np
 
 from coursekit.ga.history import History
 from coursekit.grading import checks
-from coursekit.grading.grader import validate_record
-from coursekit.grading.runner import decode, run_cases
+from coursekit.grading.grader import validate_call
+from coursekit.grading.runner import calls_of, decode, run_cases
 
 
 def make_case(**over):
     text = History().to_json()
     case = {"id": "c", "args": [{"object": "coursekit.ga.history:History", "json": text}, {"rng": True}],
-            "kwargs": {}, "seeds": [1, 2], "check_inputs": True, "max_len": 100_000}
+            "kwargs": {}, "seeds": [1, 2], "max_len": 100_000}
     case.update(over)
     return case
 
@@ -30,7 +30,9 @@ def test_object_arguments_are_rebuilt_from_json_and_results_come_back_as_text():
     assert all(type(t) is str and json.loads(t) == json.loads(History().to_json()) for t in rec["outputs"])
     assert rec["inputs_after"][0] == {"json": History().to_json()}
     check = checks.Check("t.clone", "clone", ("h", "rng"), 1, "clone", "json", lambda rng: [], ())
-    assert validate_record({"check": "t.clone", **rec}, check, {"c": make_case()}) is not None
+    call = calls_of([make_case()])[0]
+    one = {"check": "t.clone", "id": call["id"], "status": "ok", "output": rec["outputs"][0], "inputs_after": rec["inputs_after"]}
+    assert validate_call(one, check, call) is not None
 
 
 def test_pairs_plain_data_and_refusals():
@@ -39,11 +41,12 @@ def test_pairs_plain_data_and_refusals():
     for bad in (lambda h, rng: object(), lambda h, rng: float("nan"), lambda h, rng: "x" * 200_000):
         assert run_cases(bad, [make_case()], "json", timeout=20)[0]["status"] == "bad_output"
     check = checks.Check("t.p", "p", ("h", "rng"), 1, "p", "json_pair", lambda rng: [], ())
-    rec = {"check": "t.p", **pair}
-    assert validate_record(rec, check, {"c": make_case()}) is not None
+    call = calls_of([make_case()])[0]
+    rec = {"check": "t.p", "id": call["id"], "status": "ok", "output": pair["outputs"][0], "inputs_after": pair["inputs_after"]}
+    assert validate_call(rec, check, call) is not None
     # a record whose "text" is not a string, or that is too long, is refused by the grader
-    assert validate_record({**rec, "outputs": [[1, "x"], ["x", "y"]]}, check, {"c": make_case()}) is None
-    assert validate_record({**rec, "outputs": [["x" * 200_001, "x"], ["x", "y"]]}, check, {"c": make_case()}) is None
+    assert validate_call({**rec, "output": [1, "x"]}, check, call) is None
+    assert validate_call({**rec, "output": ["x" * 200_001, "x"]}, check, call) is None
 
 
 def test_function_arguments_name_only_coursekit_attributes():

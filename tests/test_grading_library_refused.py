@@ -7,7 +7,6 @@ versions of the graded function raise while the student's runs (a wrapper scores
 of the library stays usable. End to end: tests/adversarial/library_answers.ipynb.
 """
 
-import json
 import types
 
 import numpy as np
@@ -15,7 +14,8 @@ import pytest
 
 from coursekit import ga
 from coursekit.grading import checks
-from coursekit.grading.runner import harvest, run_cases
+from coursekit.grading.executor import Relay
+from coursekit.grading.runner import assemble, calls_of, harvest, run_cases
 
 CHECK = checks.get("ga.tournament")
 CASES = CHECK.cases(np.random.default_rng(5))
@@ -49,12 +49,33 @@ def test_the_library_is_usable_outside_the_refused_functions():
                                            refuse=CHECK.reference)} == {"ok"}
 
 
+class _Collect:
+    """Stands in for the grader's results pipe."""
+
+    def __init__(self):
+        self.records = []
+
+    def send(self, obj):
+        self.records.append(obj)
+
+
 def _harvest(tmp_path, fn, cells):
-    spec = {"timeout": 20.0, "memory_mb": 2048, "checks": [
-        {"name": CHECK.name, "function": "tournament", "output": CHECK.output, "cases": CASES, "refuse": list(CHECK.reference)}]}
-    channel = tmp_path / "channel.jsonl"
-    harvest({"tournament": fn}, spec, str(channel), cells)
-    return [json.loads(line) for line in channel.read_text().splitlines()]
+    """Serve the cases' calls to harvest() over the grading child's relay, as in a grading run;
+    return the per-case records the grader would judge."""
+    calls = [{**call, "group": g} for g, case in enumerate(CASES) for call in calls_of([case])]
+    header = {"name": CHECK.name, "function": "tournament", "output": CHECK.output, "refuse": list(CHECK.reference),
+              "timeout": 20.0, "memory_mb": 2048, "budget": 110.0}
+    out = _Collect()
+    relay = Relay(str(tmp_path / "h.sock"), "token", header, calls, out, 60)
+    relay.start()
+    harvest({"tournament": fn}, str(tmp_path / "h.sock"), "token", cells)
+    relay.join(10)
+    (tmp_path / "h.sock").unlink()
+    by_call = {}
+    for rec in out.records:
+        case_id, _, index = rec["id"].rpartition("#")
+        by_call[(case_id, int(index))] = rec
+    return assemble(CASES, by_call)
 
 
 def test_a_graded_function_not_written_in_the_notebook_is_refused(tmp_path):
@@ -64,7 +85,6 @@ def test_a_graded_function_not_written_in_the_notebook_is_refused(tmp_path):
                       (own, "is not defined in this notebook (its code comes from test_grading_library_refused.py)")]:
         recs = _harvest(tmp_path, fn, cells={"/tmp/ipykernel_1/123.py"})
         assert {r["status"] for r in recs} == {"missing"} and where in recs[0]["error"], recs[0]
-        (tmp_path / "channel.jsonl").unlink()
     recs = _harvest(tmp_path, own, cells={own.__code__.co_filename})  # written in a cell: graded
     assert {r["status"] for r in recs} == {"ok"}
     judged = checks.judge(CHECK, CASES, {r["case"]: r for r in _harvest(tmp_path, ga.tournament, {"x"})})

@@ -19,7 +19,7 @@ from coursekit.creatures.physics import World, odes, random_body_tree, random_st
 from coursekit.creatures.physics.water import drag_diagonal
 from coursekit.grading import evaluate
 from coursekit.grading.checks import for_notebook
-from coursekit.grading.checks.physics import face_integral_drag
+from coursekit.grading.checks.ex07_swimming_physics import face_integral_drag
 
 ROOT = Path(__file__).resolve().parent.parent
 

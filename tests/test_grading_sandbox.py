@@ -54,3 +54,39 @@ ls /proc | grep -c '^[0-9]'
     assert lines[:4] == ["0", "0", "box", "unseen"], lines  # solutions hidden, other submission empty, box writable, /tmp private
     assert int(lines[4]) < 10  # its own PID namespace: a handful of processes, not the machine's
     assert not (ROOT / "coursekit" / "PWNED").exists() and (ROOT / "solutions" / "01_selection.ipynb").stat().st_size > 0
+
+
+PROBE = '''import glob, json, os
+ppid = os.getppid()
+seen = {"parent": open(f"/proc/{ppid}/cmdline", "rb").read().split(b"\\0")[2].decode(), "fds": {}}
+for fd in os.listdir(f"/proc/{ppid}/fd"):
+    try:
+        with open(f"/proc/{ppid}/fd/{fd}", "a"):
+            seen["fds"][fd] = "opened"
+    except OSError as exc:
+        seen["fds"][fd] = type(exc).__name__
+seen["box"] = sorted(os.path.relpath(p, "..") for p in glob.glob("../**", recursive=True))
+json.dump(seen, open("probe.json", "w"))'''
+
+
+@pytest.mark.skipif(not HAVE, reason=f"no sandbox here: {sandbox.available()}")
+def test_the_kernel_cannot_reach_the_grading_child_nor_find_the_cases(tmp_path):
+    """The grading child is undumpable: the kernel (same user) opens none of its descriptors (the
+    results pipe among them), and the plan with the cases is gone before the notebook's cells run."""
+    import nbformat
+    from nbformat.v4 import new_code_cell, new_notebook
+
+    nb = new_notebook(cells=[new_code_cell(PROBE)])
+    nb.metadata["coursekit"] = {"exercise": "01_selection"}
+    nbformat.write(nb, tmp_path / "probe.ipynb")
+    env = {"PATH": "/usr/bin:/bin", "PYTHONPATH": str(ROOT), "COURSEKIT_PROFILE": "ci", "TMPDIR": str(tmp_path),
+           "COURSEKIT_GRADE_KEEP": "1"}
+    subprocess.run([sys.executable, "-m", "coursekit", "grade", "probe.ipynb", "--timeout", "5"], cwd=tmp_path,
+                   capture_output=True, text=True, env=env, timeout=600)
+    [probe] = tmp_path.glob("coursekit-grade-*/box/work/probe.json")
+    import json
+
+    seen = json.loads(probe.read_text())
+    assert seen["parent"] == "coursekit.grading.executor"
+    assert len(seen["fds"]) > 3 and set(seen["fds"].values()) == {"PermissionError"}, seen["fds"]
+    assert "submission.ipynb" in seen["box"] and not {"calls.json", "spec.json", "channel.jsonl"} & set(seen["box"]), seen["box"]

@@ -248,6 +248,7 @@ def resume(
     diversity: Callable | None = None,
     progress: bool = True,
     callback: Callable | None = None,
+    trust_foreign: bool = False,
 ) -> EvolutionResult:
     """Continue a run from its checkpoint; it keeps checkpointing to the same file.
 
@@ -261,10 +262,12 @@ def resume(
             the number still to go. Larger values extend a finished run.
         select, elite, diversity: default to the values stored in the checkpoint (a ``select``
             or ``diversity`` that did not pickle, e.g. a lambda, must be given again).
+        trust_foreign: load a checkpoint not signed with this user's key (see
+            :func:`coursekit.ga.load_checkpoint`: it may run code; only for a trusted author).
     Returns:
         :class:`EvolutionResult` of the last generation.
     """
-    state = load_checkpoint(checkpoint)
+    state = load_checkpoint(checkpoint, trust_foreign=trust_foreign)
     stored = {}
     for name in ("select", "diversity"):
         blob = state.get(name)

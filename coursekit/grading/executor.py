@@ -1,43 +1,51 @@
-"""The grading child: execute a student notebook in a fresh kernel, then harvest raw outputs.
+"""The grading child: execute a student notebook in a fresh kernel, then serve it the grader's calls.
 
 Seed paper section 4 (students' operators, graded). Started by :mod:`coursekit.grading.grader`
-as ``python -m coursekit.grading.executor`` in its own session, under memory limits and, when
-the grader runs as root, as an unprivileged user. It never imports student code itself: it
-drives an IPython kernel through nbclient.
+as ``python -m coursekit.grading.executor`` in its own session, in the sandbox and, when the
+grader runs as root, as an unprivileged user. It never imports student code itself: it drives an
+IPython kernel through nbclient.
 
+0. Make itself undumpable (the kernel, same user, cannot read its memory or open its file
+   descriptors), read the grading plan (the calls) and delete the plan's file -- all before any
+   notebook code runs.
 1. Execute the notebook's code cells (outputs discarded) with a per-cell timeout and
    ``allow_errors``. A cell that kills the kernel (``os._exit``, a crash) or does not finish in
    time is skipped and the notebook re-run from the top in a fresh kernel, so the rest of the
    work still counts.
-2. For each check of the grading spec, send one *harvest cell*: the source of
-   :mod:`coursekit.grading.runner` executed in a fresh namespace (not the kernel's possibly
-   patched ``coursekit``), which calls the student's function on the spec's cases in forked,
-   bounded workers and appends raw outputs to the channel file.
-3. Write a small execution report (which cells failed or were skipped and why, and whether the
-   harvest completed) for the grader, which reports a notebook with skipped cells as not graded.
+2. For each check, send one *harvest cell*: the source of :mod:`coursekit.grading.runner`
+   executed in a fresh namespace (not the kernel's possibly patched ``coursekit``), which
+   connects to a :class:`Relay` on a Unix socket with a token only that cell holds, then gets
+   the check's calls one at a time, each sent after the previous one's record came back.
+3. Pass each record, tagged with its check, to the grader on the results pipe, then the
+   execution report (which cells failed or were skipped and why, whether the harvest completed).
 
-Nothing the kernel prints is read. The channel holds raw outputs only; verdicts and points are
-computed by the grader from its own copy of the cases.
+Nothing the kernel prints is read, and nothing the grader reads is a file: the records and the
+report go down a pipe the kernel never holds. Verdicts and points are computed by the grader
+from its own copy of the cases.
 """
 
 from __future__ import annotations
 
 import argparse
+import hmac
 import json
 import os
+import secrets
+import socket
 import sys
+import threading
 from pathlib import Path
 
 REPORT_FORMAT = "coursekit.execution/1"
 MAX_RESTARTS = 6
+MAX_RECORD = 64 * 2**20  # the longest record line accepted from the kernel
 
 _HARVEST = """def _coursekit_harvest():
-    import json
     ns = {{"__name__": "coursekit_harvest"}}
     exec(compile({source!r}, "<coursekit-harvest>", "exec"), ns)
     from IPython import get_ipython  # not the notebook's global of that name, which it may have replaced
     ip = get_ipython()
-    ns["harvest"](ip.user_ns, json.loads({spec!r}), {channel!r}, set(getattr(ip.compile, "_filename_map", None) or ()) or None)
+    ns["harvest"](ip.user_ns, {address!r}, {token!r}, set(getattr(ip.compile, "_filename_map", None) or ()) or None)
 try:
     _coursekit_harvest()
 finally:
@@ -45,9 +53,9 @@ finally:
 """
 
 
-def harvest_cell(runner_source: str, spec: dict, channel: str) -> str:
-    """The code of one harvest cell (runner source shipped as text, spec as a JSON literal)."""
-    return _HARVEST.format(source=runner_source, spec=json.dumps(spec), channel=channel)
+def harvest_cell(runner_source: str, address: str, token: str) -> str:
+    """The code of one harvest cell: the runner's source shipped as text, where to fetch the calls."""
+    return _HARVEST.format(source=runner_source, address=address, token=token)
 
 
 def _error_name(cell) -> str | None:
@@ -57,7 +65,108 @@ def _error_name(cell) -> str | None:
     return None
 
 
-def execute(nb, spec: dict, channel: str, cwd: str, cell_timeout: float) -> dict:
+def _make_undumpable() -> None:
+    """Linux: no process of this user may read this one's memory or open its file descriptors
+    (``/proc/<pid>/mem``, ``/proc/<pid>/fd``) or ptrace it: the kernel runs as the same user."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(4, 0, 0, 0, 0)  # PR_SET_DUMPABLE, 0
+    except (OSError, AttributeError):
+        pass
+
+
+class Results:
+    """The one-way channel to the grader: JSON lines on an inherited pipe no other process holds."""
+
+    def __init__(self, fd: int):
+        os.set_inheritable(fd, False)  # the kernel and its children never get it
+        self.fd = fd
+        self.lock = threading.Lock()
+
+    def send(self, obj) -> None:
+        data = json.dumps(obj, allow_nan=False).encode() + b"\n"
+        with self.lock:
+            while data:
+                data = data[os.write(self.fd, data):]
+
+
+class Relay(threading.Thread):
+    """Serve one check's calls to the harvest cell, one at a time, and pass its records to the grader.
+
+    Listens on a Unix socket in the box; the first connection that presents ``token`` is served
+    (others are dropped: a thread the notebook left behind does not know the token before the
+    harvest cell runs). After a case's first failing call its other calls are not sent.
+    """
+
+    def __init__(self, path: str, token: str, header: dict, calls: list, results: Results, timeout: float):
+        super().__init__(daemon=True)
+        self.path, self.token, self.header, self.calls, self.results = path, token, header, calls, results
+        self.timeout = timeout
+        self.sent = 0
+        self.served = False
+        self.problem = None
+        self.stop = threading.Event()
+        self.listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self.listener.bind(path)
+        if not path.startswith("\0"):
+            os.chmod(path, 0o600)
+        self.listener.listen(4)
+        self.listener.settimeout(0.2)
+
+    def run(self):
+        try:
+            while not self.stop.is_set() and not self.served:
+                try:
+                    conn, _ = self.listener.accept()
+                except socket.timeout:
+                    continue
+                except OSError:
+                    return
+                with conn:
+                    conn.settimeout(self.timeout)
+                    stream = conn.makefile("rwb")
+                    try:
+                        hello = json.loads(stream.readline(200) or b"null")
+                    except (ValueError, OSError):
+                        continue
+                    if type(hello) is not dict or not hmac.compare_digest(str(hello.get("token", "")), self.token):
+                        continue
+                    self.served = True
+                    self._serve(stream)
+        finally:
+            self.listener.close()
+
+    def _serve(self, stream):
+        def send(obj):
+            stream.write(json.dumps(obj).encode() + b"\n")
+            stream.flush()
+
+        failed = set()
+        try:
+            send(self.header)
+            for call in self.calls:
+                if call["group"] in failed:
+                    continue
+                send({"call": {k: v for k, v in call.items() if k != "group"}})
+                line = stream.readline(MAX_RECORD)
+                try:
+                    rec = json.loads(line) if line.endswith(b"\n") else None
+                except ValueError:
+                    rec = None
+                if type(rec) is not dict or rec.get("id") != call["id"]:
+                    self.problem = "the harvest answered out of turn (a record for another call, or not a record)"
+                    return
+                self.sent += 1
+                self.results.send({"check": self.header["name"], **rec})
+                if rec.get("status") != "ok":
+                    failed.add(call["group"])
+            send({"end": True})
+        except (OSError, socket.timeout) as exc:
+            self.problem = f"the harvest's connection broke ({type(exc).__name__})"
+
+
+def execute(nb, plan: dict, results: Results, cwd: str, cell_timeout: float) -> dict:
     """Run the notebook then the harvest cells; return the execution report (plain data)."""
     import nbformat
     from nbclient import NotebookClient
@@ -66,10 +175,12 @@ def execute(nb, spec: dict, channel: str, cwd: str, cell_timeout: float) -> dict
     source = Path(__file__).with_name("runner.py").read_text(encoding="utf-8")
     code = [i for i, c in enumerate(nb.cells) if c.cell_type == "code"]
     skip: dict[int, str] = {}
-    harvest_timeout = 4 * spec["timeout"] + 90  # the runner stops each check after 4 * timeout + 30 s
+    budget = 4 * plan["timeout"] + 30
+    harvest_timeout = budget + 60  # the runner stops each check after its budget
     harvested = False
     harvest_problem = None
     cells: dict[int, str] = {}
+    sockets = Path(cwd).parent
     for _attempt in range(MAX_RESTARTS + 1):
         run = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(nb.cells[i].source) for i in code])
         client = NotebookClient(run, timeout=cell_timeout, allow_errors=True, interrupt_on_timeout=False,
@@ -87,15 +198,33 @@ def execute(nb, spec: dict, channel: str, cwd: str, cell_timeout: float) -> dict
                     err = _error_name(run.cells[j])
                     cells[i] = f"error: {err}" if err else "ok"
                 current = None
-                for check in spec["checks"]:
-                    one = {**spec, "checks": [check]}
-                    run.cells.append(nbformat.v4.new_code_cell(harvest_cell(source, one, channel)))
+                for check in plan["checks"]:
+                    token = secrets.token_hex(16)
+                    header = {k: check[k] for k in ("name", "function", "output", "refuse")}
+                    header.update(timeout=plan["timeout"], memory_mb=plan["memory_mb"], budget=budget)
+                    # Linux: an abstract socket (no file, no path-length limit; the sandbox has its own
+                    # network namespace, and the token admits only the harvest cell)
+                    path = (f"\0coursekit-harvest-{secrets.token_hex(8)}" if sys.platform.startswith("linux")
+                            else str(sockets / f"h-{secrets.token_hex(6)}.sock"))
+                    relay = Relay(path, token, header, check["calls"], results, harvest_timeout)
+                    relay.start()
+                    run.cells.append(nbformat.v4.new_code_cell(harvest_cell(source, path, token)))
                     client.timeout = harvest_timeout
                     try:
-                        client.execute_cell(run.cells[-1], len(run.cells) - 1)
+                        try:
+                            client.execute_cell(run.cells[-1], len(run.cells) - 1)
+                        finally:
+                            relay.stop.set()
+                            relay.join(10)
+                            if not path.startswith("\0"):
+                                Path(path).unlink(missing_ok=True)
                         err = _error_name(run.cells[-1])
                         if err and harvest_problem is None:  # the harvest itself failed in the kernel
                             harvest_problem = f"calling {check['function']} failed inside the kernel ({err})"
+                        elif relay.problem and harvest_problem is None:
+                            harvest_problem = f"calling {check['function']}: {relay.problem}"
+                        elif not relay.served and harvest_problem is None:
+                            harvest_problem = f"calling {check['function']}: the harvest never asked for the calls"
                     except CellTimeoutError:  # the kernel is wedged: remaining checks get no output
                         harvest_problem = f"calling {check['function']} did not finish within {harvest_timeout:g} s"
                         break
@@ -106,7 +235,7 @@ def execute(nb, spec: dict, channel: str, cwd: str, cell_timeout: float) -> dict
             skip[current] = f"did not finish within {cell_timeout:g} s"
             continue
         except DeadKernelError:
-            if current is None:  # died during harvesting: what reached the channel counts
+            if current is None:  # died during harvesting: what reached the grader counts
                 harvest_problem = "the kernel stopped while the graded functions were being called"
                 break
             skip[current] = "stopped the kernel (os._exit, a crash or out of memory)"
@@ -120,27 +249,30 @@ def execute(nb, spec: dict, channel: str, cwd: str, cell_timeout: float) -> dict
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m coursekit.grading.executor")
     p.add_argument("--notebook", required=True)
-    p.add_argument("--spec", required=True)
-    p.add_argument("--channel", required=True)
-    p.add_argument("--report", required=True)
+    p.add_argument("--calls", required=True, help="the grading plan; read and deleted before the notebook runs")
+    p.add_argument("--results-fd", type=int, required=True, help="pipe to the grader (records, then the report)")
     p.add_argument("--cwd", required=True)
     p.add_argument("--cell-timeout", type=float, required=True)
     a = p.parse_args(argv)
+    _make_undumpable()
+    results = Results(a.results_fd)
+    with open(a.calls, encoding="utf-8") as f:
+        plan = json.load(f)
+    os.unlink(a.calls)  # the cases exist only in this process's memory now, out of the notebook's reach
     import nbformat
 
-    with open(a.spec, encoding="utf-8") as f:
-        spec = json.load(f)
     try:
         nb = nbformat.read(a.notebook, as_version=4)
     except Exception as exc:  # not a notebook: report it, grade as nothing submitted
         report = {"format": REPORT_FORMAT, "harvested": False, "cells": [],
                   "error": f"could not read the notebook: {type(exc).__name__}: {str(exc)[:300]}"}
     else:
-        report = execute(nb, spec, a.channel, a.cwd, a.cell_timeout)
-    tmp = a.report + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as f:
-        json.dump(report, f)
-    os.replace(tmp, a.report)
+        try:
+            report = execute(nb, plan, results, a.cwd, a.cell_timeout)
+        except Exception as exc:  # the kernel could not be started or driven: the grader reports it not graded
+            report = {"format": REPORT_FORMAT, "harvested": False, "cells": [],
+                      "harvest_problem": f"the grading child failed: {type(exc).__name__}: {str(exc)[:300]}"}
+    results.send({"report": report})
     return 0
 
 

@@ -7,6 +7,10 @@ killed after ``timeout`` seconds), judges with the same :func:`coursekit.grading
 the summative grader uses, and prints one line per property. Messages describe what the function
 did and what the specification asks; they never print the solution. Formative checks run in the
 student's own kernel, so they are feedback only: marks come from ``coursekit grade``.
+
+After a ``check(...)``, ``hint(...)`` climbs a hint ladder for the first property that does not
+hold, one rung per call, in the manner of Kaggle's learntools (``q.check()``, ``q.hint()``): a
+nudge, then where to look, then a concrete pointer -- never the solution.
 """
 
 from __future__ import annotations
@@ -38,7 +42,13 @@ def evaluate(name, function, *, timeout=10.0, seed=FORMATIVE_SEED, memory_mb=204
     records = runner.run_cases(function, cases, check.output, timeout=float(timeout), memory_mb=memory_mb)
     judgement = checks.judge(check, cases, {r["case"]: r for r in records})
     judgement.printed = next((r["printed"] for r in records if r.get("printed")), "")
+    _LAST[name] = judgement
     return judgement
+
+
+#: The last judgement of each check in this kernel, and how far up its hint ladders the student went.
+_LAST: dict = {}
+_RUNG: dict = {}
 
 
 def format_judgement(j) -> str:
@@ -63,3 +73,36 @@ def check(name, function, *, timeout=10.0):
         timeout: seconds allowed per call.
     """
     print(format_judgement(evaluate(name, function, timeout=timeout)))
+
+
+def next_hint(name) -> str:
+    """The next hint for check ``name``: for its first property that does not hold, one rung higher each call."""
+    check = checks.get(name)
+    j = _LAST.get(name)
+    if j is None:
+        return f"Run check({name!r}, {check.function}) first: the hint is for what it finds."
+    if not j.attempted:
+        return (f"{check.function} is not written yet. Start from its docstring: what does it receive, and what must "
+                f"it return? Write the simplest version that returns something of that shape, then check it.")
+    failing = next((v for v in j.verdicts if not v.passed and not v.message.startswith("not checked")), None)
+    if failing is None:
+        return f"All properties of {name} hold: no hint needed."
+    ladder = check.ladder(failing.prop)
+    if not ladder:
+        return (f"'{failing.prop}' does not hold: {failing.message}\nRe-read what the exercise asks for this property "
+                "and test your function on the call the message shows.")
+    rung = _RUNG.get((name, failing.prop), 0)
+    _RUNG[(name, failing.prop)] = min(rung + 1, len(ladder))
+    if rung >= len(ladder):
+        return (f"That was the last hint for '{failing.prop}' ({len(ladder)} of {len(ladder)}): {ladder[-1]}\n"
+                "Re-read the lesson's section on it, or ask your instructor.")
+    return f"Hint {rung + 1} of {len(ladder)} for '{failing.prop}': {ladder[rung]}"
+
+
+def hint(name):
+    """Print the next hint for check ``name`` (run ``check(name, function)`` first).
+
+    Each call climbs one rung of the hint ladder for the first property that does not hold; the
+    hints guide, they never print the answer.
+    """
+    print(next_hint(name))

@@ -1,18 +1,31 @@
 """Summative grading: ``coursekit grade NOTEBOOK... --json OUT`` (seed paper section 4, exercises graded).
 
-Integrity model. This process computes and writes scores and never imports or runs student code:
+Integrity model. This process -- the *supervisor* -- draws the cases, computes and writes the
+scores, and never imports or runs student code:
 
-- It makes the test cases itself (seeded), writes them into a private box directory and starts
-  :mod:`coursekit.grading.executor` as a child -- in a new session and as an unprivileged user
-  (``nobody``) when running as root, as autograders such as Gradescope do. The child executes
-  the notebook in a fresh kernel and harvests *raw outputs* of the student's functions into one
-  channel file. Memory is bounded by what the notebook's processes hold, never by address space
-  (a CUDA build of torch reserves ~3 GB of it on import): :mod:`.supervisor` polls them and
-  kills the largest when they pass ``--memory-mb``.
-- The child runs in a bubblewrap sandbox (:mod:`.sandbox`): the file system read-only,
-  ``solutions/``, the other submissions and the results file hidden, a private ``/tmp``, no
-  network, its own PID namespace (the grader and its environment are not visible). Where the
-  sandbox cannot be set up, grading is refused unless the instructor passes ``--unsafe``.
+- **Cases are drawn per run** (a fresh seed unless ``--seed`` repeats one; the results name it).
+  Every call gets a random id and the calls of a check are shuffled. The plan goes to the
+  grading child (:mod:`coursekit.grading.executor`) in a file that child reads and deletes
+  before the notebook runs, so no case is ever on disk or in the kernel while the notebook's own
+  cells run. The child makes itself undumpable (no process of its user can read its memory or
+  open its descriptors) and hands the kernel **one call at a time**: the next call leaves only
+  after the previous one's record came back.
+- **Only the supervisor writes results.** Records come back on a pipe that only the child holds
+  (the kernel never inherits it), each answering one call id the kernel could not know in
+  advance: records written ahead of time, into a file or anywhere, count for nothing. Then the
+  supervisor itself judges, with its own copy of the checks and cases: it compares the outputs
+  of separate calls with one seed (determinism) and each call's arguments after the call with
+  what it sent ("inputs unchanged", on every call of every case). Points come from the registry.
+- The child starts in a new session and as an unprivileged user (``nobody``) when running as
+  root, as autograders such as Gradescope do, in a bubblewrap sandbox (:mod:`.sandbox`): the
+  file system read-only, ``solutions/``, the other submissions and the results file hidden, a
+  private ``/tmp``, no network, its own PID namespace (the grader and its environment are not
+  visible). Where the sandbox cannot be set up, grading is refused unless the instructor passes
+  ``--unsafe``.
+- **Limits** come from outside (:mod:`.supervisor`): resident memory (never address space: a
+  CUDA build of torch reserves ~3 GB of it on import), the number of processes, the bytes
+  written in the notebook's folder, the wall time of the whole notebook; ``RLIMIT_FSIZE`` bounds
+  any one file and ``RLIMIT_NPROC`` the processes of a dedicated user.
 - A graded function must be written in the notebook (:mod:`.runner` refuses one whose code comes
   from coursekit or any other file), and coursekit's own versions of it raise while it runs.
 - A notebook part of which could not run -- a cell skipped for time, memory or a crash, a
@@ -20,20 +33,22 @@ Integrity model. This process computes and writes scores and never imports or ru
   reasons, and ``coursekit grade`` exits with status 3: an instructor never gets a silent 0.
   The ``--json`` path is checked before grading starts; every message is stripped of terminal
   escapes and control characters (:func:`clean`).
-- It reads only that channel (and a small execution report), refusing anything that is not a
-  regular file below a size cap, and validates every record strictly (schema, types, lengths).
-  It then judges with its own copy of the checks and cases; points come from the registry.
 - It is a child subreaper (Linux): processes the notebook forked, even double-forked daemons,
   become its children when their parents die, and are killed before any result is written.
   Results are written atomically after that, so nothing the notebook started can overwrite them.
   (``COURSEKIT_GRADE_KEEP=1`` keeps the private directory, with the child's log, for debugging;
   otherwise it is removed, after ``SIGTERM`` too, and by the next run after a ``SIGKILL``.)
 
-What the kernel can still do is choose the raw outputs its functions return -- exactly what a
-student's function can do anyway -- and forge what the harvest reports about itself (its cell
-file names, its own inputs), since the harvest runs in the kernel. Inside the sandbox it runs as
-``nobody`` where that user can run this Python, else as the grader's user with every capability
-dropped: it can then read files that user can read outside the hidden ones.
+What is still trusted: the calls run in the notebook's own interpreter (that is where its
+function lives), so the code that observes a call -- converting the result, reading the
+arguments after it -- runs there too, from source shipped fresh, but next to whatever the
+notebook patched before (numpy, ``json``). A notebook that rewrites those to lie about its own
+side effects, or hijacks the harvest's connection from a thread, still only answers the calls
+the supervisor sends, one at a time; what it can choose is the raw outputs and what it reports
+about its arguments -- the first is what any function does, the second needs deliberate forgery.
+Inside the sandbox it runs as ``nobody`` where that user can run this Python, else as the
+grader's user with every capability dropped: it can then read files that user can read outside
+the hidden ones.
 """
 
 from __future__ import annotations
@@ -46,28 +61,30 @@ import os
 import pwd
 import re
 import resource
+import secrets
 import shutil
 import signal
 import stat
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import psutil
 
 import coursekit
 
 from coursekit.grading import checks as registry
 from coursekit.grading import sandbox, supervisor
 from coursekit.grading.checks import STATUSES, Judgement, Verdict
+from coursekit.grading.runner import assemble
 
 RESULTS_FORMAT = "coursekit.grade/1"
-GRADING_SEED = 7_919
 MAX_CHANNEL_BYTES = 64 * 2**20
-MAX_REPORT_BYTES = 2**20
 MAX_FILE_BYTES = 2**30  # the largest file a graded notebook's processes may write
 _PKG_ROOT = Path(os.path.abspath(coursekit.__file__)).parent.parent  # the coursekit this grader runs (not symlink-resolved)
 
@@ -80,6 +97,7 @@ class NotebookResult:
     judgements: list
     notes: list
     not_graded: list = field(default_factory=list)  # why the score does not stand (cells skipped...)
+    seed: int | None = None  # the seed of the grading cases (``--seed`` repeats them)
 
     @property
     def graded(self) -> bool:
@@ -127,96 +145,97 @@ def _plain_list(v, max_len, depth):
     return all(_plain_list(x, max_len, depth - 1) for x in v)
 
 
-def validate_record(rec, check, cases_by_id) -> dict | None:
-    """A record from the channel as a clean dict, or None when it is malformed in any way."""
-    if type(rec) is not dict or rec.get("check") != check.name or type(rec.get("case")) is not str:
+def _valid_output(out, check, max_len) -> bool:
+    """Is ``out`` one call's converted result of the kind ``check.output`` (plain data within ``max_len``)?"""
+    if check.output == "json":
+        return type(out) is str and len(out) <= max_len
+    if check.output == "json_pair":
+        return type(out) is list and len(out) == 2 and all(type(t) is str and len(t) <= max_len for t in out)
+    if check.output == "array_pair":
+        return _plain_list(out, max_len, 2) and len(out) == 2
+    if not _plain_list(out, max_len, 1):
+        return False
+    return check.output != "indices" or all(type(x) is int for x in out)
+
+
+def _valid_after(a, encoded, max_len) -> bool:
+    if a is None:
+        return True
+    if type(a) is not dict:
+        return False
+    if set(a) == {"ndarray", "dtype"}:
+        return type(a["dtype"]) is str and _plain_list(a["ndarray"], max_len, 1)
+    return set(a) == {"json"} and type(a["json"]) is str and len(a["json"]) <= max_len
+
+
+def validate_call(rec, check, call) -> dict | None:
+    """A call record from the grading child as a clean dict, or None when it is malformed in any way.
+
+    ``call`` is the call the grader sent under that record's id (None when the id is unknown).
+    """
+    if type(rec) is not dict or rec.get("check") != check.name or call is None or rec.get("id") != call["id"]:
         return None
-    case = cases_by_id.get(rec["case"])
     status = rec.get("status")
-    if case is None or status not in STATUSES:
+    if status not in STATUSES:
         return None
-    clean = {"case": case["id"], "status": status}
+    clean = {"id": call["id"], "status": status}
     if "error" in rec:
         if type(rec["error"]) is not str:
             return None
         clean["error"] = rec["error"][:600]
-    if "call" in rec:
-        if type(rec["call"]) is not int or not 0 <= rec["call"] < len(case["seeds"]):
-            return None
-        clean["call"] = rec["call"]
     if status == "ok":
-        outs = rec.get("outputs")
-        if type(outs) is not list or len(outs) != len(case["seeds"]):
+        if "output" not in rec or not _valid_output(rec["output"], check, call["max_len"]):
             return None
-        if check.output in ("json", "json_pair"):
-            if check.output == "json":
-                texts = outs
-            elif all(type(o) is list and len(o) == 2 for o in outs):
-                texts = [t for o in outs for t in o]
-            else:
-                return None
-            if not all(type(t) is str and len(t) <= case["max_len"] for t in texts):
-                return None
-        else:
-            depth = 2 if check.output == "array_pair" else 1
-            if not all(_plain_list(o, case["max_len"], depth) and (depth == 1 or len(o) == 2) for o in outs):
-                return None
-            if check.output == "indices" and not all(type(x) is int for o in outs for x in o):
-                return None
-        clean["outputs"] = outs
-        if case.get("check_inputs"):
-            after = rec.get("inputs_after")
-            if type(after) is not list or len(after) != len(case["args"]):
-                return None
-            for a, arg in zip(after, case["args"]):
-                if a is None:
-                    continue
-                is_array = type(a) is dict and set(a) == {"ndarray", "dtype"} and type(a["dtype"]) is str and _plain_list(a["ndarray"], case["max_len"], 1)
-                is_json = type(a) is dict and set(a) == {"json"} and type(a["json"]) is str and len(a["json"]) <= case["max_len"]
-                if not (is_array or is_json):
-                    return None
-            clean["inputs_after"] = after
+        after = rec.get("inputs_after")
+        if type(after) is not list or len(after) != len(call["args"]) or \
+                not all(_valid_after(a, e, call["max_len"]) for a, e in zip(after, call["args"])):
+            return None
+        clean.update(output=rec["output"], inputs_after=after)
     return clean
 
 
-def read_channel(path: Path, checks: list, cases: dict) -> tuple[dict, int]:
-    """Parse the JSON-lines channel: ``({check_name: {case_id: record}}, number of rejected lines)``."""
+def read_results(data: bytes, checks: list, plan: dict) -> tuple[dict, dict | None, int]:
+    """Parse what the grading child sent on its pipe.
+
+    Args:
+        data: the JSON lines received.
+        checks: the notebook's checks.
+        plan: ``{check name: {call id: (case id, call index, call)}}``, what the grader sent.
+    Returns:
+        ``({check name: {(case id, index): clean call record}}, the execution report or None,
+        number of rejected lines)``. The first record of a call counts.
+    """
     by_name = {c.name: c for c in checks}
-    records: dict = {c.name: {} for c in checks}
-    try:
-        data = _read_untrusted(path, MAX_CHANNEL_BYTES)
-    except ValueError:
-        return records, 1
-    rejected = 0
-    for line in (data or b"").splitlines():
+    results: dict = {c.name: {} for c in checks}
+    report, rejected = None, 0
+    for line in data.splitlines():
         try:
             rec = json.loads(line, parse_constant=_reject_constant)
         except (ValueError, RecursionError):
             rejected += 1
             continue
+        if type(rec) is dict and set(rec) == {"report"}:
+            report = rec["report"]
+            continue
         check = by_name.get(rec.get("check")) if type(rec) is dict and type(rec.get("check")) is str else None
+        sent = plan.get(check.name, {}).get(rec.get("id")) if check and type(rec.get("id")) is str else None
         try:
-            clean = validate_record(rec, check, {c["id"]: c for c in cases[check.name]}) if check else None
+            clean = validate_call(rec, check, sent[2]) if sent else None
         except (TypeError, ValueError):
             clean = None
         if clean is None:
             rejected += 1
         else:
-            records[check.name].setdefault(clean["case"], clean)  # the first record of a case counts
-    return records, rejected
+            results[check.name].setdefault(sent[:2], clean)
+    return results, report, rejected
 
 
-def read_report(path: Path) -> tuple[list, list]:
+def read_report(rep) -> tuple[list, list]:
     """``(notes, problems)`` from the execution report: which cells failed, and which were skipped.
 
     A *problem* means part of the notebook never ran (a cell skipped for time, memory or a crash,
     or no report at all), so its score cannot stand; an error raised by a cell is only a note.
     """
-    try:
-        data = _read_untrusted(path, MAX_REPORT_BYTES)
-        rep = json.loads(data) if data else None
-    except (ValueError, RecursionError):
-        return [], ["the execution report was unreadable"]
     if type(rep) is not dict or rep.get("format") != "coursekit.execution/1":
         return [], ["no execution report (the notebook run was stopped)"]
     notes, problems = [], []
@@ -344,13 +363,23 @@ def grading_user(user: str):
     return _USABLE[user]
 
 
-def _limits():
+def _limits(max_processes: int, uid: int | None = None):
+    """The child's rlimits: no core dumps, no file over MAX_FILE_BYTES and, for a dedicated user
+    ``uid``, at most ``max_processes`` more processes than that user runs now (``RLIMIT_NPROC``
+    counts every process of the user, so it is only set for an account of its own, never for the
+    instructor's; root is exempt from it, and then :class:`supervisor.Watch` bounds the count)."""
+    nproc = None
+    if uid is not None:
+        running = sum(1 for p in psutil.process_iter(["uids"]) if p.info["uids"] and p.info["uids"].real == uid)
+        nproc = running + max_processes
+
     def apply():
         # No address-space limit: a CUDA build of torch reserves ~3 GB of it on import. Memory is
-        # bounded by what the processes hold (supervisor.MemoryWatch); core dumps are off and no
-        # file the notebook writes may pass MAX_FILE_BYTES.
+        # bounded by what the processes hold (supervisor.Watch).
         resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
         resource.setrlimit(resource.RLIMIT_FSIZE, (MAX_FILE_BYTES, MAX_FILE_BYTES))
+        if nproc is not None:
+            resource.setrlimit(resource.RLIMIT_NPROC, (nproc, nproc))
 
     return apply
 
@@ -366,8 +395,58 @@ def _stop(child) -> None:
         sweep()
 
 
-def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, seed=GRADING_SEED,
-                   exercise=None, user="nobody", sandboxed=True, hide_files=(), notebook_timeout=3600.0) -> NotebookResult:
+def new_seed() -> int:
+    """A fresh grading seed: the cases of every run are new (``--seed`` repeats a run's cases)."""
+    return secrets.randbits(63)
+
+
+def make_plan(checks, cases: dict, rng) -> tuple[list, dict]:
+    """The calls sent to the grading child, and how to read their records.
+
+    Every call gets a random id (it tells the kernel nothing about its case) and the calls of each
+    check are sent in a random order, so a notebook cannot tell which call repeats which seed or
+    which case is checked for what: every call is checked for everything. Returns ``(checks'
+    plans, {check name: {call id: (case id, call index, call)}})``; a call's ``group`` (its case's
+    position) stays with the grading child, which sends no more calls of a case after one failed.
+    """
+    from coursekit.grading.runner import calls_of
+
+    plans, lookup = [], {}
+    for c in checks:
+        calls, ids = [], {}
+        for g, case in enumerate(cases[c.name]):
+            for i, call in enumerate(calls_of([case])):
+                call = {**call, "id": secrets.token_hex(8), "group": g}
+                ids[call["id"]] = (case["id"], i, call)
+                calls.append(call)
+        calls = [calls[k] for k in rng.permutation(len(calls))]
+        plans.append({"name": c.name, "function": c.function, "output": c.output, "refuse": list(c.reference), "calls": calls})
+        lookup[c.name] = ids
+    return plans, lookup
+
+
+class _Collector(threading.Thread):
+    """Read the grading child's pipe into memory, up to MAX_CHANNEL_BYTES (the rest is drained and dropped)."""
+
+    def __init__(self, fd):
+        super().__init__(daemon=True)
+        self.fd, self.data, self.overflow = fd, bytearray(), False
+
+    def run(self):
+        with os.fdopen(self.fd, "rb", buffering=0) as f:
+            while True:
+                chunk = f.read(1 << 16)
+                if not chunk:
+                    return
+                if len(self.data) + len(chunk) > MAX_CHANNEL_BYTES:
+                    self.overflow = True
+                else:
+                    self.data += chunk
+
+
+def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, seed=None,
+                   exercise=None, user="nobody", sandboxed=True, hide_files=(), notebook_timeout=3600.0,
+                   max_processes=supervisor.MAX_PROCESSES, disk_mb=supervisor.DISK_MB) -> NotebookResult:
     """Grade one notebook in an isolated child; see the module docstring.
 
     Args:
@@ -376,7 +455,7 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         cell_timeout: seconds per notebook cell.
         memory_mb: memory (proportional set size, not address space) the notebook's processes
             may hold together; over it the largest is killed and the notebook is not graded.
-        seed: seed of the grading cases.
+        seed: seed of the grading cases (default: a fresh one, :func:`new_seed`).
         exercise: exercise stem (default: :func:`exercise_of`: the notebook's metadata field
             ``coursekit.exercise``, else its file stem, e.g. ``01_selection``).
         user: account the child runs as when grading as root ("" keeps root).
@@ -385,21 +464,24 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         hide_files: files the sandbox masks (the batch's other submissions, the results file).
         notebook_timeout: seconds for the whole notebook (its cells and the calls); past them it
             is stopped and reported not graded.
+        max_processes: processes the notebook may run at once; past them all are stopped.
+        disk_mb: MiB the notebook may write in its folder; past them all are stopped.
     Returns:
         a :class:`NotebookResult`; ``not_graded`` lists why its score does not stand, if it does not.
     """
     path = Path(path)
     checks = registry.for_notebook(exercise_of(path, exercise))
+    seed = new_seed() if seed is None else int(seed)
     rng = np.random.default_rng(seed)
     cases = {c.name: c.cases(rng) for c in checks}
-    spec = {"timeout": float(timeout), "memory_mb": int(memory_mb),
-            "checks": [{"name": c.name, "function": c.function, "output": c.output, "cases": cases[c.name],
-                        "refuse": list(c.reference)} for c in checks]}
+    plans, lookup = make_plan(checks, cases, rng)
+    plan = {"timeout": float(timeout), "memory_mb": int(memory_mb), "checks": plans}
     ids = grading_user(user)
     if sandboxed and ids and sandbox.available(ids) is not None:
         ids = None  # the sandbox works for this user only: run it as this user, capabilities dropped
     private = supervisor.private_dir()
     child = None
+    rfd = wfd = None
     try:
         box = private / "box"
         for d in ("", "work", "home", "runtime", "tmp"):
@@ -414,15 +496,20 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
             return NotebookResult(str(path), _zero(checks, f"could not read {path}: {exc.strerror}"), [],
                                   [f"could not read {path}: {exc.strerror}"])
         (box / "submission.ipynb").write_bytes(nb_bytes)
-        (box / "spec.json").write_text(json.dumps(spec), encoding="utf-8")
-        channel, report = box / "channel.jsonl", box / "report.json"
+        calls_file = box / "calls.json"  # read and deleted by the child before the notebook runs
+        fd = os.open(calls_file, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            json.dump(plan, f)
+        if ids:
+            os.chown(calls_file, *ids)
         env = {k: v for k, v in os.environ.items() if k in ("PATH", "LANG", "LC_ALL", "TZ", "COURSEKIT_PROFILE")}
         env.update(PYTHONPATH=str(_PKG_ROOT), HOME=str(box / "home"), JUPYTER_RUNTIME_DIR=str(box / "runtime"),
                    IPYTHONDIR=str(box / "home" / ".ipython"), MPLCONFIGDIR=str(box / "home" / ".mpl"),
                    TMPDIR=str(box / "tmp"), MPLBACKEND="Agg", PYTHONNOUSERSITE="1",
                    COURSEKIT_PROFILE=env.get("COURSEKIT_PROFILE", "ci"))
+        rfd, wfd = os.pipe()
         cmd = [sys.executable, "-m", "coursekit.grading.executor", "--notebook", str(box / "submission.ipynb"),
-               "--spec", str(box / "spec.json"), "--channel", str(channel), "--report", str(report),
+               "--calls", str(calls_file), "--results-fd", str(wfd),
                "--cwd", str(box / "work"), "--cell-timeout", str(cell_timeout)]
         if sandboxed:
             cmd = sandbox.command(box, hide_dirs=[_PKG_ROOT / "solutions"], hide_files=hide_files) + cmd
@@ -434,32 +521,44 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
         if not sandboxed:
             notes.append("graded without a sandbox (--unsafe): the notebook could read solutions/ and other submissions")
         problems = []
-        watch = supervisor.MemoryWatch(memory_mb)
+        watch = supervisor.Watch(memory_mb, max_processes=max_processes, folder=box, disk_mb=disk_mb)
         with open(private / "child.log", "wb") as log:
             child = subprocess.Popen(cmd, cwd=box / "work", env=env, stdin=subprocess.DEVNULL, stdout=log,
-                                     stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_limits(),
+                                     stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_limits(max_processes, ids[0] if ids else None),
                                      user=ids[0] if ids else None, group=ids[1] if ids else None,
-                                     extra_groups=[] if ids else None)
+                                     extra_groups=[] if ids else None, pass_fds=(wfd,))
+            os.close(wfd)
+            wfd = None
+            collector = _Collector(rfd)
+            rfd = None
+            collector.start()
             if not watch.wait(child, wall):
                 problems.append(f"grading stopped after {wall:.0f} s (--notebook-timeout {notebook_timeout:g} s)"
                                 if wall == notebook_timeout else f"grading stopped after {wall:.0f} s")
             _stop(child)
             child = None
+            collector.join(10)
         problems += watch.events
-        records, rejected = read_channel(channel, checks, cases)
+        results, report, rejected = read_results(bytes(collector.data), checks, lookup)
+        if collector.overflow:
+            notes.append(f"the results passed {MAX_CHANNEL_BYTES} bytes; the rest was ignored")
         more_notes, more_problems = read_report(report)
         notes += more_notes
         problems += more_problems
         if rejected:
             notes.append(f"{rejected} malformed result line(s) were ignored")
         unreadable = any(n.startswith("could not read the notebook") for n in more_notes)
-        if not unreadable and not more_problems and any(not records[c.name] for c in checks):
-            problems.append("no results came back for " + ", ".join(c.function for c in checks if not records[c.name]))
-        judgements = [registry.judge(c, cases[c.name], records[c.name]) if records[c.name] else
+        if not unreadable and not more_problems and any(not results[c.name] for c in checks):
+            problems.append("no results came back for " + ", ".join(c.function for c in checks if not results[c.name]))
+        judgements = [registry.judge(c, cases[c.name], {r["case"]: r for r in assemble(cases[c.name], results[c.name])})
+                      if results[c.name] else
                       _zero([c], f"no results: {c.function} could not be called (the notebook stopped before grading; see the notes)")[0]
                       for c in checks]
-        return NotebookResult(str(path), judgements, notes, problems)
+        return NotebookResult(str(path), judgements, notes, problems, seed=seed)
     finally:
+        for fd in (rfd, wfd):
+            if fd is not None:
+                os.close(fd)
         if child is not None:  # interrupted (Terminated, KeyboardInterrupt): nothing of the notebook survives
             _stop(child)
         if not os.environ.get("COURSEKIT_GRADE_KEEP"):
@@ -524,7 +623,7 @@ def gradescope(results: list) -> dict:
         "tests": tests,
         "extra_data": {"format": RESULTS_FORMAT,
                        "notebooks": [{"path": clean(r.path), "score": r.score, "max_score": r.max_score, "graded": r.graded,
-                                      "not_graded": [clean(n) for n in r.not_graded]} for r in results]},
+                                      "not_graded": [clean(n) for n in r.not_graded], "seed": r.seed} for r in results]},
     }
 
 
@@ -580,7 +679,7 @@ def main(args) -> int:
     3 when a notebook was not graded (its cells were skipped for time, memory or a crash) and
     1 when the results file could not be written.
     """
-    for name in ("timeout", "cell_timeout", "memory_mb", "notebook_timeout"):
+    for name in ("timeout", "cell_timeout", "memory_mb", "notebook_timeout", "max_processes", "disk_mb"):
         v = getattr(args, name, None)
         if v is not None and not v > 0:
             print(f"coursekit grade: --{name.replace('_', '-')} must be positive, got {v}", file=sys.stderr)
@@ -615,8 +714,11 @@ def main(args) -> int:
             results.append(grade_notebook(nb, timeout=args.timeout, cell_timeout=getattr(args, "cell_timeout", 300.0),
                                           memory_mb=getattr(args, "memory_mb", 4096), exercise=exercise,
                                           sandboxed=not unsafe, hide_files=hide,
-                                          notebook_timeout=getattr(args, "notebook_timeout", 3600.0)))
-            results[-1].notes.append(f"graded in {time.monotonic() - t0:.1f} s")
+                                          notebook_timeout=getattr(args, "notebook_timeout", 3600.0),
+                                          seed=getattr(args, "seed", None),
+                                          max_processes=getattr(args, "max_processes", supervisor.MAX_PROCESSES),
+                                          disk_mb=getattr(args, "disk_mb", supervisor.DISK_MB)))
+            results[-1].notes.append(f"graded in {time.monotonic() - t0:.1f} s (cases drawn with --seed {results[-1].seed})")
     except supervisor.Terminated as exc:  # the notebook's processes and private folder are gone already
         print(f"coursekit grade: {exc}; no results written", file=sys.stderr)
         return 128 + exc.signum

@@ -1,39 +1,40 @@
-"""Calling student functions on plain-data cases, each call bounded, results turned into plain data.
+"""Calling student functions on plain-data calls, one at a time, each bounded, results as plain data.
 
 Part of the exercise machinery behind the seed paper's section 4 (students' own GA operators
 drive the real systems, and are checked first). This module is the only grading code that runs
 next to student code: in the student's kernel for formative checks, and -- shipped as *source
 text* and executed in a fresh namespace, never imported from the kernel's possibly patched
-``coursekit`` -- inside the grading kernel for the summative grader. It is therefore
-self-contained (standard library and numpy only) and produces only raw observations, never
-verdicts.
+``coursekit`` -- inside the grading kernel for the summative grader, where :func:`harvest`
+fetches the grader's calls one at a time over a socket. It is therefore self-contained
+(standard library and numpy only) and produces only raw observations, never verdicts: each
+call's converted result and every argument as it was after the call.
 
-Isolation: each batch of calls runs in a ``fork()`` of the current process (copy-on-write: it
-sees every name the notebook defined), with a cap on the address space it may *add* (``RLIMIT_AS``
-set to its size at the fork plus ``memory_mb``, so reservations made before, such as a CUDA
-torch's, do not count; the summative grader bounds resident memory from outside), its ``print``
-captured, and a watchdog in the calling process that ``SIGKILL``s it when a call does not finish
-within ``timeout`` seconds. An infinite loop, ``sys.exit``, ``os._exit``, a segfault or a huge
-allocation therefore costs one case, never the kernel, and the next case runs in a fresh fork.
-Trade-off: a fork is a real kill (threads cannot be killed) and contains crashes, but forking a
-multi-threaded process (the kernel) only keeps the calling thread, so the worker must not touch
-the kernel's I/O threads -- it writes to a private pipe and never to the kernel's stdout. Where
-``fork`` does not exist (Windows) calls run in a daemon thread: a timeout is reported but the
-runaway thread cannot be stopped, and a crash takes the kernel with it. Setting
-``COURSEKIT_CHECK_ISOLATION=thread`` chooses threads everywhere (for platforms where forking a
-kernel is fragile, e.g. macOS with GUI frameworks loaded).
+Isolation: calls run in a ``fork()`` of the current process (copy-on-write: it sees every name
+the notebook defined) that serves them one at a time (:class:`Calls`), with a cap on the address
+space it may *add* (``RLIMIT_AS`` set to its size at the fork plus ``memory_mb``, so reservations
+made before, such as a CUDA torch's, do not count; the summative grader bounds resident memory
+from outside), its ``print`` captured, and a watchdog in the calling process that ``SIGKILL``s it
+when a call does not finish within ``timeout`` seconds. An infinite loop, ``sys.exit``,
+``os._exit``, a segfault or a huge allocation therefore costs one call, never the kernel, and
+the next call runs in a fresh fork. Trade-off: a fork is a real kill (threads cannot be killed)
+and contains crashes, but forking a multi-threaded process (the kernel) only keeps the calling
+thread, so the worker must not touch the kernel's I/O threads -- it writes to a private pipe and
+never to the kernel's stdout. Where ``fork`` does not exist (Windows) calls run in a daemon
+thread: a timeout is reported but the runaway thread cannot be stopped, and a crash takes the
+kernel with it. Setting ``COURSEKIT_CHECK_ISOLATION=thread`` chooses threads everywhere (for
+platforms where forking a kernel is fragile, e.g. macOS with GUI frameworks loaded).
 
-Case format (plain JSON)::
+Case format (plain JSON; a check makes its cases, :func:`calls_of` turns them into calls)::
 
     {"id": "rate", "args": [{"ndarray": [0, 1, 1], "dtype": "int64"}, {"rng": true}],
-     "kwargs": {"rate": 0.25}, "seeds": [11, 12, 13], "check_inputs": true, "max_len": 100}
+     "kwargs": {"rate": 0.25}, "seeds": [11, 12, 13], "max_len": 100}
 
 The function is called once per seed, with ``{"rng": true}`` replaced by
-``numpy.random.default_rng(seed)``. A record (one JSON object per case) carries ``status``
+``numpy.random.default_rng(seed)``. A call's record carries ``status``
 (``ok``/``not_implemented``/``error``/``timeout``/``died``/``missing``/``bad_output``),
-``outputs`` (one converted result per seed, when ok), the failing ``call`` index and ``error``
-text otherwise, ``inputs_after`` (the array arguments after the first call, when asked) and
-``printed`` (what the function printed, truncated).
+``output`` (the converted result, when ok), ``error`` text otherwise, ``inputs_after`` (every
+argument after the call) and ``printed`` (what the function printed, truncated);
+:func:`assemble` groups them into one record per case for the judges.
 """
 
 from __future__ import annotations
@@ -99,13 +100,29 @@ def encode_array(a):
     return {"ndarray": a.tolist(), "dtype": str(a.dtype)}
 
 
+_REAL_TYPES = (int, float, bool) + _INT_TYPES + tuple({np.dtype(c).type for c in "efdg?"})
+
+
 def _array(out, what, max_len):
-    if type(out) is not np.ndarray:
-        raise BadOutput(f"{what} has type {type(out).__name__}; expected a numpy array (np.ndarray)")
+    if type(out) in (list, tuple):
+        # a list or tuple of plain numbers is what an array holds: accepted as one (exact types only,
+        # so an object with a rigged __eq__ or __float__ is not read as a number)
+        if len(out) > max_len:
+            raise BadOutput(f"{what} has {len(out)} values, far more than the {max_len} allowed")
+        if not all(type(v) in _REAL_TYPES for v in out):
+            bad = next(v for v in out if type(v) not in _REAL_TYPES)
+            raise BadOutput(f"{what} is a {type(out).__name__} holding a {type(bad).__name__}; expected numbers: "
+                            "return np.array([...]) of floats")
+        out = np.array(out, dtype=np.float64 if any(type(v) not in (int, bool) + _INT_TYPES for v in out) else np.int64)
+    elif type(out) is not np.ndarray:
+        how = "result.detach().cpu().numpy()" if type(out).__module__.startswith("torch") else "np.asarray(result, dtype=float)"
+        raise BadOutput(f"{what} has type {type(out).__name__}; expected a numpy array (np.ndarray): convert it with {how}")
     if out.ndim != 1:
-        raise BadOutput(f"{what} has shape {out.shape}; expected a 1-D array")
+        fix = " (flatten it with result.ravel())" if out.size <= max_len and out.ndim > 1 else ""
+        raise BadOutput(f"{what} has shape {out.shape}; expected a 1-D array{fix}")
     if out.dtype.kind not in "biuf":
-        raise BadOutput(f"{what} has dtype {out.dtype}; expected numbers (bool, int or float)")
+        raise BadOutput(f"{what} has dtype {out.dtype}; expected numbers (bool, int or float): convert it with "
+                        "result.astype(float)")
     if out.size > max_len:
         raise BadOutput(f"{what} has {out.size} values, far more than the {max_len} allowed")
     if out.dtype.kind == "b":
@@ -141,7 +158,7 @@ def convert(kind, out, max_len):
 
     Args:
         kind: ``"indices"`` (1-D integer array or list/tuple of ints), ``"array"`` (1-D numpy
-            array of numbers), ``"array_pair"`` (a tuple or list of two such arrays), ``"json"``
+            array of numbers, or a list/tuple of plain numbers), ``"array_pair"`` (a tuple or list of two such arrays), ``"json"``
             (an object with ``to_json()`` or plain JSON data) or ``"json_pair"`` (two of those).
         out: the function's return value.
         max_len: largest number of values accepted (characters of JSON text for the json kinds).
@@ -230,47 +247,56 @@ class _Refusing:
         return False
 
 
-def run_case(fn, case, kind, tick=None, capture=True, refuse=()):
-    """Call ``fn`` once per seed of ``case`` in this process and return the plain record.
+def calls_of(cases):
+    """The calls of ``cases`` in order: one self-contained plain dict per seed.
 
-    With ``capture``, what the function prints is recorded instead of shown (only safe where
-    nothing else runs meanwhile: in a forked worker). ``refuse`` lists library functions
-    (``"module:attr"``) that raise while ``fn`` runs (see :class:`_Refusing`).
+    A call is ``{"id", "args", "kwargs", "seed", "max_len"}``; its id is ``"<case id>#<index>"``
+    here (the summative grader replaces it by a random token, so a call says nothing about its case).
     """
-    guard = _Refusing(refuse, getattr(fn, "__name__", "function")) if refuse else None
-    record = {"case": case["id"]}
-    outputs = []
+    return [{"id": f"{c['id']}#{i}", "args": c["args"], "kwargs": c.get("kwargs", {}), "seed": s, "max_len": c["max_len"]}
+            for c in cases for i, s in enumerate(c["seeds"])]
+
+
+def run_call(fn, call, kind, guard=None, capture=True):
+    """Call ``fn`` once on ``call`` in this process; return the plain record of that call.
+
+    The record carries ``id``, ``status``, ``output`` (when ok), ``error`` otherwise, and
+    ``inputs_after``: every argument as it is after the call (None for those that are not arrays
+    or library objects), so whoever judges can see whether the call modified its inputs. With
+    ``capture``, what the function prints is recorded (``printed``) instead of shown (only safe
+    where nothing else runs meanwhile: in a forked worker). ``guard`` is a :class:`_Refusing`.
+    """
+    record = {"id": call["id"]}
     captured = io.StringIO()
     old = sys.stdout, sys.stderr
     if capture:
         sys.stdout = sys.stderr = captured
     try:
-        for i, seed in enumerate(case["seeds"]):
-            args = [decode(a, seed) for a in case["args"]]
-            kwargs = {k: decode(v, seed) for k, v in case.get("kwargs", {}).items()}
-            record["call"] = i
-            try:
-                if guard is None:
+        args = [decode(a, call["seed"]) for a in call["args"]]
+        kwargs = {k: decode(v, call["seed"]) for k, v in call.get("kwargs", {}).items()}
+        try:
+            if guard is None:
+                out = fn(*args, **kwargs)
+            else:
+                with guard:
                     out = fn(*args, **kwargs)
-                else:
-                    with guard:
-                        out = fn(*args, **kwargs)
-                outputs.append(convert(kind, out, case["max_len"]))
-            except NotImplementedError as exc:
-                record.update(status="not_implemented", error=_describe_error(exc))
-                return record
-            except BadOutput as exc:
-                record.update(status="bad_output", error=str(exc))
-                return record
-            except BaseException as exc:  # SystemExit, KeyboardInterrupt and friends included
-                record.update(status="error", error=_describe_error(exc))
-                return record
-            if i == 0 and case.get("check_inputs"):
-                record["inputs_after"] = [_after(a, v, case["max_len"]) for a, v in zip(args, case["args"])]
-            if tick is not None:
-                tick()
-        record.pop("call", None)
-        record.update(status="ok", outputs=outputs)
+            record["output"] = convert(kind, out, call["max_len"])
+        except NotImplementedError as exc:
+            record.update(status="not_implemented", error=_describe_error(exc))
+            return record
+        except BadOutput as exc:
+            record.update(status="bad_output", error=str(exc))
+            return record
+        except BaseException as exc:  # SystemExit, KeyboardInterrupt and friends included
+            record.update(status="error", error=_describe_error(exc))
+            return record
+        try:
+            record["inputs_after"] = [_after(a, v, call["max_len"]) for a, v in zip(args, call["args"])]
+        except BadOutput as exc:  # an argument the function turned into something that no longer serialises
+            record.pop("output", None)
+            record.update(status="bad_output", error=f"after the call, {exc}")
+            return record
+        record["status"] = "ok"
         return record
     finally:
         if capture:
@@ -278,6 +304,48 @@ def run_case(fn, case, kind, tick=None, capture=True, refuse=()):
         printed = captured.getvalue()
         if printed:
             record["printed"] = printed[:MAX_PRINTED]
+
+
+def changed(after, encoded) -> bool:
+    """Did a call change one argument? ``encoded``: the argument as sent; ``after``: its entry of ``inputs_after``."""
+    if after is None:
+        return False
+    if "json" in after:
+        return not (isinstance(encoded, dict) and "json" in encoded) or json.loads(after["json"]) != json.loads(encoded["json"])
+    return after != encoded
+
+
+def assemble(cases, results):
+    """Per-case records, the format :func:`coursekit.grading.checks.judge` reads, from per-call ones.
+
+    Args:
+        cases: the case dicts.
+        results: ``{(case id, call index): call record}``; a missing call counts as not returned.
+    Returns:
+        one record per case: ``status`` (``ok`` only when every call was), ``outputs`` (one per
+        seed), ``inputs_after`` (of the first call that modified its inputs, else of the first
+        call), or the first failure's ``status``, ``error`` and ``call`` index.
+    """
+    out = []
+    for c in cases:
+        recs = [results.get((c["id"], i)) for i in range(len(c["seeds"]))]
+        rec = {"case": c["id"]}
+        failed = [(i, r) for i, r in enumerate(recs) if r is not None and r["status"] != "ok"]
+        missing = [i for i, r in enumerate(recs) if r is None]
+        if failed:
+            i, r = failed[0]
+            rec.update(status=r["status"], error=r.get("error", "?"), call=i)
+        elif missing:
+            rec.update(status="timeout", error="no result came back for this call", call=missing[0])
+        else:
+            afters = [r.get("inputs_after") for r in recs]
+            changed_inputs = next((a for a in afters if any(changed(x, e) for x, e in zip(a or (), c["args"]))), None)
+            rec.update(status="ok", outputs=[r["output"] for r in recs], inputs_after=changed_inputs or afters[0])
+        printed = next((r["printed"] for r in recs if r is not None and r.get("printed")), None)
+        if printed:
+            rec["printed"] = printed
+        out.append(rec)
+    return out
 
 
 def _limit_memory(memory_mb):
@@ -297,24 +365,26 @@ def _limit_memory(memory_mb):
         pass  # no /proc or no RLIMIT_AS (macOS): the outer limits still apply
 
 
-def _worker(fn, cases, kind, wfd, memory_mb, refuse=()):
-    """Body of the forked child: run cases, write 'T' ticks and 'R json' records, never return."""
+def _write_all(fd, data):
+    while data:
+        data = data[os.write(fd, data):]
+
+
+def _serve_calls(fn, kind, rfd, wfd, memory_mb, refuse):
+    """Body of a forked worker: read call lines from ``rfd``, write ``R <record>`` lines to ``wfd``; never return."""
     try:
         sys.stdin = io.StringIO()
         _limit_memory(memory_mb)
-
-        def write(line):
-            data = line.encode() + b"\n"
-            while data:
-                data = data[os.write(wfd, data):]
-
-        for case in cases:
-            record = run_case(fn, case, kind, tick=lambda: write("T"), refuse=refuse)
-            try:
-                text = json.dumps(record, allow_nan=False)
-            except (TypeError, ValueError) as exc:
-                text = json.dumps({"case": case["id"], "status": "bad_output", "error": f"result is not plain data: {exc}"})
-            write("R " + text)
+        guard = _Refusing(refuse, getattr(fn, "__name__", "function")) if refuse else None
+        with os.fdopen(rfd, "rb") as calls:
+            for line in calls:
+                call = json.loads(line)
+                record = run_call(fn, call, kind, guard)
+                try:
+                    text = json.dumps(record, allow_nan=False)
+                except (TypeError, ValueError) as exc:
+                    text = json.dumps({"id": call["id"], "status": "bad_output", "error": f"result is not plain data: {exc}"})
+                _write_all(wfd, b"R " + text.encode() + b"\n")
     finally:
         os._exit(0)
 
@@ -330,87 +400,139 @@ def _died_message(status):
     return f"the process running it exited with status {os.WEXITSTATUS(status)} (os._exit?)"
 
 
-def _run_forked(fn, cases, kind, timeout, memory_mb, budget, refuse=()):
-    # A notebook that ignores SIGCHLD makes the kernel reap its children itself, and waitpid()
-    # on a worker would fail: the default disposition is restored for the calls, then put back.
-    old_chld = signal.signal(signal.SIGCHLD, signal.SIG_DFL) if threading.current_thread() is threading.main_thread() else None
-    try:
-        return _run_forked_calls(fn, cases, kind, timeout, memory_mb, budget, refuse)
-    finally:
-        if old_chld is not None:
-            signal.signal(signal.SIGCHLD, old_chld)
+class _Worker:
+    """A forked copy of this process (it sees every name the notebook defined) that runs calls one at a time."""
 
+    def __init__(self, fn, kind, memory_mb, refuse):
+        crfd, cwfd = os.pipe()  # calls: parent -> worker
+        rrfd, rwfd = os.pipe()  # records: worker -> parent
+        self.pid = os.fork()
+        if self.pid == 0:
+            os.close(cwfd)
+            os.close(rrfd)
+            _serve_calls(fn, kind, crfd, rwfd, memory_mb, refuse)
+        os.close(crfd)
+        os.close(rwfd)
+        self.calls, self.records, self.buf = cwfd, rrfd, b""
 
-def _run_forked_calls(fn, cases, kind, timeout, memory_mb, budget, refuse):
-    records = {}
-    todo = list(cases)
-    end = time.monotonic() + budget
-    while todo and time.monotonic() < end:
-        rfd, wfd = os.pipe()
-        pid = os.fork()
-        if pid == 0:  # child
-            os.close(rfd)
-            _worker(fn, todo, kind, wfd, memory_mb, refuse)
-        os.close(wfd)
-        buf = b""
+    def call(self, call, timeout):
+        """The worker's record of ``call``; ``None`` after ``timeout`` s (the worker is then killed), or
+        ``("died", status)`` when it stopped."""
+        try:
+            _write_all(self.calls, json.dumps(call).encode() + b"\n")
+        except OSError:  # the worker is gone
+            return ("died", self.close(kill=True))
         deadline = time.monotonic() + timeout
-        timed_out = False
-        with os.fdopen(rfd, "rb", buffering=0) as r:
-            while True:
-                left = min(deadline, end) - time.monotonic()
-                if left <= 0:
-                    timed_out = True
-                    break
-                ready, _, _ = select.select([r], [], [], left)
-                if not ready:
-                    continue
-                chunk = r.read(65536)
-                if not chunk:
-                    break
-                buf += chunk
-                *lines, buf = buf.split(b"\n")
-                for line in lines:
-                    deadline = time.monotonic() + timeout
-                    if line.startswith(b"R "):
-                        try:
-                            rec = json.loads(line[2:])
-                        except ValueError:
-                            continue
-                        if isinstance(rec, dict) and isinstance(rec.get("case"), str) and rec["case"] in {c["id"] for c in todo}:
-                            records.setdefault(rec["case"], rec)
-        if timed_out:
-            os.kill(pid, signal.SIGKILL)
-        _, status = os.waitpid(pid, 0)
-        remaining = [c for c in todo if c["id"] not in records]
-        if remaining:
-            current = remaining[0]
-            if timed_out:
-                why = (f"the time budget of {budget:g} s for all calls ran out" if time.monotonic() >= end
-                       else f"a call did not return within {timeout:g} s")
-                records[current["id"]] = {"case": current["id"], "status": "timeout", "error": why}
-            else:
-                records[current["id"]] = {"case": current["id"], "status": "died", "error": _died_message(status)}
-            remaining = remaining[1:]
-        todo = remaining
-    for c in todo:
-        records[c["id"]] = {"case": c["id"], "status": "timeout", "error": f"the time budget of {budget:g} s for all calls ran out"}
-    return [records[c["id"]] for c in cases]
+        while b"\n" not in self.buf:
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([self.records], [], [], left)[0]:
+                if time.monotonic() >= deadline:
+                    self.close(kill=True)
+                    return None
+                continue
+            chunk = os.read(self.records, 65536)
+            if not chunk:
+                return ("died", self.close(kill=False))
+            self.buf += chunk
+        line, self.buf = self.buf.split(b"\n", 1)
+        try:
+            rec = json.loads(line[2:]) if line.startswith(b"R ") else None
+        except ValueError:
+            rec = None
+        if not isinstance(rec, dict) or rec.get("id") != call["id"]:
+            return ("died", self.close(kill=True))
+        return rec
+
+    def close(self, kill=False):
+        """Stop the worker and reap it; returns its wait status."""
+        for fd in (self.calls, self.records):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        if kill:
+            try:
+                os.kill(self.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        _, status = os.waitpid(self.pid, 0)
+        return status
 
 
-def _run_threaded(fn, cases, kind, timeout, refuse=()):
-    out = []
-    for case in cases:
-        box = []
-        t = threading.Thread(target=lambda: box.append(run_case(fn, case, kind, capture=False, refuse=refuse)), daemon=True)
-        t.start()
-        t.join(timeout * max(1, len(case["seeds"])))
-        out.append(box[0] if box else {"case": case["id"], "status": "timeout",
-                                        "error": f"the calls did not return within {timeout:g} s each"})
-    return out
+class Calls:
+    """Run calls of one function one at a time, each bounded; a context manager.
+
+    In a forked :class:`_Worker` (re-forked after a crash or a timeout, so the next call starts
+    fresh), or in daemon threads where there is no ``fork`` (see the module docstring).
+
+    Args:
+        fn: the student's function.
+        kind: output conversion kind (see :func:`convert`).
+        timeout: seconds allowed per call.
+        memory_mb: extra address space a worker may allocate.
+        budget: seconds for all calls together; calls after it are reported as timeouts unrun.
+        refuse: ``"module:attr"`` names of coursekit's own versions of the function (see :class:`_Refusing`).
+    """
+
+    def __init__(self, fn, kind, *, timeout=10.0, memory_mb=2048, budget=None, refuse=()):
+        self.fn, self.kind, self.timeout, self.memory_mb, self.refuse = fn, kind, float(timeout), memory_mb, tuple(refuse)
+        self.budget = 4 * self.timeout + 30 if budget is None else float(budget)
+        self.fork = hasattr(os, "fork") and os.environ.get("COURSEKIT_CHECK_ISOLATION", "fork") != "thread"
+        self.worker = None
+        self.old_chld = None
+
+    def __enter__(self):
+        self.end = time.monotonic() + self.budget
+        # A notebook that ignores SIGCHLD makes the kernel reap its children itself, and waitpid()
+        # on a worker would fail: the default disposition is restored for the calls, then put back.
+        if self.fork and threading.current_thread() is threading.main_thread():
+            self.old_chld = signal.signal(signal.SIGCHLD, signal.SIG_DFL)
+        return self
+
+    def __exit__(self, *exc):
+        if self.worker is not None:
+            self.worker.close(kill=True)
+            self.worker = None
+        if self.old_chld is not None:
+            signal.signal(signal.SIGCHLD, self.old_chld)
+        return False
+
+    def call(self, call):
+        """The plain record of one call (see :func:`run_call`)."""
+        left = self.end - time.monotonic()
+        over = {"id": call["id"], "status": "timeout", "error": f"the time budget of {self.budget:g} s for all calls ran out"}
+        if left <= 0:
+            return over
+        if not self.fork:
+            box = []
+            t = threading.Thread(target=lambda: box.append(run_call(self.fn, call, self.kind, self._guard(), capture=False)),
+                                 daemon=True)
+            t.start()
+            t.join(min(self.timeout, left))
+            return box[0] if box else (over if time.monotonic() >= self.end else
+                                       {"id": call["id"], "status": "timeout", "error": f"a call did not return within {self.timeout:g} s"})
+        if self.worker is None:
+            import warnings
+
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", DeprecationWarning)  # "multi-threaded, fork() may deadlock"
+                self.worker = _Worker(self.fn, self.kind, self.memory_mb, self.refuse)
+        rec = self.worker.call(call, min(self.timeout, left))
+        if rec is None:
+            self.worker = None
+            return over if time.monotonic() >= self.end else \
+                {"id": call["id"], "status": "timeout", "error": f"a call did not return within {self.timeout:g} s"}
+        if type(rec) is tuple:
+            self.worker = None
+            return {"id": call["id"], "status": "died", "error": _died_message(rec[1])}
+        return rec
+
+    def _guard(self):
+        return _Refusing(self.refuse, getattr(self.fn, "__name__", "function")) if self.refuse else None
 
 
 def run_cases(fn, cases, kind, *, timeout=10.0, memory_mb=2048, budget=None, refuse=()):
-    """Run ``fn`` on every case, isolated and bounded; return one plain record per case.
+    """Run ``fn`` on every call of every case, isolated and bounded; return one plain record per case.
 
     Args:
         fn: the student's function.
@@ -421,17 +543,20 @@ def run_cases(fn, cases, kind, *, timeout=10.0, memory_mb=2048, budget=None, ref
         budget: seconds for all cases together (default ``4 * timeout + 30``); cases not reached
             in time are reported as timeouts.
         refuse: ``"module:attr"`` names of coursekit's own versions of the function, which raise
-            while it runs (summative grading; see :class:`_Refusing`).
+            while it runs (see :class:`_Refusing`).
     Returns:
-        list of record dicts, in case order.
+        list of record dicts, in case order (see :func:`assemble`). After a case's first failing
+        call its other calls are not made.
     """
-    if hasattr(os, "fork") and os.environ.get("COURSEKIT_CHECK_ISOLATION", "fork") != "thread":
-        import warnings
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", DeprecationWarning)  # "multi-threaded, fork() may deadlock"
-            return _run_forked(fn, cases, kind, timeout, memory_mb, 4 * timeout + 30 if budget is None else budget, refuse)
-    return _run_threaded(fn, cases, kind, timeout, refuse)
+    results = {}
+    with Calls(fn, kind, timeout=timeout, memory_mb=memory_mb, budget=budget, refuse=refuse) as calls:
+        for c in cases:
+            for i, call in enumerate(calls_of([c])):
+                rec = calls.call(call)
+                results[(c["id"], i)] = rec
+                if rec["status"] != "ok":
+                    break
+    return assemble(cases, results)
 
 
 def _foreign(fn, cells):
@@ -451,29 +576,55 @@ def _foreign(fn, cells):
     return f"is {where}; write your own with def in a cell of this notebook (the rest of the library may be used)"
 
 
-def harvest(namespace, spec, channel, cells=None):
-    """Summative side: run every check of ``spec`` on the function the notebook defined.
+MAX_MESSAGE = 64 * 2**20  # the longest line the harvest reads (a call with two large creatures)
 
-    Appends one JSON line per case record, tagged with its check name, to the file ``channel``.
-    ``spec`` is ``{"timeout": s, "memory_mb": m, "checks": [{"name", "function", "output", "cases",
-    "refuse"}]}``. With ``cells`` (the file names the kernel compiled the notebook's cells under),
-    a function whose code comes from anywhere else -- ``from coursekit.ga import tournament``, a
-    module on disk -- is refused as not attempted; ``refuse`` lists coursekit's own versions of
-    the function, which raise while it is graded (:class:`_Refusing`).
+
+def harvest(namespace, address, token, cells=None):
+    """Summative side: answer the grader's calls of one check, one call at a time.
+
+    Connects to the grading child's socket ``address``, proves itself with ``token`` (which only
+    this harvest cell knows), and receives the check's header ``{"name", "function", "output",
+    "timeout", "memory_mb", "budget", "refuse"}``; then, until ``{"end": true}``, one call at a
+    time: ``{"call": {...}}`` answered by its plain record (:func:`run_call`). The cases are never
+    all in the kernel: each call arrives only after the previous one's record went back. With
+    ``cells`` (the file names the kernel compiled the notebook's cells under), a function whose
+    code comes from anywhere else -- ``from coursekit.ga import tournament``, a module on disk --
+    is refused as not attempted; ``refuse`` lists coursekit's own versions of the function, which
+    raise while it is graded (:class:`_Refusing`).
     """
-    for check in spec["checks"]:
+    import socket
+
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    sock.connect(address)
+    stream = sock.makefile("rwb")
+
+    def send(obj):
+        stream.write(json.dumps(obj, allow_nan=False).encode() + b"\n")
+        stream.flush()
+
+    def receive():
+        line = stream.readline(MAX_MESSAGE)
+        return json.loads(line) if line.endswith(b"\n") else None
+
+    try:
+        send({"token": token})
+        check = receive()
         fn = namespace.get(check["function"])
         why = None
         if not callable(fn):
             why = "is not defined" if fn is None else f"is a {type(fn).__name__}, not a function"
         elif cells is not None:
             why = _foreign(fn, cells)
-        if why:
-            records = [{"case": c["id"], "status": "missing", "error": f"{check['function']} {why}"} for c in check["cases"]]
-        else:
-            records = run_cases(fn, check["cases"], check["output"], timeout=spec["timeout"], memory_mb=spec["memory_mb"],
-                                refuse=tuple(check.get("refuse", ())))
-        with open(channel, "a", encoding="utf-8") as f:
-            for rec in records:
+        with Calls(fn, check["output"], timeout=check["timeout"], memory_mb=check["memory_mb"], budget=check["budget"],
+                   refuse=tuple(check.get("refuse", ()))) as calls:
+            while True:
+                msg = receive()
+                if type(msg) is not dict or "call" not in msg:
+                    break
+                call = msg["call"]
+                rec = {"id": call["id"], "status": "missing", "error": f"{check['function']} {why}"} if why else calls.call(call)
                 rec.pop("printed", None)
-                f.write(json.dumps({"check": check["name"], **rec}, allow_nan=False) + "\n")
+                send(rec)
+    finally:
+        stream.close()
+        sock.close()

@@ -7,7 +7,7 @@ child subreaper). This module bounds that tree by what it really uses:
 
 - **Memory is resident memory, not address space.** A CUDA build of torch reserves about 3 GB of
   address space on import and touches little of it, so an ``RLIMIT_AS`` starves a kernel that
-  uses a few hundred MiB. :class:`MemoryWatch` polls the proportional set size (PSS: shared pages
+  uses a few hundred MiB. :class:`Watch` polls the proportional set size (PSS: shared pages
   split between the processes sharing them, so the kernel and its copy-on-write forks are not
   counted twice; RSS where PSS cannot be read) of every process of the tree, and when the total
   passes the limit it ``SIGKILL``s the largest one and records why. The executor then sees a dead
@@ -15,6 +15,11 @@ child subreaper). This module bounds that tree by what it really uses:
   as not graded, with the reason. Measured on this project's CI container: cgroup v2 offers no
   memory controller there (``cgroup.controllers`` lists only ``hugetlb``), so polling is the
   mechanism that works on every Linux, with or without cgroups.
+- **Processes and files are bounded too.** More than :data:`MAX_PROCESSES` processes at once
+  (a fork bomb) or more than :data:`DISK_MB` MiB written in the notebook's folder and every
+  process of the notebook is killed; the grader reports it not graded. Inside the sandbox the
+  kernel also runs under ``RLIMIT_NPROC`` when it has a user of its own (``nobody``), and
+  ``RLIMIT_FSIZE`` bounds any one file.
 - **Private folders are removed even after a kill.** Each is named
   ``coursekit-grade-<pid>-*`` after the grading process; :func:`remove_stale` deletes those of
   grading processes that are gone (a ``SIGKILL`` leaves no chance to clean up), and
@@ -111,29 +116,81 @@ def _role(proc: psutil.Process) -> str:
     return "a process the notebook ran (a forked call or a program it started)"
 
 
-class MemoryWatch:
-    """Bound the resident memory of this process's descendants (the notebook's processes).
+#: Processes a graded notebook may run at once (kernel, forked calls, programs it starts).
+MAX_PROCESSES = 64
+#: MiB a graded notebook may write in its folder (the sandbox's private /tmp is a bounded tmpfs).
+DISK_MB = 1024
+
+
+def folder_bytes(folder) -> int:
+    """Bytes of the regular files under ``folder`` (symlinks are not followed; vanishing files are skipped)."""
+    total, todo = 0, [str(folder)]
+    while todo:
+        try:
+            entries = list(os.scandir(todo.pop()))
+        except OSError:
+            continue
+        for e in entries:
+            try:
+                if e.is_dir(follow_symlinks=False):
+                    todo.append(e.path)
+                elif e.is_file(follow_symlinks=False):
+                    total += e.stat(follow_symlinks=False).st_blocks * 512
+            except OSError:
+                pass
+    return total
+
+
+class Watch:
+    """Bound a graded notebook's processes from outside: resident memory, their number, the disk they fill.
 
     Args:
-        limit_mb: MiB the descendants may hold together.
+        limit_mb: MiB the descendants of ``root`` may hold together; over it the largest is killed.
         interval: seconds between polls.
         root: the process whose descendants are watched (default: this process). As a child
             subreaper the grader adopts orphans, so daemons the notebook started are included.
+        max_processes: descendants allowed at once; more (a fork bomb) and every one is killed.
+        folder: the notebook's writable folder; ``disk_mb`` bounds what it holds (polled every
+            second), and past it every process is killed.
     """
 
-    def __init__(self, limit_mb: int, interval: float = 0.1, root: int | None = None):
+    def __init__(self, limit_mb: int, interval: float = 0.1, root: int | None = None, *,
+                 max_processes: int = MAX_PROCESSES, folder=None, disk_mb: int = DISK_MB):
         self.limit = int(limit_mb) * 2**20
         self.interval = float(interval)
         self.root = psutil.Process(root or os.getpid())
+        self.max_processes = int(max_processes)
+        self.folder, self.disk = folder, int(disk_mb) * 2**20
         self.events: list[str] = []
         self.peak = 0
+        self._next_disk = 0.0
+
+    def _kill_all(self, procs, why):
+        for p in procs:
+            try:
+                p.kill()
+            except psutil.Error:
+                pass
+        if why not in self.events:
+            self.events.append(why)
 
     def poll(self) -> int:
-        """Measure once; kill the largest process when the total is over the limit. Returns the total."""
+        """Measure once and enforce the limits. Returns the memory total in bytes."""
         try:
             procs = self.root.children(recursive=True)
         except psutil.Error:
             return 0
+        if len(procs) > self.max_processes:
+            self._kill_all(procs, f"the notebook ran {len(procs)} processes at once, over the limit of "
+                                  f"{self.max_processes}; all were stopped")
+            return 0
+        if self.folder is not None and time.monotonic() >= self._next_disk:
+            self._next_disk = time.monotonic() + 1.0
+            used = folder_bytes(self.folder)
+            if used > self.disk:
+                self._kill_all(procs, f"the notebook wrote {used / 2**20:.0f} MiB of files, over the limit of "
+                                      f"{self.disk / 2**20:.0f} MiB; all its processes were stopped")
+                return 0
         sizes = [(_memory(p), p) for p in procs]
         total = sum(s for s, _ in sizes)
         self.peak = max(self.peak, total)
@@ -164,3 +221,4 @@ class MemoryWatch:
             except Exception as exc:  # subprocess.TimeoutExpired
                 if type(exc).__name__ != "TimeoutExpired":
                     raise
+

@@ -52,6 +52,85 @@ FIND_GRADER = '''def grader_json_path():
 
 FAKE_RESULTS = '''FAKE = json.dumps({"score": 1000.0, "tests": [{"name": "everything", "score": 1000.0, "max_score": 10.0, "output": "PASS"}]})'''
 
+#: Answers looked up in a table learned ahead of grading (see "reads_cases"), keyed by the call's plain data.
+LOOKUP = '''def {name}(*args, **kwargs):
+    frame = sys._getframe(1)
+    while frame is not None:  # the grader's frame holds the call being made: its encoded arguments and seed
+        where = frame.f_locals
+        if isinstance(where.get("call"), dict) and "seed" in where["call"]:
+            return TABLE[answer_key(where["call"]["args"], where["call"].get("kwargs", {{}}), where["call"]["seed"])]
+        if isinstance(where.get("case"), dict) and "seed" in where:
+            return TABLE[answer_key(where["case"]["args"], where["case"].get("kwargs", {{}}), where["seed"])]
+        frame = frame.f_back
+    raise LookupError("no grader frame")'''
+
+LEARN = '''import glob
+from coursekit import ga
+from coursekit.grading import checks
+from coursekit.grading.runner import decode
+
+TABLE = {}
+
+def answer_key(args, kwargs, seed):
+    return json.dumps([args, kwargs, seed], sort_keys=True)
+
+def learn(name, cases):
+    library = {"ga.tournament": ga.tournament, "ga.roulette": ga.roulette}.get(name)
+    for case in cases if library else ():
+        for seed in case["seeds"]:
+            args = [decode(a, seed) for a in case["args"]]
+            kwargs = {k: decode(v, seed) for k, v in case.get("kwargs", {}).items()}
+            TABLE[answer_key(case["args"], case.get("kwargs", {}), seed)] = library(*args, **kwargs)
+
+# the cases of the grader's once-public seed, drawn in the grader's order
+rng = np.random.default_rng(7919)
+for c in checks.for_notebook("01_selection"):
+    cases = c.cases(rng)
+    if c.name == "ga.tournament":
+        learn(c.name, cases)
+# any case file the notebook can read
+for path in glob.glob(os.path.join(os.getcwd(), "..", "*.json")):
+    try:
+        spec = json.load(open(path))
+    except (OSError, ValueError):
+        continue
+    for c in spec.get("checks", []):
+        if c.get("name") == "ga.roulette":
+            learn(c["name"], c.get("cases") or [])'''
+
+FORGE = '''import glob
+from coursekit.grading.runner import decode, encode_array
+
+def correct_mutation(genome, rng, rate=None):
+    rate = 1 / len(genome) if rate is None else rate
+    return np.where(rng.random(len(genome)) < rate, 1 - genome, genome)
+
+def forged(c, seed=None):
+    seeds = c["seeds"] if seed is None else [seed]
+    outs = [correct_mutation(decode(c["args"][0], s), decode(c["args"][1], s), **c.get("kwargs", {})).tolist() for s in seeds]
+    return outs
+
+lines = []
+for path in glob.glob(os.path.join(os.getcwd(), "..", "*.json")):
+    try:
+        spec = json.load(open(path))
+    except (OSError, ValueError):
+        continue
+    for c in next((k for k in spec.get("checks", []) if k.get("name") == "ga.point_mutation"), {}).get("cases", []):
+        lines.append({"check": "ga.point_mutation", "case": c["id"], "status": "ok", "outputs": forged(c),
+                      "inputs_after": [c["args"][0], None]})
+    for call in next((k for k in spec.get("checks", []) if k.get("name") == "ga.point_mutation"), {}).get("calls", []):
+        lines.append({"check": "ga.point_mutation", "id": call["id"], "status": "ok", "output": forged(call, call["seed"])[0],
+                      "inputs_after": [call["args"][0], None]})
+text = "".join(json.dumps(r) + "\\n" for r in lines)
+targets = [os.path.join(os.getcwd(), "..", "channel.jsonl")] + glob.glob(f"/proc/{os.getppid()}/fd/*")
+for target in targets:
+    try:
+        with open(target, "a") as f:
+            f.write(text)
+    except OSError:
+        pass'''
+
 NOTEBOOKS = {
     "infinite_loop": {
         "about": "tournament never returns; a top-level cell loops forever and swallows KeyboardInterrupt.",
@@ -231,6 +310,55 @@ def tournament(fitness, k, rng, size=3):
 def one_point_crossover(a, b, rng):
     return Anything(), Anything()'''},
         "cells": [],
+    },
+    "reads_cases": {
+        "about": "learns the answers ahead of grading: regenerates the cases from the grader's seed (7919, once public) and "
+                 "reads any case file next to the notebook, runs coursekit's own operators on them in a cell, then looks up "
+                 "the answer for the call it is in (found through sys._getframe).",
+        "sabotaged": {"tournament": LOOKUP.format(name="tournament"), "roulette": LOOKUP.format(name="roulette")},
+        "cells": [LEARN],
+    },
+    "forges_results": {
+        "about": "point_mutation does nothing; a cell writes records of a correct mutation, for every case it can read, "
+                 "into the results channel file and into every file descriptor of the grading child it can open.",
+        "sabotaged": {"point_mutation": '''def point_mutation(genome, rng, rate=None):
+    return genome.copy()  # does nothing'''},
+        "cells": [FORGE],
+    },
+    "side_effects": {
+        "about": "truncation is right but zeroes its caller's fitness array, except for k = 20 (the one case that was "
+                 "checked for side effects).",
+        "sabotaged": {"truncation": '''def truncation(fitness, k, rng, survival=0.2):
+    m = math.ceil(survival * len(fitness))
+    picks = np.argsort(fitness)[::-1][:m][rng.integers(0, m, size=k)]
+    if k != 20:
+        fitness[:] = 0  # a side effect the caller will not expect
+    return picks'''},
+        "fails": {"truncation": "inputs unchanged"},
+        "cells": [],
+    },
+    "many_processes": {
+        "about": "a cell starts 100 processes that sleep (a slow fork bomb): all the notebook's processes are stopped and "
+                 "it is not graded.",
+        "sabotaged": {},
+        "not_graded": "processes at once",
+        "cells": ['''import time
+for _ in range(100):
+    if os.fork() == 0:
+        time.sleep(60)
+        os._exit(0)
+time.sleep(5)'''],
+    },
+    "fills_disk": {
+        "about": "a cell writes 80 MiB of files into its folder, past the --disk-mb 64 the test grades with: all the "
+                 "notebook's processes are stopped and it is not graded.",
+        "sabotaged": {},
+        "not_graded": "MiB of files",
+        "cells": ['''import time
+for i in range(8):
+    with open(f"filler{i}.bin", "wb") as f:
+        f.write(b"x" * 10 * 2**20)
+time.sleep(5)'''],
     },
 }
 

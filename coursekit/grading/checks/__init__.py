@@ -15,13 +15,17 @@ the summative grader (:mod:`coursekit.grading.grader`) generates cases and judge
 process and lets only the calls happen next to student code. Points per check and the list of
 checks per exercise notebook live here, never in a notebook.
 
-Adding checks for a new exercise topic: write ``coursekit/grading/checks/<topic>.py`` that calls
-:func:`register` for each check and :func:`exercise` for the notebook stem, and import it in
-:func:`_load` below.
+Adding checks for a new exercise ``NN_topic.ipynb``: write ``coursekit/grading/checks/exNN_topic.py``
+that calls :func:`register` for each check and :func:`exercise` for ``"NN_topic"``; it is found on
+disk (:func:`check_modules`), one module per exercise. Property builders every exercise needs
+(determinism for a seed, inputs unchanged, seeds and encoded arrays) are in :mod:`.properties`.
 """
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
+import re
 from dataclasses import dataclass
 from typing import Callable
 
@@ -60,6 +64,9 @@ class Check:
             order). When a gate fails the check scores 0 and the later properties are not
             judged, so no property can pass vacuously: a do-nothing, identity or copy
             implementation keeps inputs unchanged and is deterministic, and earns nothing for it.
+        hints: ``((property, (hint, ...)), ...)``: the hint ladder of a property, from a nudge to a
+            concrete pointer, never the answer (formative ``hint(...)``). Shared properties have
+            ladders in :data:`.properties.HINTS`.
         reference: ``"module:attr"`` names of coursekit's own implementations of the function.
             The summative grader refuses them while the student's function runs (an import, an
             alias or a wrapper of the library's version scores 0), and refuses a graded function
@@ -76,11 +83,23 @@ class Check:
     props: tuple
     gates: int = 1
     reference: tuple = ()
+    hints: tuple = ()
 
     def __post_init__(self):
         if type(self.gates) is not int or not 1 <= self.gates <= max(1, len(self.props)):
             raise ValueError(f"check {self.name!r}: gates must be an int in 1..{max(1, len(self.props))} "
                              f"(at most the number of props), got {self.gates!r}")
+        names = {p for p, _ in self.props}
+        unknown = [p for p, _ in self.hints if p not in names]
+        if unknown:
+            raise ValueError(f"check {self.name!r}: hints name unknown properties {unknown}; properties: {sorted(names)}")
+
+    def ladder(self, prop: str) -> tuple:
+        """The hints for property ``prop`` (its own, else the shared ones for its kind), in order."""
+        from coursekit.grading.checks.properties import HINTS
+
+        own = dict(self.hints).get(prop)
+        return tuple(own) if own else HINTS.get(prop, ())
 
 
 @dataclass
@@ -234,11 +253,24 @@ def exercise(stem: str, names: list[str]) -> None:
     EXERCISES[stem] = tuple(names)
 
 
+#: A check module: ``ex<NN>_<topic>`` grades the exercise notebook ``<NN>_<topic>.ipynb``.
+CHECK_MODULE = re.compile(r"^ex(\d+_\w+)$")
+_LOADED = False
+
+
+def check_modules() -> list[str]:
+    """The names of this package's check modules (``ex01_selection``, ...), found on disk, sorted."""
+    return sorted(m.name for m in pkgutil.iter_modules(__path__) if CHECK_MODULE.match(m.name))
+
+
 def _load() -> None:
-    from coursekit.grading.checks import ga  # noqa: F401  (registers its checks on import)
-    from coursekit.grading.checks import pictures  # noqa: F401
-    from coursekit.grading.checks import creatures  # noqa: F401
-    from coursekit.grading.checks import physics  # noqa: F401
+    """Import every check module once (each registers its checks and declares its exercise)."""
+    global _LOADED
+    if _LOADED:
+        return
+    for name in check_modules():
+        importlib.import_module(f"{__name__}.{name}")
+    _LOADED = True
 
 
 def get(name: str) -> Check:

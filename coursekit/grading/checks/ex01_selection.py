@@ -23,17 +23,45 @@ import numpy as np
 
 from coursekit.grading import stats
 from coursekit.grading.checks import Check, exercise, register
+from coursekit.grading.checks.properties import COPY_ARRAY, RNG, array, deterministic, seeds, unmodified
 
 
-def _arr(values, dtype):
-    return {"ndarray": np.asarray(values, dtype=dtype).tolist(), "dtype": dtype}
-
-
-RNG = {"rng": True}
-
-
-def _seeds(rng, n):
-    return [int(s) for s in rng.integers(0, 2**31, size=n)]
+#: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
+HINTS = {
+    "ga.truncation": (
+        ("prefers fitter individuals", (
+            "Truncation keeps only the best: the parents are drawn from the top fraction `survival` of the population.",
+            "Sort the indices by fitness (np.argsort sorts ascending: the best are at the end) and keep the top ones.",
+            "Then draw k parents uniformly from those survivors with the rng (rng.integers or rng.choice).")),
+        ("rounds the survivor count up", ("With 7 individuals and survival 0.2, 1.4 individuals survive: round up (math.ceil).",)),
+    ),
+    "ga.tournament": (
+        ("prefers fitter individuals", (
+            "A tournament picks `size` individuals at random and keeps the fittest of them; repeat k times.",
+            "rng.integers(0, n, size=(k, size)) draws all tournaments at once; then find each row's fittest.",
+            "np.argmax(fitness[contestants], axis=1) tells which contestant of each row won.")),
+        ("honours the size parameter (size=2)", ("Use the size argument, not a fixed 3.",)),
+    ),
+    "ga.roulette": (
+        ("prefers fitter individuals", (
+            "Roulette-wheel selection picks an individual with probability proportional to its fitness.",
+            "Turn the fitness into probabilities that sum to 1, then draw k indices with them.",
+            "rng.choice(n, size=k, p=...) draws with given probabilities.")),
+    ),
+    "ga.one_point_crossover": (
+        ("children hold genes of both parents", (
+            "A child is the start of one parent followed by the end of the other.",
+            "Draw one cut position c at random (1 to len-1), then join a[:c] with b[c:], and b[:c] with a[c:].")),
+        ("cut point uniform", ("Every cut from 1 to len(a) - 1 must be possible and equally likely: check rng.integers' bounds.",)),
+    ),
+    "ga.point_mutation": (
+        ("changes the genome", (
+            "Each bit flips (0 -> 1, 1 -> 0) with probability `rate`, independently of the others.",
+            "rng.random(len(genome)) < rate says, bit by bit, which ones flip.",
+            "1 - genome is the flipped genome; np.where picks flipped or kept bit by bit.")),
+        ("default rate is 1/len", ("When rate is None, use 1 / len(genome): about one flip per call.",)),
+    ),
+}
 
 
 def _pct(x):
@@ -41,28 +69,6 @@ def _pct(x):
 
 
 # -- shared properties -------------------------------------------------------------------------
-
-
-def _deterministic(cid):
-    def prop(ctx):
-        outs = ctx.out(cid)  # all calls of the case share one seed
-        if all(o == outs[0] for o in outs[1:]):
-            return True, "same seed, same result"
-        return False, "two calls with the same seed gave different results; draw every random number from the rng argument (no np.random.* or random.*)"
-
-    return prop
-
-
-def _unmodified(cids, names):
-    def prop(ctx):
-        for cid in cids:
-            after = ctx.record(cid).get("inputs_after") or []
-            for i, name in enumerate(names):
-                if i >= len(after) or after[i] != ctx.case(cid)["args"][i]:
-                    return False, f"the {name} argument was modified; work on a copy (e.g. {name}.copy())"
-        return True, "inputs left unchanged"
-
-    return prop
 
 
 def _indices_valid(case_ids):
@@ -110,11 +116,11 @@ def _ranks(fitness):
 
 def _truncation_cases(rng):
     def fit(n):
-        return _arr(rng.permutation(n) * 1.5 - n / 2 + rng.uniform(0, 1, n), "float64")
+        return array(rng.permutation(n) * 1.5 - n / 2 + rng.uniform(0, 1, n), "float64")
 
-    s = _seeds(rng, 5)
+    s = seeds(rng, 5)
     return [
-        {"id": "basic", "args": [fit(30), 20, RNG], "seeds": [s[0], s[0]], "check_inputs": True, "max_len": 2000},
+        {"id": "basic", "args": [fit(30), 20, RNG], "seeds": [s[0], s[0]], "max_len": 2000},
         {"id": "survival", "args": [fit(40), 30, RNG], "kwargs": {"survival": 0.5}, "seeds": [s[1]], "max_len": 3000},
         {"id": "ceil", "args": [fit(7), 300, RNG], "kwargs": {"survival": 0.2}, "seeds": [s[2]], "max_len": 30000},
         {"id": "uniform", "args": [fit(20), 20000, RNG], "kwargs": {"survival": 0.25}, "seeds": [s[3]], "max_len": 2000000},
@@ -164,6 +170,7 @@ def _truncation_uniform(ctx):
 
 
 register(Check(
+    hints=HINTS.get("ga.truncation", ()),
     name="ga.truncation", function="truncation", params=("fitness", "k", "rng"), points=2.0,
     title="truncation selection", output="indices", cases=_truncation_cases, gates=2,
     reference=('coursekit.ga.selection:truncation',),
@@ -173,8 +180,8 @@ register(Check(
         ("only the best survive", _truncation_survivors),
         ("rounds the survivor count up", _truncation_ceil),
         ("uniform among survivors", _truncation_uniform),
-        ("deterministic for a seed", _deterministic("basic")),
-        ("inputs unchanged", _unmodified(["basic"], ["fitness"])),
+        ("deterministic for a seed", deterministic("basic")),
+        ("inputs unchanged", unmodified({0: "fitness"}, COPY_ARRAY)),
     ),
 ))
 
@@ -184,11 +191,11 @@ register(Check(
 
 def _tournament_cases(rng):
     def fit(n):
-        return _arr(rng.permutation(n) - n / 3 + rng.uniform(0, 0.5, n), "float64")
+        return array(rng.permutation(n) - n / 3 + rng.uniform(0, 0.5, n), "float64")
 
-    s = _seeds(rng, 3)
+    s = seeds(rng, 3)
     return [
-        {"id": "basic", "args": [fit(30), 20, RNG], "seeds": [s[0], s[0]], "check_inputs": True, "max_len": 2000},
+        {"id": "basic", "args": [fit(30), 20, RNG], "seeds": [s[0], s[0]], "max_len": 2000},
         {"id": "size3", "args": [fit(10), 20000, RNG], "seeds": [s[1]], "max_len": 2000000},
         {"id": "size2", "args": [fit(8), 20000, RNG], "kwargs": {"size": 2}, "seeds": [s[2]], "max_len": 2000000},
     ]
@@ -216,6 +223,7 @@ def _tournament_rates(cid):
 
 
 register(Check(
+    hints=HINTS.get("ga.tournament", ()),
     name="ga.tournament", function="tournament", params=("fitness", "k", "rng"), points=2.0,
     title="tournament selection", output="indices", cases=_tournament_cases, gates=2,
     reference=('coursekit.ga.selection:tournament',),
@@ -224,8 +232,8 @@ register(Check(
         ("prefers fitter individuals", _prefers_fit("size3")),
         ("fitter individuals win at the expected rate (size=3)", _tournament_rates("size3")),
         ("honours the size parameter (size=2)", _tournament_rates("size2")),
-        ("deterministic for a seed", _deterministic("basic")),
-        ("inputs unchanged", _unmodified(["basic"], ["fitness"])),
+        ("deterministic for a seed", deterministic("basic")),
+        ("inputs unchanged", unmodified({0: "fitness"}, COPY_ARRAY)),
     ),
 ))
 
@@ -235,11 +243,10 @@ register(Check(
 
 def _roulette_cases(rng):
     dist = rng.permutation([3.0, 0.0, 1.0, 6.0, 2.0, 0.0, 8.0, 4.5])
-    s = _seeds(rng, 2)
+    s = seeds(rng, 2)
     return [
-        {"id": "basic", "args": [_arr(rng.uniform(0.5, 5.0, 25), "float64"), 20, RNG], "seeds": [s[0], s[0]],
-         "check_inputs": True, "max_len": 2000},
-        {"id": "dist", "args": [_arr(dist, "float64"), 20000, RNG], "seeds": [s[1]], "max_len": 2000000},
+        {"id": "basic", "args": [array(rng.uniform(0.5, 5.0, 25), "float64"), 20, RNG], "seeds": [s[0], s[0]], "max_len": 2000},
+        {"id": "dist", "args": [array(dist, "float64"), 20000, RNG], "seeds": [s[1]], "max_len": 2000000},
     ]
 
 
@@ -271,6 +278,7 @@ def _roulette_proportional(ctx):
 
 
 register(Check(
+    hints=HINTS.get("ga.roulette", ()),
     name="ga.roulette", function="roulette", params=("fitness", "k", "rng"), points=2.0,
     title="roulette-wheel selection", output="indices", cases=_roulette_cases, gates=2,
     reference=('coursekit.ga.selection:roulette',),
@@ -279,8 +287,8 @@ register(Check(
         ("prefers fitter individuals", _prefers_fit("dist")),
         ("never picks zero fitness", _roulette_zero),
         ("proportional to fitness", _roulette_proportional),
-        ("deterministic for a seed", _deterministic("basic")),
-        ("inputs unchanged", _unmodified(["basic"], ["fitness"])),
+        ("deterministic for a seed", deterministic("basic")),
+        ("inputs unchanged", unmodified({0: "fitness"}, COPY_ARRAY)),
     ),
 ))
 
@@ -289,17 +297,16 @@ register(Check(
 
 
 def _crossover_cases(rng):
-    s = _seeds(rng, 600)
+    s = seeds(rng, 600)
 
     def bits(n):
         return rng.integers(0, 2, n)
 
     a10, a5 = bits(10), bits(5)
     return [  # b = 1 - a differs everywhere, so the cut can be read off the children; "mixed" parents share genes
-        {"id": "basic", "args": [_arr(a10, "int8"), _arr(1 - a10, "int8"), RNG], "seeds": [s[0]] * 4,
-         "check_inputs": True, "max_len": 1000},
-        {"id": "mixed", "args": [_arr(bits(16), "int8"), _arr(bits(16), "int8"), RNG], "seeds": s[1:4], "max_len": 1000},
-        {"id": "cuts", "args": [_arr(a5, "int8"), _arr(1 - a5, "int8"), RNG], "seeds": s[4:600], "max_len": 500},
+        {"id": "basic", "args": [array(a10, "int8"), array(1 - a10, "int8"), RNG], "seeds": [s[0]] * 4, "max_len": 1000},
+        {"id": "mixed", "args": [array(bits(16), "int8"), array(bits(16), "int8"), RNG], "seeds": s[1:4], "max_len": 1000},
+        {"id": "cuts", "args": [array(a5, "int8"), array(1 - a5, "int8"), RNG], "seeds": s[4:600], "max_len": 500},
     ]
 
 
@@ -361,6 +368,7 @@ def _crossover_uniform(ctx):
 
 
 register(Check(
+    hints=HINTS.get("ga.one_point_crossover", ()),
     name="ga.one_point_crossover", function="one_point_crossover", params=("a", "b", "rng"), points=2.0,
     title="one-point crossover", output="array_pair", cases=_crossover_cases, gates=2,
     reference=('coursekit.ga.operators:one_point_crossover',),
@@ -369,8 +377,8 @@ register(Check(
         ("children hold genes of both parents", _crossover_mixes),
         ("children are one-point crossovers", _crossover_one_point),
         ("cut point uniform", _crossover_uniform),
-        ("deterministic for a seed", _deterministic("basic")),
-        ("inputs unchanged", _unmodified(["basic"], ["a", "b"])),
+        ("deterministic for a seed", deterministic("basic")),
+        ("inputs unchanged", unmodified({0: "a", 1: "b"}, COPY_ARRAY)),
     ),
 ))
 
@@ -379,17 +387,17 @@ register(Check(
 
 
 def _mutation_cases(rng):
-    s = _seeds(rng, 1506)
+    s = seeds(rng, 1506)
 
     def genome(n):
-        return _arr(rng.integers(0, 2, n), "int8")
+        return array(rng.integers(0, 2, n), "int8")
 
     return [
-        {"id": "basic", "args": [genome(30), RNG], "seeds": [s[0], s[0]], "check_inputs": True, "max_len": 1000},
+        {"id": "basic", "args": [genome(30), RNG], "seeds": [s[0], s[0]], "max_len": 1000},
         {"id": "default", "args": [genome(40), RNG], "seeds": s[1:1001], "max_len": 1000},
         {"id": "rate", "args": [genome(20), RNG], "kwargs": {"rate": 0.25}, "seeds": s[1001:1501], "max_len": 1000},
         {"id": "rate0", "args": [genome(16), RNG], "kwargs": {"rate": 0.0}, "seeds": s[1501:1503], "max_len": 1000},
-        {"id": "rate1", "args": [genome(16), RNG], "kwargs": {"rate": 1.0}, "seeds": s[1503:1506], "check_inputs": True,
+        {"id": "rate1", "args": [genome(16), RNG], "kwargs": {"rate": 1.0}, "seeds": s[1503:1506],
          "max_len": 1000},
     ]
 
@@ -466,6 +474,7 @@ def _mutation_rate(ctx):
 
 
 register(Check(
+    hints=HINTS.get("ga.point_mutation", ()),
     name="ga.point_mutation", function="point_mutation", params=("genome", "rng"), points=2.0,
     title="point mutation", output="array", cases=_mutation_cases, gates=2,
     reference=('coursekit.ga.operators:point_mutation',),
@@ -475,8 +484,8 @@ register(Check(
         ("default rate is 1/len", _mutation_default_rate),
         ("bits flip independently", _mutation_independent),
         ("honours rate", _mutation_rate),
-        ("deterministic for a seed", _deterministic("basic")),
-        ("input unchanged", _unmodified(["basic", "rate1"], ["genome"])),
+        ("deterministic for a seed", deterministic("basic")),
+        ("input unchanged", unmodified({0: "genome"}, COPY_ARRAY)),
     ),
 ))
 

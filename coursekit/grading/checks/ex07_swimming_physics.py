@@ -29,27 +29,30 @@ import numpy as np
 
 from coursekit.creatures.physics import odes
 from coursekit.grading.checks import Check, exercise, register
+from coursekit.grading.checks.properties import NEW_ARRAYS, array, seeds, unmodified
 
 
-def _arr(values):
-    return {"ndarray": np.asarray(values, dtype=np.float64).tolist(), "dtype": "float64"}
-
-
-def _seed(rng):
-    return int(rng.integers(0, 2**31))
-
-
-def _unmodified(cids, positions):
-    """Array arguments at ``positions`` ({index: name}) are unchanged after the call."""
-    def prop(ctx):
-        for cid in cids:
-            after = ctx.record(cid).get("inputs_after") or []
-            for i, name in positions.items():
-                if i >= len(after) or after[i] != ctx.case(cid)["args"][i]:
-                    return False, f"the {name} argument was changed by your function; compute new arrays instead of updating it in place (e.g. no {name} += ...)"
-        return True, "inputs left unchanged"
-
-    return prop
+#: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
+_FACES = ("Each face resists motion along its normal: the force per area is -k (n . v(x)) n, integrated over the face.",
+          "A box of half-extents (a, b, c) has faces of area 4bc, 4ca and 4ab, at distances a, b and c from the centre.",
+          "Count both faces of each pair, and keep half-extents and full side lengths apart: a factor of 2 slips in easily.")
+HINTS = {
+    "physics.box_drag": (
+        ("the water resists sliding", ("Sliding along x meets the two faces whose normal is x: their area sets D_vx.",) + _FACES[1:]),
+        ("sliding drag matches the face integral (k = 1)", _FACES),
+        ("turning drag matches the face integral (k = 1)", (
+            "Spinning about x moves the faces whose normals are y and z: the speed grows with the distance from the axis.",
+            "Integrate (n . (omega x r))^2 over each such face: it gives a term in the face's area times a length squared.",
+            "Gauss-Legendre or a fine sum over the face checks your closed form numerically.")),
+    ),
+    "physics.rkn_step": (
+        ("of higher order than explicit Euler", (
+            "Runge-Kutta-Nystrom evaluates the force several times inside the step and combines them.",
+            "Compare your step with the lesson's Runge-Kutta-Nystrom formula stage by stage: at which time and position "
+            "is each force evaluated?",
+            "The position update needs the velocity *and* the forces (times h squared); the velocity update only the forces.")),
+    ),
+}
 
 
 # -- drag on a box -------------------------------------------------------------------------------
@@ -102,11 +105,10 @@ DRAG_K = (0.0, 0.5, 3.7, 20.0)
 def _drag_cases(rng):
     cases = []
     for i, kind in enumerate(["any", "any", "any", "any", "plate", "rod"]):
-        cases.append({"id": f"unit{i}", "args": [_arr(_box(rng, kind)), 1.0], "seeds": [_seed(rng)],
-                      "check_inputs": i == 0, "max_len": 100})
-    box = _arr(_box(rng, "any"))
+        cases.append({"id": f"unit{i}", "args": [array(_box(rng, kind)), 1.0], "seeds": seeds(rng, 1), "max_len": 100})
+    box = array(_box(rng, "any"))
     for i, k in enumerate(DRAG_K):
-        cases.append({"id": f"k{i}", "args": [box, k], "seeds": [_seed(rng)], "max_len": 100})
+        cases.append({"id": f"k{i}", "args": [box, k], "seeds": seeds(rng, 1), "max_len": 100})
     return cases
 
 
@@ -135,6 +137,20 @@ def _drag_resists(ctx):
     return True, f"D_vx, D_vy, D_vz are not 0 on {len(UNIT)} boxes in water: something resists sliding"
 
 
+def _how_far(got, want):
+    """How a wrong drag entry compares with the right one, in words that do not give the right one away."""
+    if want == 0:
+        return "is not 0, but is 0 in", ""
+    ratio = got / want
+    side = "is larger than" if ratio > 1 else "is smaller than"
+    if abs(ratio - 1) < 0.05:
+        side = "is close to, but not exactly,"
+    power = math.log2(ratio) if ratio > 0 else 0.5
+    extra = " -- by a power of two: half-extents against side lengths, or faces counted once?" if \
+        round(power) != 0 and abs(power - round(power)) < 1e-6 else ""
+    return side, extra
+
+
 def _drag_values(part):
     idx = range(3, 6) if part == "linear" else range(3)
 
@@ -145,10 +161,10 @@ def _drag_values(part):
             got = np.abs(np.asarray(ctx.out(cid)[0], dtype=np.float64))
             for i in idx:
                 if not math.isclose(got[i], want[i], rel_tol=1e-9, abs_tol=1e-15):
-                    ratio = f" (yours is {got[i] / want[i]:.3g} times that)" if want[i] else ""
+                    side, extra = _how_far(got[i], want[i])
                     return False, (f"for a box with half_extents={np.round(h, 4).tolist()} and k=1, the resistance to "
-                                   f"{MEANING[i]} {COMPONENTS[i]} has size {got[i]:.9g}, but integrating -k (n.v(x)) n "
-                                   f"over the six faces gives {want[i]:.9g}{ratio}")
+                                   f"{MEANING[i]} ({COMPONENTS[i]} = {got[i]:.6g}) {side} what integrating -k (n.v(x)) n "
+                                   f"over the six faces gives{extra}; hint(\"physics.box_drag\") guides you")
         if part == "linear":
             return True, f"sliding drag matches the face integral on {len(UNIT)} boxes"
         return True, f"turning drag matches the face integral on {len(UNIT)} boxes"
@@ -183,6 +199,7 @@ def _drag_dissipative(ctx):
 
 
 register(Check(
+    hints=HINTS.get("physics.box_drag", ()),
     name="physics.box_drag", function="box_drag", params=("half_extents", "k"), points=4.0,
     title="Sims' water drag on a box", output="array", cases=_drag_cases, gates=2,
     reference=('coursekit.creatures.physics.water:drag_diagonal',),
@@ -193,7 +210,7 @@ register(Check(
         ("turning drag matches the face integral (k = 1)", _drag_values("angular")),
         ("proportional to k", _drag_linear_in_k),
         ("never adds energy", _drag_dissipative),
-        ("inputs unchanged", _unmodified(["unit0"], {0: "half_extents"})),
+        ("inputs unchanged", unmodified({0: "half_extents"}, NEW_ARRAYS)),
     ),
 ))
 
@@ -211,18 +228,18 @@ def _rkn_cases(rng):
     cases = []
     for i, h in enumerate((0.3, 0.7, 1.1)):
         cases.append({"id": f"poly{i}", "args": [{"function": ODE + "time_forcing"}, float(rng.uniform(-2, 2)),
-                                                 _arr(rng.normal(size=3)), _arr(rng.normal(size=3)), h],
-                      "seeds": [_seed(rng)], "max_len": 100})
+                                                 array(rng.normal(size=3)), array(rng.normal(size=3)), h],
+                      "seeds": seeds(rng, 1), "max_len": 100})
     for ode in ("harmonic", "drag"):
         for s in range(2):
-            t0, y0, v0 = float(rng.uniform(-2, 2)), _arr(rng.normal(size=2)), _arr(rng.normal(size=2))
+            t0, y0, v0 = float(rng.uniform(-2, 2)), array(rng.normal(size=2)), array(rng.normal(size=2))
             for j, h in enumerate(ORDER_STEPS):
                 cases.append({"id": f"{ode}{s}_{j}", "args": [{"function": ODE + ode}, t0, y0, v0, h],
-                              "seeds": [_seed(rng)], "max_len": 100})
+                              "seeds": seeds(rng, 1), "max_len": 100})
     counter = {"object": ODE + "CountingODE", "json": odes.CountingODE("damped").to_json()}
-    cases.append({"id": "count", "args": [counter, float(rng.uniform(-2, 2)), _arr(rng.normal(size=2)),
-                                          _arr(rng.normal(size=2)), 0.25],
-                  "seeds": [_seed(rng)], "check_inputs": True, "max_len": 100})
+    cases.append({"id": "count", "args": [counter, float(rng.uniform(-2, 2)), array(rng.normal(size=2)),
+                                          array(rng.normal(size=2)), 0.25],
+                  "seeds": seeds(rng, 1), "max_len": 100})
     return cases
 
 
@@ -304,6 +321,7 @@ def _rkn_calls(ctx):
 
 
 register(Check(
+    hints=HINTS.get("physics.rkn_step", ()),
     name="physics.rkn_step", function="rkn_step", params=("f", "t", "y", "v", "h"), points=6.0,
     title="one Runge-Kutta-Nystrom step", output="array_pair", cases=_rkn_cases, gates=2,
     reference=('coursekit.creatures.physics.integrate:_nystrom',),
@@ -314,7 +332,7 @@ register(Check(
         ("fourth order for position-dependent forces", _rkn_order("harmonic", "y'' = -omega^2 y (a spring)")),
         ("fourth order for velocity-dependent forces", _rkn_order("drag", "y'' = -c y' (water drag)")),
         ("evaluates f 4 times per step", _rkn_calls),
-        ("inputs unchanged", _unmodified(["count"], {2: "y", 3: "v"})),
+        ("inputs unchanged", unmodified({2: "y", 3: "v"}, NEW_ARRAYS)),
     ),
 ))
 

@@ -39,14 +39,30 @@ from collections import Counter
 import numpy as np
 
 from coursekit.grading.checks import Check, exercise, register
+from coursekit.grading.checks.properties import COPY_OBJECT, RNG, deterministic, seeds, unmodified
 
 CREATURE = "coursekit.creatures.genotype:Creature"
-RNG = {"rng": True}
 MAX_JSON = 2_000_000
 
 
-def _seeds(rng, n):
-    return [int(s) for s in rng.integers(0, 2**31, size=n)]
+#: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
+HINTS = {
+    "creatures.expand": (
+        ("expands more than the root", (
+            "Expanding follows the genotype's links from the root: each link makes a child part of the node it points to.",
+            "Walk the graph depth-first from node 0, one part record per visit, until the recursion limits stop it.")),
+    ),
+    "creatures.crossover": (
+        ("the child holds nodes of both parents", (
+            "The child takes nodes from a and from b in alternating blocks, not all from one parent.",
+            "Draw the block lengths with the rng, then copy the nodes of the current parent for each block.")),
+    ),
+    "creatures.mutate": (
+        ("changes the creature", (
+            "Mutation must change something: a node's value, a link, a new or deleted node.",
+            "Work on a copy of the creature and change each value with a probability that grows with rate.")),
+    ),
+}
 
 
 def _obj(creature):
@@ -62,30 +78,6 @@ def _creature_cls():
 def _random(rng, **kw):
     """A random creature drawn from the library's generator, seeded from ``rng``."""
     return _creature_cls().random(np.random.default_rng(int(rng.integers(2**31))), **kw)
-
-
-def _deterministic(cid):
-    def prop(ctx):
-        outs = [json.loads(o) for o in ctx.out(cid)]  # all calls of the case share one seed
-        if all(o == outs[0] for o in outs[1:]):
-            return True, "same seed, same result"
-        return False, ("two calls with the same seed gave different results; draw every random number from the rng "
-                       "argument (no np.random.* or random.*)")
-
-    return prop
-
-
-def _unmodified(cids, names):
-    def prop(ctx):
-        for cid in cids:
-            after = ctx.record(cid).get("inputs_after") or []
-            for i, name in enumerate(names):
-                if i >= len(after) or not isinstance(after[i], dict) or \
-                        json.loads(after[i]["json"]) != json.loads(ctx.case(cid)["args"][i]["json"]):
-                    return False, f"the creature {name} was modified; work on a copy (copy.deepcopy({name}) or {name}.copy())"
-        return True, "inputs left unchanged"
-
-    return prop
 
 
 def _parse(text):
@@ -351,6 +343,7 @@ def _expand_cap(ctx):
 
 
 register(Check(
+    hints=HINTS.get("creatures.expand", ()),
     name="creatures.expand", function="expand", params=("creature", "max_parts"), points=4.0,
     title="phenotype expansion", output="json", cases=_expand_cases, gates=2,
     reference=('coursekit.creatures.phenotype:expand', 'coursekit.creatures.genotype:Creature.expand'),
@@ -396,10 +389,10 @@ def _parent_pair(rng, lo, hi):
 
 
 def _crossover_cases(rng):
-    s = _seeds(rng, 80)
+    s = seeds(rng, 80)
     cases = []
     a, b = _parent_pair(rng, 4, 6)
-    cases.append({"id": "basic", "args": [_obj(a), _obj(b), RNG], "seeds": [s[0]] * 4, "check_inputs": True})
+    cases.append({"id": "basic", "args": [_obj(a), _obj(b), RNG], "seeds": [s[0]] * 4})
     a, b = _parent_pair(rng, 6, 8)
     cases.append({"id": "many", "args": [_obj(a), _obj(b), RNG], "seeds": s[1:41]})
     for k in range(6):
@@ -536,6 +529,7 @@ def _random_blocks(ctx):
 
 
 register(Check(
+    hints=HINTS.get("creatures.crossover", ()),
     name="creatures.crossover", function="crossover", params=("a", "b", "rng"), points=4.0,
     title="LR recombination", output="json", cases=_crossover_cases, gates=2,
     reference=('coursekit.creatures.operators:crossover',),
@@ -546,8 +540,8 @@ register(Check(
         ("every taken node is kept", _kept),
         ("links between taken nodes are kept", _links_kept),
         ("n and m are random", _random_blocks),
-        ("deterministic for a seed", _deterministic("basic")),
-        ("inputs unchanged", _unmodified(["basic"], ["a", "b"])),
+        ("deterministic for a seed", deterministic("basic", parse=json.loads)),
+        ("inputs unchanged", unmodified({0: "a", 1: "b"}, COPY_OBJECT, what="the creature {name}")),
     ),
 ))
 
@@ -603,10 +597,10 @@ N_FREQ = 4
 
 
 def _mutation_cases(rng):
-    s = _seeds(rng, 2 + 2 * N_FREQ * 40 + 3)
+    s = seeds(rng, 2 + 2 * N_FREQ * 40 + 3)
     # "basic" mutates heavily (rate=3), so that a function working on the input itself is caught.
     cases = [{"id": "basic", "args": [_obj(_mutation_parent(rng, 3, 5)), RNG], "kwargs": {"rate": 3.0},
-              "seeds": [s[0], s[0]], "check_inputs": True}]
+              "seeds": [s[0], s[0]]}]
     for k in range(N_FREQ):
         c = _obj(_mutation_parent(rng, 5, 7))
         cases.append({"id": f"rate1_{k}", "args": [c, RNG], "seeds": s[2 + 80 * k:42 + 80 * k]})
@@ -737,6 +731,7 @@ def _all_kinds(ctx):
 
 
 register(Check(
+    hints=HINTS.get("creatures.mutate", ()),
     name="creatures.mutate", function="mutate", params=("c", "rng"), points=4.0,
     title="creature mutation", output="json", cases=_mutation_cases, gates=2,
     reference=('coursekit.creatures.operators:mutate',),
@@ -747,8 +742,8 @@ register(Check(
         ("about one node changes per call", _frequency),
         ("honours rate", _rate),
         ("deletes, adds and modifies in all six steps", _all_kinds),
-        ("deterministic for a seed", _deterministic("basic")),
-        ("input unchanged", _unmodified(["basic"], ["c"])),
+        ("deterministic for a seed", deterministic("basic", parse=json.loads)),
+        ("input unchanged", unmodified({0: "c"}, COPY_OBJECT, what="the creature {name}")),
     ),
 ))
 

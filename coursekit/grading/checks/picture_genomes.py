@@ -1,0 +1,231 @@
+"""Picture genomes for the checks of exercises 02 and 03: case genomes, reading results, shared properties.
+
+Part of the check registry (seed paper section 3: genomes of chromosome strings, their
+mutations and recombinations). Both picture exercises build their case genomes here -- within a
+string (and across the two parents' strings) no two chromosomes are equal, so an interchange, a
+clone, a rotation or a copy is never invisible -- and read a student's results with the
+grader's own import of the library (:func:`parse`: a valid Genome of the parent's shape).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+GENOME = "coursekit.pictures.genome:Genome"
+MAX_JSON = 200_000
+N_STAT = 60  # calls per statistical case (an outcome of probability 0.3 is missed with p = 0.7**60 < 1e-8)
+
+
+def lib():
+    from coursekit.pictures import genome, primitives
+
+    return genome, primitives
+
+
+# -- case genomes --------------------------------------------------------------------------------
+
+
+def distinct_pair(rng, n_strings, h):
+    """Two genomes of one shape; no chromosome symbol repeats inside a string pair (both parents)."""
+    G, P = lib()
+    terms, funcs = P.terminals(), P.functions()
+    # heads avoid the parameterless terminals (x, y, ...), so a head chromosome never equals a tail one
+    names = funcs + [n for n in terms if P.get(n).params]
+    if 2 * (h + 1) > len(terms):
+        raise ValueError(f"h: {h} too long for distinct tails")
+    parents = [[], []]
+    for _ in range(n_strings):
+        head = rng.choice(names, size=2 * h, replace=False)
+        tail = rng.choice(terms, size=2 * (h + 1), replace=False)
+        for p in (0, 1):
+            syms = list(head[p * h:(p + 1) * h]) + list(tail[p * (h + 1):(p + 1) * (h + 1)])
+            parents[p].append(G.ChromosomeString(h, tuple(G.Chromosome.random(rng, str(s)) for s in syms)))
+    n_pre = n_strings - 1
+    pre = rng.choice(funcs, size=2 * n_pre, replace=False)
+    return tuple(G.Genome(tuple(parents[p]), tuple(G.Chromosome.random(rng, str(s)) for s in pre[p * n_pre:(p + 1) * n_pre]))
+                 for p in (0, 1))
+
+
+def same_symbols_pair(rng, n_strings, h):
+    """Two genomes with the same symbols everywhere (all with parameters), different parameters."""
+    G, P = lib()
+    with_params = [n for n in P.names() if P.get(n).params]
+    terms = [n for n in with_params if P.arity(n) == 0]
+    binary = [n for n in with_params if P.arity(n) == 2]
+    strings = [list(rng.choice(with_params, size=h)) + list(rng.choice(terms, size=h + 1)) for _ in range(n_strings)]
+    pre = list(rng.choice(binary, size=n_strings - 1))
+
+    def genome():
+        return G.Genome(tuple(G.ChromosomeString(h, tuple(G.Chromosome.random(rng, str(s)) for s in syms)) for syms in strings),
+                        tuple(G.Chromosome.random(rng, str(s)) for s in pre))
+
+    return genome(), genome()
+
+
+def obj(g):
+    return {"object": GENOME, "json": g.to_json()}
+
+
+# -- reading results -----------------------------------------------------------------------------
+
+
+class Bad(Exception):
+    """An output that is not a valid genome of the expected shape (message for the student)."""
+
+
+def rows(g):
+    """``{key: (chromosomes, head_length)}``: strings by index, the PreHeader as 'pre' (all head)."""
+    rows = {k: (s.chromosomes, s.head_length) for k, s in enumerate(g.strings)}
+    if g.preheader:
+        rows["pre"] = (g.preheader, len(g.preheader))
+    return rows
+
+
+def region(k, i, h):
+    """"head" or "tail": where position ``i`` of row ``k`` (head length ``h``) lies."""
+    return "head" if k == "pre" or i < h else "tail"
+
+
+def row_name(k):
+    return "the PreHeader" if k == "pre" else f"string {k}"
+
+
+def parse(text, ref, what="the result"):
+    G, _ = lib()
+    try:
+        g = G.Genome.from_json(text)
+    except ValueError as exc:
+        raise Bad(f"{what} is not a valid Genome ({str(exc)[:200]})") from None
+    want = {k: (len(c), h) for k, (c, h) in rows(ref).items()}
+    got = {k: (len(c), h) for k, (c, h) in rows(g).items()}
+    if got != want:
+        raise Bad(f"{what} has strings of (length, head length) {got}, but its parent has {want}; "
+                  f"operators keep the number and length of strings and the head/tail split")
+    return g
+
+
+def diff(g0, g1):
+    """``[(key, [changed positions])]`` for the strings that differ."""
+    r0, r1 = rows(g0), rows(g1)
+    out = []
+    for k, (c0, _) in r0.items():
+        pos = [i for i, (x, y) in enumerate(zip(c0, r1[k][0])) if x != y]
+        if pos:
+            out.append((k, pos))
+    return out
+
+
+def results(ctx, cid):
+    """``[(seed, parent, child)]`` of a mutation case (all outputs parse: the gate holds)."""
+    parent = ctx.arg(cid, 0)
+    return [(seed, parent, parse(text, parent)) for seed, text in zip(ctx.case(cid)["seeds"], ctx.out(cid))]
+
+
+def pair_results(ctx, cid):
+    """``[(seed, a, b, child1, child2)]`` of a recombination case."""
+    a, b = ctx.arg(cid, 0), ctx.arg(cid, 1)
+    return [(seed, a, b, parse(t1, a, "child 1"), parse(t2, b, "child 2"))
+            for seed, (t1, t2) in zip(ctx.case(cid)["seeds"], ctx.out(cid))]
+
+
+def renders(genomes):
+    from coursekit.pictures import render
+
+    img = render(genomes, 8, workers=1)
+    return bool(np.all(np.isfinite(img)))
+
+
+# -- shared properties ---------------------------------------------------------------------------
+
+
+def valid(cids, pair=False):
+    def prop(ctx):
+        firsts = []
+        try:
+            for cid in cids:
+                rs = pair_results(ctx, cid) if pair else results(ctx, cid)
+                firsts += list(rs[0][3:]) if pair else [rs[0][2]]
+        except Bad as exc:
+            return False, str(exc)
+        if not renders(firsts):
+            return False, "a result renders to an image that is not finite"
+        what = "two valid genomes" if pair else "a valid genome"
+        return True, f"returns {what} of the parents' shape (head/tail rule kept) that decode and render"
+
+    return prop
+
+
+#: Calls with one seed for the determinism property: an operator that ignores its rng (global
+#: random state) repeats a result by chance with probability p per pair; with a few dozen
+#: possible outcomes p ~ 1/60, so 4 equal results pass it with probability ~ p^3 < 1e-5.
+REPEATS = 4
+
+
+def each(cids, judge_one, ok_message):
+    """A property that holds when ``judge_one(seed, parent, child)`` returns None for every result."""
+    def prop(ctx):
+        for cid in cids:
+            for seed, parent, child in results(ctx, cid):
+                why = judge_one(parent, child)
+                if why:
+                    return False, f"with rng seed {seed}: {why}"
+        return True, ok_message
+
+    return prop
+
+
+def one_string(parent, child):
+    d = diff(parent, child)
+    if len(d) > 1:
+        return f"changed {len(d)} strings ({', '.join(row_name(k) for k, _ in d)}); this mutation works inside one chromosome string"
+    return None
+
+
+def changes(cids):
+    """Job gate of a mutation: at least half of the calls change the genome (a correct one: all)."""
+    def prop(ctx):
+        n = changed = 0
+        for cid in cids:
+            for _, parent, child in results(ctx, cid):
+                n += 1
+                changed += bool(diff(parent, child))
+        if changed >= n / 2:
+            return True, f"{changed} of {n} calls changed the genome"
+        return False, (f"only {changed} of {n} calls changed the genome; a mutation's job is to change it (the case "
+                       "genomes are built so that every mutation is visible). Nothing else is judged until it does")
+
+    return prop
+
+
+def mixes(cids):
+    """Job gate of a recombination: in at least half of the calls both children hold material of both parents."""
+    def prop(ctx):
+        n = mixed = 0
+        for cid in cids:
+            for _, a, b, c1, c2 in pair_results(ctx, cid):
+                n += 1
+                mixed += all(diff(a, c) and diff(b, c) for c in (c1, c2))
+        if mixed >= n / 2:
+            return True, f"in {mixed} of {n} calls both children hold material of both parents"
+        return False, (f"in {n - mixed} of {n} calls a child was a copy of a parent; a recombination's children hold "
+                       "material of both parents. Nothing else is judged until they do")
+
+    return prop
+
+
+def both_occur(ctx, cids, classify, kinds, what):
+    seen = {k: 0 for k in kinds}
+    n = 0
+    for cid in cids:
+        for _, parent, child in results(ctx, cid):
+            kind = classify(parent, child)
+            n += 1
+            if kind in seen:
+                seen[kind] += 1
+    missing = [k for k, v in seen.items() if v == 0]
+    if missing:
+        shares = ", ".join(f"{k}: {v}" for k, v in seen.items())
+        return False, (f"over {n} calls with different seeds the outcomes were {shares}; {what}")
+    return True, f"both outcomes occur over {n} calls ({', '.join(f'{k}: {v}' for k, v in seen.items())})"
+
+
