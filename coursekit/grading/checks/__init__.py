@@ -239,6 +239,7 @@ def _load() -> None:
     from coursekit.grading.checks import pictures  # noqa: F401
     from coursekit.grading.checks import creatures  # noqa: F401
     from coursekit.grading.checks import physics  # noqa: F401
+    from coursekit.grading.checks import brains  # noqa: F401
 
 
 def get(name: str) -> Check:
