@@ -122,7 +122,7 @@ def _resolve_valid(ctx):
     return True, "every answer is a part index, 'brain' or None"
 
 
-def _resolve_group(prefixes, title, meaning):
+def _resolve_group(prefixes, title, meaning, gate=False):
     def prop(ctx):
         cids = [c for c in ctx.cases if c.startswith(prefixes)]
         for cid in cids:
@@ -132,7 +132,8 @@ def _resolve_group(prefixes, title, meaning):
             got = _answer(ctx, cid)
             if got != want:
                 return False, (f"{_where(ctx, cid)} on a tree where part {part} has parent {parent[part]} and children "
-                               f"{children[part]} returned {_describe(got)}; {meaning(morph)}")
+                               f"{children[part]} returned {_describe(got)}; {meaning(morph)}"
+                               + (". Nothing else is judged until it does" if gate else ""))
         return True, f"{title} on {len(cids)} test inputs"
 
     return prop
@@ -150,7 +151,7 @@ register(Check(
     props=(
         ("returns a part index, 'brain' or None", _resolve_valid),
         ("parent and child ids follow the tree", _resolve_group(("parent", "child"), "-1 and m >= 1 name the parent and the children",
-                                                                _job_meaning)),
+                                                                _job_meaning, gate=True)),
         ("0 names the part's own network", _resolve_group(("self",), "0 names the part itself",
                                                           lambda m: "0 names the part's own network")),
         ("-2 names the brain", _resolve_group(("brain",), "-2 names 'brain'", lambda m: "-2 names the brain, 'brain'")),
