@@ -94,7 +94,7 @@ def test_figure1_shows_two_genotype_nodes_and_six_parts_coloured_by_node():
     node_id = snake.expand().body.node_id
     assert [to_hex(d.get_facecolor()) for d in tree_discs] == [to_hex(cf.NODE_COLOURS(int(n))) for n in node_id]
     texts = " ".join(t.get_text() for t in graph.texts)
-    assert "recursion x3" in texts and "terminal only" in texts and "mirror y" in texts
+    assert "recursion\nx3" in texts and "terminal only" in texts and "mirror y" in texts
 
 
 @settings(max_examples=15, deadline=None)

@@ -39,9 +39,12 @@ def _disc(ax, x, y, text, colour, size=9, r=0.28):
     ax.text(x, y, text, ha="center", va="center", fontsize=size, color="white", zorder=4, fontweight="bold")
 
 
-def _arrow(ax, p, q, rad=0.0, style="-", colour="#333333", label=None, shrink=13):
-    ax.add_patch(FancyArrowPatch(p, q, arrowstyle="-|>", mutation_scale=11, color=colour, ls=style, lw=1.2,
-                                 shrinkA=shrink, shrinkB=shrink, connectionstyle=f"arc3,rad={rad}", zorder=2))
+def _arrow(ax, p, q, rad=0.0, style="-", colour="#333333", label=None, r=0.28):
+    """An arrow between the rims of two discs of radius ``r`` centred at ``p`` and ``q`` (data units)."""
+    p, q = np.asarray(p, float), np.asarray(q, float)
+    u = (q - p) / max(np.linalg.norm(q - p), 1e-9)
+    ax.add_patch(FancyArrowPatch(p + r * u, q - r * u, arrowstyle="-|>", mutation_scale=11, color=colour, ls=style,
+                                 lw=1.2, shrinkA=0, shrinkB=0, connectionstyle=f"arc3,rad={rad}", zorder=2))
     if label:
         mx, my = (p[0] + q[0]) / 2, (p[1] + q[1]) / 2
         ax.text(mx + 0.08, my, label, fontsize=7, color=colour, ha="left", va="center", zorder=5,
@@ -94,15 +97,16 @@ def draw_genotype(creature, ax=None, *, colours=None, labels=None, title="genoty
                    label=label)
         if node.recursion and node.recursive_limit > 0:
             x, y = pos[i]
-            ax.add_patch(FancyArrowPatch((x - 0.15, y + 0.25), (x + 0.15, y + 0.25), arrowstyle="-|>",
+            # a self-loop on the node's left, labelled with the recursion limit
+            ax.add_patch(FancyArrowPatch((x - 0.25, y - 0.15), (x - 0.25, y + 0.15), arrowstyle="-|>",
                                          mutation_scale=11, connectionstyle="arc3,rad=-2.2", color="#333333", lw=1.2))
-            ax.text(x, y + 0.78, f"recursion x{node.recursive_limit}" + (f" (x{len(node.recursion)} branches)"
-                    if len(node.recursion) > 1 else ""), ha="center", fontsize=7)
+            ax.text(x - 0.72, y, f"recursion\nx{node.recursive_limit}" + (f", {len(node.recursion)} branches"
+                    if len(node.recursion) > 1 else ""), ha="right", va="center", fontsize=7)
     for i in range(len(nodes)):
         _disc(ax, *pos[i], labels[i], colours[i])
     xs, ys = zip(*pos.values())
-    ax.set_xlim(min(xs) - 0.9, max(xs) + 1.2)
-    ax.set_ylim(min(ys) - 0.7, max(ys) + 1.1)
+    ax.set_xlim(min(xs) - 1.6, max(xs) + 1.4)
+    ax.set_ylim(min(ys) - 0.7, max(ys) + 0.7)
     ax.set_aspect("equal")
     ax.axis("off")
     ax.set_title(title, fontsize=10)
@@ -116,7 +120,7 @@ def draw_body_tree(creature, ax=None, *, title=None):
     ax = ax or plt.subplots(figsize=(4, 3.5))[1]
     pos = {b: (x, -y) for b, (x, y) in tree_layout(pheno.children).items()}
     for b in range(1, body.n_bodies):
-        _arrow(ax, pos[int(body.parent[b])], pos[b], shrink=11)
+        _arrow(ax, pos[int(body.parent[b])], pos[b], r=0.24)
     for b in range(body.n_bodies):
         _disc(ax, *pos[b], str(b), _colour(int(body.node_id[b])), size=8, r=0.24)
     xs, ys = zip(*pos.values())
@@ -164,6 +168,10 @@ def origins(child, a, b) -> list[str]:
     return out
 
 
+def _nodes(n):
+    return f"{n} node" if n == 1 else f"{n} nodes"
+
+
 def draw_recombination(a, b, child, *, figsize=(13, 4)):
     """Fig. 2 from live creatures: parents ``a`` and ``b`` and their ``child``, nodes coloured by parent.
 
@@ -173,15 +181,15 @@ def draw_recombination(a, b, child, *, figsize=(13, 4)):
         the matplotlib Figure.
     """
     fig, axes = plt.subplots(1, 3, figsize=figsize)
-    draw_genotype(a, axes[0], colours=[PARENT_COLOURS["a"]] * len(a.nodes), title=f"parent a: {len(a.nodes)} nodes")
-    draw_genotype(b, axes[1], colours=[PARENT_COLOURS["b"]] * len(b.nodes), title=f"parent b: {len(b.nodes)} nodes")
+    draw_genotype(a, axes[0], colours=[PARENT_COLOURS["a"]] * len(a.nodes), title=f"parent a: {_nodes(len(a.nodes))}")
+    draw_genotype(b, axes[1], colours=[PARENT_COLOURS["b"]] * len(b.nodes), title=f"parent b: {_nodes(len(b.nodes))}")
     where = origins(child, a, b)
     draw_genotype(child, axes[2], colours=[PARENT_COLOURS[w] for w in where],
-                  title=f"child: {where.count('a')} nodes from a, {where.count('b')} from b")
+                  title=f"child: {_nodes(where.count('a'))} from a, {where.count('b')} from b")
     handles = [plt.Line2D([], [], marker="o", ls="", color=c, markersize=9, label=k) for k, c in PARENT_COLOURS.items()
                if k in ("a", "b") or k in where]
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
-    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.tight_layout(rect=(0, 0.06, 1, 0.94))
     return fig
 
 
