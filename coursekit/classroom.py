@@ -114,12 +114,12 @@ def setup_check(file=None) -> dict:
     """
     file = sys.stdout if file is None else file
     results = {}
-    for item, fn in CHECKS.items():
+    for item, fn in CHECKS.items():  # each line as soon as its check is done (the first imports take seconds)
         try:
             results[item] = (True, fn())
         except Exception as exc:  # any failure is reported, never raised: this is a diagnosis
             results[item] = (False, f"{type(exc).__name__}: {exc}"[:200])
-    for item, (ok, detail) in results.items():
+        ok, detail = results[item]
         line = f"✔ {item}: works ({detail})" if ok else f"✘ {item}: does not work ({detail}). To fix: {_FIX[item]}"
-        print(line, file=file)
+        print(line, file=file, flush=True)
     return results
