@@ -10,7 +10,8 @@ Each notebook runs in a fresh kernel (nbclient) from its own folder, as a studen
 would. Cells are numbered from 0, as nbformat counts them (markdown cells included). For each the table gives the wall time, the slowest cell, the cells longer than
 ``--long`` seconds and which of those showed no progress bar (a tqdm bar or widget in their
 output), and whether the notebook stayed within the course's budget of ``--budget`` seconds.
-``--cores N`` pins this process and the kernels it starts to N CPU cores (Linux), to measure a
+``--sections`` adds the run time of every ``## `` section (the lessons' time
+estimates). ``--cores N`` pins this process and the kernels it starts to N CPU cores (Linux), to measure a
 2-core laptop on a bigger machine. A notebook that raises is reported as FAILED with the error.
 This is a measurement, not a test: nothing here fails the test suite.
 """
@@ -65,11 +66,20 @@ def run_notebook(path: Path, timeout: float, long: float) -> dict:
         error = f"{type(exc).__name__}: {exc}"[:120]
     wall = time.perf_counter() - start
     cells = [(i, _seconds(c), _has_progress(c)) for i, c in enumerate(nb.cells) if c.cell_type == "code"]
+    sections, current = [], ("(before the first section)", 0.0)
+    for c in nb.cells:  # run time per "## " section, for the time estimates in the lessons
+        heading = next((line[3:].strip() for line in c.source.splitlines() if line.startswith("## ")), None)
+        if c.cell_type == "markdown" and heading:
+            sections.append(current)
+            current = (heading, 0.0)
+        elif c.cell_type == "code":
+            current = (current[0], current[1] + _seconds(c))
+    sections = [x for x in sections + [current] if x[1] > 0 or not x[0].startswith("(")]
     slow_i, slow_s, _ = max(cells, key=lambda c: c[1]) if cells else (0, 0.0, True)
     longer = [(i, s, bar) for i, s, bar in cells if s > long]
     return {"notebook": path.relative_to(ROOT).as_posix(), "seconds": wall, "slowest_cell": slow_i,
             "slowest_seconds": slow_s, "long_cells": len(longer),
-            "long_without_bar": [i for i, _, bar in longer if not bar], "error": error}
+            "long_without_bar": [i for i, _, bar in longer if not bar], "error": error, "sections": sections}
 
 
 def table(rows, budget: float, long: float) -> str:
@@ -96,6 +106,7 @@ def main(argv=None) -> int:
     ap.add_argument("--budget", type=float, default=60.0, help="seconds a notebook may take (the course's budget)")
     ap.add_argument("--long", type=float, default=5.0, help="a cell longer than this should show a progress bar")
     ap.add_argument("--markdown", type=Path, help="also write the table to this file")
+    ap.add_argument("--sections", action="store_true", help="also print the run time of every '## ' section")
     args = ap.parse_args(argv)
     os.environ["COURSEKIT_PROFILE"] = args.profile
     if args.cores:
@@ -117,6 +128,8 @@ def main(argv=None) -> int:
         r = rows[-1]
         print(f"  {r['notebook']}: {r['seconds']:.1f} s" + (f"  FAILED: {r['error']}" if r["error"] else ""), file=sys.stderr)
     text = table(rows, args.budget, args.long)
+    if args.sections:
+        text += "\n\n" + "\n".join(f"{r['notebook']}: " + "; ".join(f"{h} {t:.1f} s" for h, t in r["sections"]) for r in rows)
     print(text)
     if args.markdown:
         from coursekit.atomic import atomic_write
