@@ -241,6 +241,14 @@ def test_callback_can_stop_early(tmp_path):
     assert result.generation == 4 and len(result.history) == 5
 
 
+def test_the_progress_bar_ends_full_whether_the_run_finishes_or_stops_early(capsys):
+    run(generations=5, progress=True)
+    assert "5/5" in capsys.readouterr().err.replace("\r", "\n").strip().splitlines()[-1]
+    run(generations=G, progress=True, callback=lambda r: r.generation == 4)
+    last = capsys.readouterr().err.replace("\r", "\n").strip().splitlines()[-1]
+    assert "4/4" in last and "100%" in last and f"stopped at generation 4 of {G}" in last
+
+
 def test_resume_needs_select_that_did_not_pickle(tmp_path):
     ckpt = tmp_path / "run.ckpt"
     run(generations=2, checkpoint=ckpt, select=lambda f, k, rng: ga.tournament(f, k, rng, size=2))

@@ -25,7 +25,7 @@ pytestmark = pytest.mark.slow
 CHECK_OF = {name: f"ga.{name}" for name in HONEST}
 # exercise notebook stem -> (max points, number of checks); each is graded once as solution and as exercise
 EXERCISES = {"01_selection": (10.0, 5), "02_picture_mutations": (10.0, 5), "03_picture_recombination": (6.0, 3),
-             "05_creature_operators": (12.0, 3), "07_swimming_physics": (10.0, 2)}
+             "05_creature_operators": (12.0, 3), "06_wire_a_brain": (8.0, 2), "07_swimming_physics": (10.0, 2)}
 
 
 SECRET = "grader-secret-7d1f"  # in the grader's environment only: no notebook may read it
@@ -150,13 +150,22 @@ def _partial(results, name):
 
 
 @pytest.mark.parametrize("stem", list(EXERCISES))
-def test_exercise_notebook_fails_only_with_not_implemented_error(stem):
+def test_untouched_exercise_runs_to_the_end_and_says_what_to_do(stem):
+    """Run All on the shipped skeleton reaches the last cell (issue 14): no cell raises, every demo
+    cell names the function still missing (:func:`coursekit.classroom.demo`), every check says "not attempted yet"."""
     nb = nbformat.read(ROOT / "exercises" / f"{stem}.ipynb", as_version=4)
     NotebookClient(nb, timeout=120, allow_errors=True, kernel_name="python3",
                    resources={"metadata": {"path": str(ROOT)}}).execute()
-    errors = [o["ename"] for c in nb.cells if c.cell_type == "code" for o in c.outputs if o["output_type"] == "error"]
-    assert errors and set(errors) == {"NotImplementedError"}
-    checks = "".join(o.get("text", "") for c in nb.cells if c.source.startswith("check(") for o in c.outputs)
+    code = [c for c in nb.cells if c.cell_type == "code"]
+    errors = [(o["ename"], c.source[:80]) for c in code for o in c.outputs if o["output_type"] == "error"]
+    assert errors == [] and all(c.execution_count is not None for c in code)
+
+    def text(cell):
+        return "".join(o.get("text", "") for o in cell.outputs)
+
+    demos = [c for c in code if "with demo(" in c.source]
+    assert demos and all("This demo needs" in text(c) for c in demos), [c.source[:80] for c in demos if "This demo needs" not in text(c)]
+    checks = "".join(text(c) for c in code if c.source.startswith("check("))
     assert checks.count("not attempted yet") == EXERCISES[stem][1]
 
 

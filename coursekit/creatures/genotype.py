@@ -379,6 +379,15 @@ class Creature:
     def copy(self) -> "Creature":
         return copy.deepcopy(self)
 
+    def unwired(self) -> "Creature":
+        """A copy with the body alone: no neurons, no brain, every effector off (exercise 06 wires it)."""
+        out = self.copy()
+        for node in out.nodes:
+            node.neurons = []
+            node.effectors = [None] * node.dof
+        out.brain = []
+        return out
+
     # ------------------------------------------------------------------------ display
     #: (width, height) of the picture a notebook shows for a creature, in pixels.
     REPR_SIZE = (400, 300)

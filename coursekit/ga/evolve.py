@@ -155,7 +155,8 @@ class _Run:
         self.check_elite(n)
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=generations, initial=start, desc="evolve", unit="gen", disable=not self.progress, leave=False)
+        # leave=True: a saved notebook shows the finished bar, never one frozen part of the way
+        bar = tqdm(total=generations, initial=start, desc="evolve", unit="gen", disable=not self.progress, leave=True)
         generation = start
         try:
             while generation < generations:
@@ -172,6 +173,9 @@ class _Run:
                 bar.update(1)
                 bar.set_postfix(best=f"{fitness.max():.4g}", refresh=False)
                 if self.after_generation(population, fitness, history, generation, generations, rng):
+                    bar.total = generation  # stopped early: the bar ends full, and says why
+                    bar.set_description(f"evolve (stopped at generation {generation} of {generations})")
+                    bar.refresh()
                     break
         finally:
             bar.close()

@@ -6,7 +6,7 @@ grader must give exactly the honest part's points: 2 per honest function, 0 per 
 
 ``DO_NOTHING`` holds one notebook per exercise (``do_nothing_<stem>.ipynb``) of lazy answers:
 identity mutations, ``return a, b`` crossovers, deep copies, an ``expand`` that returns only the
-root, zero drag, an explicit Euler step in place of Runge-Kutta-Nystrom. Each must score 0.
+root, zero drag, an explicit Euler step in place of Runge-Kutta-Nystrom, an unwired snake. Each must score 0.
 """
 
 from pathlib import Path
@@ -390,6 +390,9 @@ DO_NOTHING = {
     return np.zeros(6)  # no water''', '''def rkn_step(f, t, y, v, h):
     a = f(t, y, v)  # explicit Euler, first order
     return y + h * v, v + h * a'''],
+    "06_wire_a_brain": ['''def resolve(morph, part, parent, children):
+    return None  # every id reads nothing''', '''def wire_snake(snake):
+    return snake.copy()  # the body, never wired'''],
 }
 
 

@@ -1,0 +1,311 @@
+"""Checks for exercise 06 (wiring a brain by relative ids: the seed paper's nested networks).
+
+Seed paper section 2.1.2: every node of the morphology graph carries a local network, and a
+connection names its source by a *relative id* ``(morphId, controlId)`` that expansion resolves
+on each part instance (section 2.3; :mod:`coursekit.creatures.neural`, :mod:`.brain`). Exercise 06
+has students resolve relative ids themselves and then wire the Figure 1 snake so that it swims.
+
+- ``brains.resolve(morph, part, parent, children)``: which network a relative id names, read
+  from part ``part`` of an expanded tree (``parent[b]``, ``children[b]`` in relative-id order):
+  the part index, ``"brain"`` for ``-2``, or ``None`` where the instance has no such relative (it
+  reads 0). The trees are expansions of the library's random creatures and of the snake; the
+  expected answers follow the four rules of the lesson's table, computed here. The job, a gate:
+  parent and child ids name the parent and the children (a constant answer scores 0).
+- ``brains.wire_snake(snake)``: the snake's body without networks in, the same body with
+  neurons and effectors out. The grader swims the result in its own process
+  (:func:`~coursekit.creatures.simulate.simulate`, :data:`SECONDS` s) for 3, 4 and 5
+  segments. Gates: a valid creature, the body kept, and the job -- the 4-segment snake swims at
+  least :data:`SWIM_MIN` body lengths per second (the unwired body, or one beating every
+  segment in phase, scores 0: measured 0.00 and 0.01, the paper's travelling wave 0.26). Then: a
+  wave travels along the spine (each joint's phase differs from the next one's by more than
+  :data:`WAVE_LAG` rad, all the same way), the one genotype swims at every length (relative ids,
+  not per-part wiring), the legs swing, the input is left alone.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+
+import numpy as np
+
+from coursekit.grading.checks import Check, exercise, register
+
+CREATURE = "coursekit.creatures.genotype:Creature"
+SECONDS = 4.0  #: swim time of the wired snakes (after the simulator's settling)
+SWIM_MIN = 0.05  #: body lengths per second that count as swimming
+WAVE_LAG = 0.3  #: rad: smallest phase difference between neighbouring spine joints that counts as a wave
+LEG_SWING = 0.2  #: rad: smallest range of motion of a leg joint that counts as a swing
+SEGMENTS = (4, 3, 5)
+
+
+def _creature_cls():
+    from coursekit.creatures.genotype import Creature
+
+    return Creature
+
+
+# ============================================================================ resolve
+
+
+def _tree(creature):
+    pheno = creature.expand()
+    return [int(p) for p in pheno.body.parent], [[int(c) for c in kids] for kids in pheno.children]
+
+
+def expected_target(morph, part, parent, children):
+    """The rule of the lesson's table: the part index, ``"brain"`` or ``None`` (reads 0)."""
+    if morph == -2:
+        return "brain"
+    if morph == -1:
+        return parent[part] if parent[part] >= 0 else None
+    if morph == 0:
+        return part
+    return children[part][morph - 1] if morph <= len(children[part]) else None
+
+
+def _resolve_cases(rng):
+    Creature = _creature_cls()
+    trees = [_tree(Creature.figure1_snake(segments=4))]
+    while len(trees) < 4:
+        c = Creature.random(np.random.default_rng(int(rng.integers(2**31))), n_nodes=(2, 5))
+        parent, children = _tree(c)
+        if len(parent) >= 4 and any(len(k) >= 2 for k in children):
+            trees.append((parent, children))
+    cases = []
+
+    def add(kind, morph, part, t):
+        parent, children = trees[t]
+        cases.append({"id": f"{kind}{sum(c['id'].startswith(kind) for c in cases)}",
+                      "args": [int(morph), int(part), parent, children], "seeds": [0], "max_len": 100})
+
+    for t, (parent, children) in enumerate(trees):
+        n = len(parent)
+        inner = [b for b in range(n) if children[b]]
+        leaves = [b for b in range(n) if not children[b]]
+        add("self", 0, rng.integers(n), t)
+        add("parent", -1, rng.integers(1, n), t)
+        add("parent", -1, rng.integers(1, n), t)
+        add("root", -1, 0, t)
+        b = inner[rng.integers(len(inner))]
+        add("child", rng.integers(1, len(children[b]) + 1), b, t)
+        wide = [b for b in inner if len(children[b]) >= 2] or inner
+        b = wide[rng.integers(len(wide))]
+        add("child", len(children[b]), b, t)
+        add("missing", 1, leaves[rng.integers(len(leaves))], t)
+        b = inner[rng.integers(len(inner))]
+        add("missing", len(children[b]) + 1 + rng.integers(3), b, t)
+        add("brain", -2, rng.integers(n), t)
+    return cases
+
+
+def _answer(ctx, cid):
+    return json.loads(ctx.out(cid)[0])
+
+
+def _where(ctx, cid):
+    morph, part = ctx.arg(cid, 0), ctx.arg(cid, 1)
+    return f"resolve(morph={morph}, part={part}, ...)"
+
+
+def _describe(value):
+    return "None" if value is None else repr(value)
+
+
+def _resolve_valid(ctx):
+    for cid in ctx.cases:
+        got, n = _answer(ctx, cid), len(ctx.arg(cid, 2))
+        ok = got is None or got == "brain" or (type(got) is int and 0 <= got < n)
+        if not ok:
+            return False, (f"{_where(ctx, cid)} returned {got!r}; expected a part index 0..{n - 1}, the string "
+                           "'brain', or None")
+    return True, "every answer is a part index, 'brain' or None"
+
+
+def _resolve_group(prefixes, title, meaning, gate=False):
+    def prop(ctx):
+        cids = [c for c in ctx.cases if c.startswith(prefixes)]
+        for cid in cids:
+            parent, children = ctx.arg(cid, 2), ctx.arg(cid, 3)
+            morph, part = ctx.arg(cid, 0), ctx.arg(cid, 1)
+            want = expected_target(morph, part, parent, children)
+            got = _answer(ctx, cid)
+            if got != want:
+                return False, (f"{_where(ctx, cid)} on a tree where part {part} has parent {parent[part]} and children "
+                               f"{children[part]} returned {_describe(got)}; {meaning(morph)}"
+                               + (". Nothing else is judged until it does" if gate else ""))
+        return True, f"{title} on {len(cids)} test inputs"
+
+    return prop
+
+
+def _job_meaning(morph):
+    if morph == -1:
+        return "-1 names the parent part's network"
+    return f"{morph} names child number {morph} of this part (1 is the first child in the list)"
+
+
+register(Check(
+    name="brains.resolve", function="resolve", params=("morph", "part", "parent", "children"), points=3.0,
+    title="resolving relative ids", output="json", cases=_resolve_cases, gates=2,
+    # the library resolves ids inside build_brain (a closure); the grader's own rule is the one to refuse
+    reference=("coursekit.grading.checks.brains:expected_target",),
+    props=(
+        ("returns a part index, 'brain' or None", _resolve_valid),
+        ("parent and child ids follow the tree", _resolve_group(("parent", "child"), "-1 and m >= 1 name the parent and the children",
+                                                                _job_meaning, gate=True)),
+        ("0 names the part's own network", _resolve_group(("self",), "0 names the part itself",
+                                                          lambda m: "0 names the part's own network")),
+        ("-2 names the brain", _resolve_group(("brain",), "-2 names 'brain'", lambda m: "-2 names the brain, 'brain'")),
+        ("the root's parent reads nothing", _resolve_group(("root",), "the root's parent is None",
+                                                            lambda m: "the root has no parent: the id reads nothing (None)")),
+        ("a missing child reads nothing", _resolve_group(("missing",), "children a part lacks are None",
+                                                          lambda m: f"this part has no child number {m}: the id reads nothing (None)")),
+    ),
+))
+
+
+# ============================================================================ wire the snake
+
+
+def unwired_snake(segments):
+    """The Figure 1 snake's body with every network removed: what ``wire_snake`` receives."""
+    return _creature_cls().figure1_snake(segments=segments).unwired()
+
+
+def _wire_cases(rng):
+    return [{"id": f"segments{n}", "args": [{"object": CREATURE, "json": unwired_snake(n).to_json()}], "seeds": [0],
+             "max_len": 200_000, "check_inputs": n == SEGMENTS[0]} for n in SEGMENTS]
+
+
+WIRE_CASES = [f"segments{n}" for n in SEGMENTS]
+
+
+def _body_only(d):
+    return [{k: v for k, v in node.items() if k not in ("neurons", "effectors")} for node in d["nodes"]]
+
+
+def _parse(text):
+    return _creature_cls().from_json(text)
+
+
+def _wire_valid(ctx):
+    for cid in WIRE_CASES:
+        try:
+            _parse(ctx.out(cid)[0])
+        except (ValueError, TypeError) as exc:
+            return False, f"for the snake of {cid[len('segments'):]} segments it returned an invalid creature: {exc}"
+    return True, "every result is a valid Creature"
+
+
+def _wire_body(ctx):
+    for cid in WIRE_CASES:
+        got = json.loads(ctx.out(cid)[0])
+        want = json.loads(ctx.case(cid)["args"][0]["json"])
+        if len(got["nodes"]) != len(want["nodes"]):
+            return False, (f"the snake of {cid[len('segments'):]} segments came back with {len(got['nodes'])} nodes instead "
+                           f"of {len(want['nodes'])}; wire its networks, keep its body")
+        if _body_only(got) != _body_only(want):
+            return False, (f"the body of the snake of {cid[len('segments'):]} segments was changed (sizes, joints or "
+                           "links); only add neurons, effectors and brain neurons")
+    return True, "the body is the one given"
+
+
+@functools.lru_cache(maxsize=8)
+def swim(texts):
+    """Simulate the creatures (JSON texts) for :data:`SECONDS`; per creature a dict of measurements."""
+    from coursekit.creatures.audit import body_length
+    from coursekit.creatures.simulate import simulate
+
+    creatures = [_parse(t) for t in texts]
+    result = simulate(creatures, SECONDS, record_every=1)
+    out = []
+    for c, speed, traj in zip(creatures, result.fitness, result.trajectory):
+        body = c.expand().body
+        q = np.asarray(traj)[:, 7:]
+        node = np.asarray(body.node_id)[1:]
+        out.append({"speed": float(speed), "bl": float(speed) / body_length(body),
+                    "spine": q[:, node == 0], "legs": q[:, node == 1], "dt": float(result.dt)})
+    return out
+
+
+def _swims(ctx):
+    return swim(tuple(ctx.out(cid)[0] for cid in WIRE_CASES))
+
+
+def _swim_text(m):
+    return f"{m['speed']:.3f} m/s = {m['bl']:.3f} body lengths/s"
+
+
+def _wire_swims(ctx):
+    m = _swims(ctx)[0]
+    if m["bl"] < SWIM_MIN:
+        return False, (f"the snake of {SEGMENTS[0]} segments swims {_swim_text(m)} in {SECONDS:g} s; it must reach "
+                       f"{SWIM_MIN} body lengths/s. Does every segment's joint get a signal that oscillates? Nothing else "
+                       "is judged until it swims")
+    return True, f"the snake of {SEGMENTS[0]} segments swims {_swim_text(m)}"
+
+
+def phase_lags(spine):
+    """Phase of each spine joint's motion relative to the previous one (rad), at the first joint's main frequency."""
+    q = spine - spine.mean(axis=0)
+    spectrum = np.fft.rfft(q, axis=0)
+    k = int(np.argmax(np.abs(spectrum[1:, 0]))) + 1
+    a = spectrum[k]
+    return np.angle(a[1:] / np.where(np.abs(a[:-1]) > 0, a[:-1], 1.0)), np.abs(a)
+
+
+def _wire_wave(ctx):
+    m = _swims(ctx)[0]
+    lags, amplitude = phase_lags(m["spine"])
+    if np.any(amplitude < 1e-6 * max(1.0, amplitude.max())):
+        return False, "some spine joints do not move at all"
+    if np.any(np.abs(lags) < WAVE_LAG) or not (np.all(lags > 0) or np.all(lags < 0)):
+        return False, (f"neighbouring spine joints move with phase differences {np.round(lags, 2).tolist()} rad: no wave "
+                       f"travels along the body (each should lag the previous one by more than {WAVE_LAG} rad, all the "
+                       "same way). Let each segment's oscillator read a phase from its parent's network")
+    return True, f"a wave travels along the spine (phase steps {np.round(lags, 2).tolist()} rad)"
+
+
+def _wire_any_length(ctx):
+    for n, m in zip(SEGMENTS, _swims(ctx)):
+        if m["bl"] < SWIM_MIN:
+            return False, (f"the snake of {n} segments swims only {_swim_text(m)}; the same wiring should swim at any "
+                           "length. Use relative ids (parent, self, brain) rather than wiring particular parts")
+    return True, f"swims at {', '.join(str(n) for n in sorted(SEGMENTS))} segments"
+
+
+def _wire_legs(ctx):
+    m = _swims(ctx)[0]
+    swing = np.ptp(m["legs"], axis=0) if m["legs"].size else np.zeros(0)
+    if swing.size == 0 or np.any(swing < LEG_SWING):
+        return False, (f"the legs swing through {np.round(swing, 2).tolist()} rad; each should swing at least {LEG_SWING} "
+                       "rad. Give the leg node an effector (the brain's oscillator is a good source)")
+    return True, f"the legs swing ({np.round(swing, 2).tolist()} rad)"
+
+
+def _wire_unmodified(ctx):
+    cid = WIRE_CASES[0]
+    after = ctx.record(cid).get("inputs_after") or []
+    if not after or not isinstance(after[0], dict) or \
+            json.loads(after[0]["json"]) != json.loads(ctx.case(cid)["args"][0]["json"]):
+        return False, "the snake you were given was modified; wire a copy (snake.copy())"
+    return True, "input left unchanged"
+
+
+register(Check(
+    name="brains.wire_snake", function="wire_snake", params=("snake",), points=5.0,
+    title="wiring the snake's brain", output="json", cases=_wire_cases, gates=3,
+    reference=("coursekit.creatures.genotype:Creature.figure1_snake",),
+    props=(
+        ("returns a valid creature", _wire_valid),
+        ("keeps the body", _wire_body),
+        ("the snake swims", _wire_swims),
+        ("a wave travels along the spine", _wire_wave),
+        ("swims at every length", _wire_any_length),
+        ("the legs swing", _wire_legs),
+        ("input unchanged", _wire_unmodified),
+    ),
+))
+
+exercise("06_wire_a_brain", ["brains.resolve", "brains.wire_snake"])
