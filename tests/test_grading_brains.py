@@ -18,7 +18,7 @@ from coursekit.creatures.brain import N_CONST
 from coursekit.creatures.neural import N_SENSORS
 from coursekit.grading import evaluate
 from coursekit.grading.checks import for_notebook, get
-from coursekit.grading.checks.brains import expected_target
+from coursekit.grading.checks.ex06_wire_a_brain import expected_target
 
 ROOT = Path(__file__).resolve().parent.parent
 
