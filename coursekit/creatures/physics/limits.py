@@ -134,9 +134,9 @@ class Limits:
         self.push = force - tau
 
     def within(self, q, moved):
-        """``moved`` where it stays within the limits or ``q`` was beyond them already, else the limit it would pass."""
+        """``moved``, stopped at a limit it would pass from within (a joint never ends further beyond a limit than ``q``)."""
         xp = self.xp
-        return xp.where(self.excess(q) > self.tol, moved, xp.clip(moved, self.lo, self.hi))
+        return xp.clip(moved, xp.minimum(self.lo, q), xp.maximum(self.hi, q))
 
     def excess(self, q):
         """(M,) how far each joint is beyond its limits (negative inside)."""

@@ -215,10 +215,12 @@ class World:
         self._inertia = articulated_inertias(m, s.q, self._lock)
         rate = self.limits.rate(at, s.qd)
         dv0, dqd = impulse(m, self._inertia, self._lock, rate - s.qd)
-        dx0, dq = impulse(m, self._inertia, self._lock, at - s.q)
         R = sp.quat_to_mat(xp, s.quat)
-        q = xp.where(self._lock, at, self.limits.within(s.q, s.q + dq))
-        pos, quat = s.pos + sp.mv(R, dx0[:, 3:]), sp.quat_canonical(xp, sp.quat_mul(xp, s.quat, sp.quat_exp(xp, dx0[:, :3])))
+        pos, quat, q = s.pos, s.quat, s.q
+        if bool(xp.any(at != s.q)):  # a joint to put back; with none the sweep would move nothing, bit for bit
+            dx0, dq = impulse(m, self._inertia, self._lock, at - s.q)
+            q = xp.where(self._lock, at, self.limits.within(s.q, s.q + dq))
+            pos, quat = s.pos + sp.mv(R, dx0[:, 3:]), sp.quat_mul(xp, s.quat, sp.quat_exp(xp, dx0[:, :3]))  # the next step normalises
         self._inertia_q = q
         return State(pos, quat, q, s.lin + sp.mv(R, dv0[:, 3:]), s.omega + dv0[:, :3], xp.where(self._lock, rate, s.qd + dqd))
 
