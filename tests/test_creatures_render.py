@@ -51,3 +51,16 @@ def test_pose_changes_the_picture_and_bad_input_is_refused():
         render("snake")
     with pytest.raises(ValueError, match="render.size"):
         render(c, size=(0, 10))
+
+
+def test_torch_compile_machinery_after_a_render_does_not_crash_the_process():
+    # CUDA builds of torch import triton with torch._dynamo; triton's LLVM loaded after Mesa's
+    # (the off-screen renderer) crashed the process (torch 2.14.1+cu130: a segmentation fault in
+    # test_pictures_grouped, run after a creature render in the same worker)
+    import subprocess
+    import sys
+
+    code = ("from coursekit.creatures import Creature, render; render(Creature.figure1_snake(), size=(64, 48)); "
+            "import torch._dynamo; print('ok')")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0 and r.stdout.strip().endswith("ok"), (r.returncode, r.stderr[-2000:])

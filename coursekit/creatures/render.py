@@ -4,6 +4,11 @@ Parts are drawn as boxes coloured by their depth in the part tree (root dark, le
 matplotlib's ``viridis``), with every joint's axis as a short red line through its anchor
 (prismatic joints in blue). Rendering is off-screen through VTK's EGL window (no X server);
 ``VTK_DEFAULT_OPENGL_WINDOW`` is set to ``vtkEGLRenderWindow`` unless the caller chose one.
+
+Mesa's software renderer and triton (which CUDA builds of torch import on first use of
+``torch._dynamo``) each load their own LLVM, and triton loaded after Mesa crashes the process
+(a segmentation fault, measured with torch 2.14.1+cu130). So before its first plotter this
+module imports ``torch._dynamo`` when triton is installed: loaded in that order, both work.
 """
 
 from __future__ import annotations
@@ -110,10 +115,17 @@ def _check_size(size):
         raise ValueError(f"render.size: need (width, height) integers in [16, 4096], got {size!r}")
 
 
+def _triton_before_mesa() -> None:
+    """Load triton's LLVM before Mesa's (see the module docstring); once, and only where triton is installed."""
+    if importlib.util.find_spec("triton") is not None:
+        import torch._dynamo  # noqa: F401  (imports triton)
+
+
 class _Scene:
     """One off-screen plotter with a creature's boxes and joint axes, re-posable for animation."""
 
     def __init__(self, body: BodyTree, size, background, joint_axes, notebook: bool = False):
+        _triton_before_mesa()
         import matplotlib
         import pyvista as pv
 
