@@ -41,9 +41,9 @@ def demo(uses: str | None = None):
         uses: optional, the task(s) the cell needs, for the message (e.g. ``"section 2"``).
 
     Example:
-        >>> with demo():
-        ...     raise NotImplementedError()  # doctest: +ELLIPSIS
-        ⏸ This demo needs a function you have not written yet ...
+        >>> with demo():  # doctest: +ELLIPSIS
+        ...     raise NotImplementedError()
+        ⏸ This demo needs a function you have not written yet...
     """
     where = f" ({uses})" if uses else ""
     try:

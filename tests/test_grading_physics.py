@@ -306,10 +306,14 @@ def run_world(swimmers, n=30, **options):
 
 
 @pytest.mark.parametrize("options", [dict(drag=box_drag_loops), dict(integrator=rkn_tableau),
-                                     dict(drag=box_drag_loops, integrator=rkn_tableau, dt=1 / 15),
+                                     # a coarse step with sub-steps, joint limits off: at dt = 1/15 the joints overshoot their
+                                     # limits within steps and are put back, and a put-back joint's path is not smooth in the
+                                     # rounding of what led to it (1e-16 grew to 4e-7 in three steps), so the plug-ins are
+                                     # compared where the dynamics is smooth
+                                     dict(drag=box_drag_loops, integrator=rkn_tableau, dt=1 / 15, limits=False),
                                      dict(drag=box_drag_loops, integrator=rkn_step, backend="torch")])
 def test_student_functions_reproduce_the_library_simulation(swimmers, options):
-    lib, w_lib = run_world(swimmers, dt=options.get("dt", 1 / 60))
+    lib, w_lib = run_world(swimmers, dt=options.get("dt", 1 / 60), limits=options.get("limits", True))
     mine, w = run_world(swimmers, **options)
     assert w.substeps == w_lib.substeps and (options.get("dt") is None or w.substeps > 1)
     np.testing.assert_allclose(mine, lib, rtol=0, atol=1e-11 * np.abs(lib).max())
