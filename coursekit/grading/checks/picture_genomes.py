@@ -1,10 +1,35 @@
 """Picture genomes for the checks of exercises 02 and 03: case genomes, reading results, shared properties.
 
-Part of the check registry (seed paper section 3: genomes of chromosome strings, their
-mutations and recombinations). Both picture exercises build their case genomes here -- within a
-string (and across the two parents' strings) no two chromosomes are equal, so an interchange, a
-clone, a rotation or a copy is never invisible -- and read a student's results with the
-grader's own import of the library (:func:`parse`: a valid Genome of the parent's shape).
+Implements the grading side of the seed paper's section 3 operators: decoding a chromosome
+string (3.1, Karva reading as in Gene Expression Programming), the mutations of section 3.3.1
+(transposition, root transposition, substitution, head/tail rotation) and the recombinations of
+section 3.3.2 (crossover, random copy, random interpolation), with the exact signatures of
+:mod:`coursekit.pictures.operators`.
+
+Statistical properties and their false-failure rates for a correct operator (every case
+genome and seed comes from the grader's generator): "both outcomes occur" (interchange and
+clone, head and tail) over 60-92 calls misses an outcome of probability >= 0.3 with
+probability below 1e-8; "changes a chromosome" / "blends a pair" need half of the calls to
+change something where a correct operator changes more than 90 %; "random" properties ask for
+variety (8 of the 42 primitives over ~90 substitutions, 3 cut positions, u on both sides of
+1/2) that a uniform random choice misses with probability far below 1e-8.
+
+Each check's second property is its *job*, a gate (see :class:`~coursekit.grading.checks.Check`):
+decoding builds a tree below a function root, a mutation changes the genome in at least half of
+the calls, a recombination's children hold material of both parents in at least half of the
+calls (correct operators: every call), interpolation blends a pair. Until it holds nothing else
+is judged, so identity mutations, ``return a, b`` and deep copies score 0.
+
+Genomes travel as JSON text (``Genome.to_json``) and come back as JSON text; every property
+parses them with the grader's own import of the library and judges plain data. Properties are
+the paper's definitions, never a comparison with one reference output: what may change and how
+(one string, never the root, one region, an interchange or a clone, a cyclic shift, parents'
+material at the same positions, values between the parents'), statistics over many seeds,
+determinism for a seed and inputs left unmodified.
+
+Case genomes are built so that every outcome can be read off the result: within a string (and
+across the two parents' strings) no two chromosomes are equal, so an interchange, a clone, a
+rotation or a copy is never invisible.
 """
 
 from __future__ import annotations
