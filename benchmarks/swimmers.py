@@ -4,7 +4,8 @@ For batches of random creatures (10-20 boxes each) this prints body-steps and cr
 second of our batched simulator (numpy, torch CPU, torch CUDA when present) next to MuJoCo
 stepping the very same exported creatures (``to_mjcf``, all creatures in one model) with its RK4
 integrator, the same step and one thread, and the ratio. Ours runs the full swimmer physics
-(water drag, joint limits as constraints; self-collisions in a separate row); MuJoCo runs the
+(water drag, joint limits as constraints; self-collisions in a separate row, and a row with
+the joint limits off, which measures their share of a step); MuJoCo runs the
 exported articulated bodies (joint limits as constraints, no fluid, no contacts). Times are the best
 window of process CPU time, the engines taking turns window by window (see ``_timed``), so other
 jobs on a shared machine disturb them little and disturb all engines alike.
@@ -82,9 +83,9 @@ def _timed(steps: dict, seconds: float, window: float = 0.25, clock=time.process
     return best
 
 
-def ours(trees, states, backend, device=None, contacts=False):
+def ours(trees, states, backend, device=None, contacts=False, limits=True):
     """One step of our simulator on the population (a function to time)."""
-    w = World(trees, dt=DT, backend=backend, device=device, contacts=contacts)
+    w = World(trees, dt=DT, backend=backend, device=device, contacts=contacts, limits=limits)
     w.set_state([s[0] for s in states], [s[1] for s in states])
     if device is not None and "cuda" in str(device):
         import torch
@@ -145,9 +146,10 @@ def main(argv=None) -> None:
         trees, states = _population(batch)
         bodies = sum(t.n_bodies for t in trees)
         steps = {"mujoco RK4 (1 thread)": mujoco_step(trees, states)}
-        for backend, device, contacts in [("numpy", None, False), ("numpy", None, True), ("torch", "cpu", False)]:
-            name = f"ours {backend}{'/' + device if device else ''} RKN{' +collisions' if contacts else ''}"
-            steps[name] = ours(trees, states, backend, device=device, contacts=contacts)
+        for backend, device, contacts, limits in [("numpy", None, False, True), ("numpy", None, False, False),
+                                                  ("numpy", None, True, True), ("torch", "cpu", False, True)]:
+            name = f"ours {backend}{'/' + device if device else ''} RKN{' +collisions' if contacts else ''}{' -limits' if not limits else ''}"
+            steps[name] = ours(trees, states, backend, device=device, contacts=contacts, limits=limits)
         for step in steps.values():
             for _ in range(warm):
                 step()

@@ -99,12 +99,15 @@ def test_locked_joints_move_as_prescribed_and_their_forces_reproduce_the_motion(
         v0, tau = np.concatenate([omega, lin], 1), rng.normal(size=m.n_joints)
         lock, wanted = rng.random(m.n_joints) < 0.4, rng.normal(size=m.n_joints) * 3
         drag = np.abs(rng.normal(size=(m.n_bodies, 6)))
-        a0, qdd, _, force = aba(m, f(q), f(qd), f(v0), f(tau), damping=f(drag), lock=f(lock), prescribed=f(wanted))
-        b0, qdd_free, _ = aba(m, f(q), f(qd), f(v0), force, damping=f(drag))
-        np.testing.assert_array_equal(np.asarray(qdd)[lock], wanted[lock])
-        np.testing.assert_array_equal(np.asarray(force)[~lock], tau[~lock])
-        np.testing.assert_allclose(np.asarray(qdd_free), np.asarray(qdd), atol=1e-9)
-        np.testing.assert_allclose(np.asarray(b0), np.asarray(a0), atol=1e-9)
+        for prescribed in (wanted, None):  # None: the locked joints keep their rates (what World uses)
+            a0, qdd, _, force = aba(m, f(q), f(qd), f(v0), f(tau), damping=f(drag), lock=f(lock),
+                                    prescribed=None if prescribed is None else f(prescribed))
+            force = force()
+            b0, qdd_free, _ = aba(m, f(q), f(qd), f(v0), force, damping=f(drag))
+            np.testing.assert_array_equal(np.asarray(qdd)[lock], wanted[lock] if prescribed is not None else 0.0)
+            np.testing.assert_array_equal(np.asarray(force)[~lock], tau[~lock])
+            np.testing.assert_allclose(np.asarray(qdd_free), np.asarray(qdd), atol=1e-9)
+            np.testing.assert_allclose(np.asarray(b0), np.asarray(a0), atol=1e-9)
 
 
 def _square_waves(bodies, rng):

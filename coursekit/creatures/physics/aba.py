@@ -259,13 +259,14 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None, 
         inertias: optional result of :func:`articulated_inertias` at this ``q`` (reused).
         v: optional (N, 6) body velocities at this state (:func:`body_velocities`; reused).
         lock, prescribed: optional (M,) bool and (M,) accelerations: hybrid dynamics -- the
-            locked joints move with the ``prescribed`` accelerations (their ``tau`` is ignored) and
-            the rest of the tree responds; ``inertias`` must then be computed with this ``lock``.
+            locked joints move with the ``prescribed`` accelerations (0 if ``None``: they keep
+            their rates; their ``tau`` is ignored) and the rest of the tree responds;
+            ``inertias`` must then be computed with this ``lock``.
 
     Returns:
         ``(a0, qdd, v)``: root spatial acceleration (C, 6) in root coordinates, joint
-        accelerations (M,) and body velocities (N, 6); with ``lock``, also the joint forces
-        (M,) the locked joints need (``tau`` for the free ones).
+        accelerations (M,) and body velocities (N, 6); with ``lock``, also a function that
+        returns the joint forces (M,) the locked joints need (``tau`` for the free ones).
     """
     with np.errstate(over="ignore", invalid="ignore"):  # a diverging creature is the guard's business
         return _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed)
@@ -275,8 +276,9 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed):
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
     Xup, IA, U, d, W, Z, Yt, V = articulated_inertias(model, q, lock) if inertias is None else inertias
-    if lock is not None:
-        ap = xp.where(lock, prescribed, xp.zeros_like(prescribed))  # locked: qdd = ap; 0 elsewhere
+    ap = None  # locked joints' accelerations: qdd = ap where locked, 0 elsewhere; None: all 0
+    if lock is not None and prescribed is not None:
+        ap = xp.where(lock, prescribed, xp.zeros_like(prescribed))
     S = model.S
     v, c, pA = _velocities_and_bias(model, Xup, v0, qd, v)
     I = model.inertia_diag
@@ -290,14 +292,14 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed):
     ul = tau[jl] - sp.dot(xp, S[jl], pA[L:])
     ql = (ul - Uc[jl]) / d[jl]
     if lock is not None:  # a locked joint's acceleration is prescribed: pa = pA + I c + U ap
-        ql = xp.where(lock[jl], ap[jl], ql)
+        ql = xp.where(lock[jl], 0.0 if ap is None else ap[jl], ql)
     pa = pA[L:] + I[L:] * c[jl] + U[jl] * ql[:, None]
     # what does not depend on the sweep -- the leaves' Xup' pa and the inner joints' h -- is
     # summed into the parents at once; the inner levels then pass Z' pA on
     g = xp.empty_like(c)  # h of the inner joints, Xup' pa of the leaves
     h = sp.mtv(Yt, c[ji], out=g[ji])
     h += W[ji] * (tau[ji] - Uc[ji])[:, None]  # W = 0 for locked joints, which pass Xup' U ap
-    if lock is not None:
+    if ap is not None:
         h += V[ji] * ap[ji][:, None]
     sp.mtv(Xup[jl], pa, out=g[jl])
     model.joint_segments.add_into(pA, g)
@@ -306,7 +308,7 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed):
     SpA = sp.dot(xp, S, pA[C:])
     ud = (tau - SpA - Uc) / d  # (u - U'c) / d
     if lock is not None:
-        ud = xp.where(lock, ap, ud)
+        ud = xp.where(lock, 0.0 if ap is None else ap, ud)
 
     a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
     a = xp.concat([a0, c[ji] + S[ji] * ud[ji][:, None]], axis=0)  # each body then adds Z a_parent
@@ -316,9 +318,13 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed):
     qdd = ud - sp.dot(xp, W, a_parent)
     if lock is None:
         return a0, qdd, v
-    # the force a locked joint needs: the free formula qdd = (tau - S'pA - U'(Xup a_p + c)) / d solved for tau
-    need = d * ap + SpA + Uc + sp.dot(xp, V, a_parent)
-    return a0, qdd, v, xp.where(lock, need, tau)
+    # the force a locked joint needs: the free formula qdd = (tau - S'pA - U'(Xup a_p + c)) / d
+    # solved for tau -- returned as a function, since a step needs it from its last evaluation only
+    def force():
+        need = SpA + Uc + sp.dot(xp, V, a_parent)
+        return xp.where(lock, need if ap is None else need + d * ap, tau)
+
+    return a0, qdd, v, force
 
 
 def impulse(model, inertias, lock, change):
@@ -339,12 +345,9 @@ def impulse(model, inertias, lock, change):
     Xup, IA, U, d, W, Z, Yt, V = inertias
     S = model.S
     ap = xp.where(lock, change, xp.zeros_like(change))
-    jl, ji = slice(L - C, None), slice(0, L - C)
+    ji = slice(0, L - C)
     pA = xp.zeros((model.n_bodies, 6), dtype=ap.dtype, device=model.device)
-    g = xp.empty_like(V)  # what each joint passes to its parent: Xup' U ap (locked), 0 (free)
-    g[ji] = V[ji] * ap[ji][:, None]
-    sp.mtv(Xup[jl], U[jl] * ap[jl][:, None], out=g[jl])
-    model.joint_segments.add_into(pA, g)
+    model.joint_segments.add_into(pA, V * ap[:, None])  # what each joint passes to its parent: Xup' U ap (locked), 0 (free)
     for s, e, _, seg in reversed(model.levels):
         seg.add_into(pA, sp.mtv(Z[s - C : e - C], pA[s:e]))
     ud = xp.where(lock, ap, -sp.dot(xp, S, pA[C:]) / d)

@@ -106,7 +106,6 @@ class World:
         quat[:, 0] = 1.0
         self.state = State(z(C, 3), quat, z(M), z(C, 3), z(C, 3), z(M))
         self.tau = z(M)
-        self._still = z(M)  # the locked joints' prescribed accelerations: they keep their rates
         self.active_contacts = None
         self._inertia_q = self._inertia = self._poses_q = self._poses = None
         self.contact_sensors = None
@@ -154,7 +153,7 @@ class World:
             a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping, inertias=self._inertia, v=v)
         else:
             a0, qdd, _, force = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping,
-                                    inertias=self._inertia, v=v, lock=self._lock, prescribed=self._still)
+                                    inertias=self._inertia, v=v, lock=self._lock)  # locked joints keep their rates
             self._force = force  # the step's last evaluation is what the limits remember
         lin_acc = sp.mv(R, a0[:, 3:] + sp.cross3(xp, omega, vb))
         return lin_acc, a0[:, :3], qdd
@@ -192,7 +191,7 @@ class World:
             prev = self.state
             new = self._guard(prev, step(xp, prev, self.h, self._accel, self.integrator, self.time + i * self.h))
             if self._lock is not None:
-                self.limits.end(self._force, self.tau)
+                self.limits.end(self._force(), self.tau)
                 new = self._stop_at_limits(new)
                 over = self.limits.beyond if i == 0 else xp.maximum(over, self.limits.beyond)
             self.state = new
