@@ -15,7 +15,9 @@ scores, and never imports or runs student code:
   advance: records written ahead of time, into a file or anywhere, count for nothing. Then the
   supervisor itself judges, with its own copy of the checks and cases: it compares the outputs
   of separate calls with one seed (determinism) and each call's arguments after the call with
-  what it sent ("inputs unchanged", on every call of every case). Points come from the registry.
+  what it sent ("inputs unchanged", on every call of every case). Array arguments travel in
+  shared memory that the grading child wrote and reads back after each call, so a change to
+  them is seen from outside the kernel, whatever the kernel reports. Points come from the registry.
 - The child starts in a new session and as an unprivileged user (``nobody``) when running as
   root, as autograders such as Gradescope do, in a bubblewrap sandbox (:mod:`.sandbox`): the
   file system read-only, ``solutions/``, the other submissions and the results file hidden, a
@@ -25,9 +27,11 @@ scores, and never imports or runs student code:
 - **Limits** come from outside (:mod:`.supervisor`): resident memory (never address space: a
   CUDA build of torch reserves ~3 GB of it on import), the number of processes, the bytes
   written in the notebook's folder, the wall time of the whole notebook; ``RLIMIT_FSIZE`` bounds
-  any one file and ``RLIMIT_NPROC`` the processes of a dedicated user.
+  any one file, and ``RLIMIT_NPROC`` the processes: inside the sandbox's own user namespace for a
+  grader who is not root (:func:`.sandbox.limit_processes`), for the user ``nobody`` when root.
 - A graded function must be written in the notebook (:mod:`.runner` refuses one whose code comes
-  from coursekit or any other file), and coursekit's own versions of it raise while it runs.
+  from coursekit or any other file), and coursekit's own versions of it raise in the process
+  that runs it, which is locked down against fetching them afresh (:mod:`.lockdown`).
 - A notebook part of which could not run -- a cell skipped for time, memory or a crash, a
   harvest that did not finish, no execution report -- is reported **not graded**, with the
   reasons, and ``coursekit grade`` exits with status 3: an instructor never gets a silent 0.
@@ -40,12 +44,14 @@ scores, and never imports or runs student code:
   otherwise it is removed, after ``SIGTERM`` too, and by the next run after a ``SIGKILL``.)
 
 What is still trusted: the calls run in the notebook's own interpreter (that is where its
-function lives), so the code that observes a call -- converting the result, reading the
-arguments after it -- runs there too, from source shipped fresh, but next to whatever the
-notebook patched before (numpy, ``json``). A notebook that rewrites those to lie about its own
-side effects, or hijacks the harvest's connection from a thread, still only answers the calls
-the supervisor sends, one at a time; what it can choose is the raw outputs and what it reports
-about its arguments -- the first is what any function does, the second needs deliberate forgery.
+function lives), so the code that converts a result runs there too, from source shipped fresh,
+next to whatever the notebook patched before; what a notebook can choose is the raw outputs,
+which is what any function does. What it reports about its *arguments* counts only where the
+grading child cannot look itself: array arguments are read back from shared memory, but a
+genome's or creature's state after the call is serialised in the kernel (a notebook that patches
+``to_json`` or swaps the argument through the caller's frame can hide a change to one), and a
+function that undoes its change from a thread of its own before the record comes back is not
+seen either (a caller looking then would not see it).
 Inside the sandbox it runs as ``nobody`` where that user can run this Python, else as the
 grader's user with every capability dropped: it can then read files that user can read outside
 the hidden ones.
@@ -212,6 +218,7 @@ def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, se
                "--calls", str(calls_file), "--results-fd", str(wfd),
                "--cwd", str(box / "work"), "--cell-timeout", str(cell_timeout)]
         if sandboxed:
+            cmd += ["--max-processes", str(max_processes)]  # RLIMIT_NPROC inside, where it holds (sandbox.limit_processes)
             cmd = sandbox.command(box, hide_dirs=[PKG_ROOT / "solutions"], hide_files=hide_files) + cmd
         # The child bounds every cell and call itself; this bounds the notebook as a whole.
         wall = min(float(notebook_timeout),

@@ -18,7 +18,8 @@ child subreaper). This module bounds that tree by what it really uses:
 - **Processes and files are bounded too.** More than :data:`MAX_PROCESSES` processes at once
   (a fork bomb) or more than :data:`DISK_MB` MiB written in the notebook's folder and every
   process of the notebook is killed; the grader reports it not graded. Inside the sandbox the
-  kernel also runs under ``RLIMIT_NPROC`` when it has a user of its own (``nobody``), and
+  kernel also runs under ``RLIMIT_NPROC`` where that holds (a user of its own, ``nobody``, or the
+  sandbox's own user namespace: :func:`coursekit.grading.sandbox.limit_processes`), and
   ``RLIMIT_FSIZE`` bounds any one file.
 - **Private folders are removed even after a kill.** Each is named
   ``coursekit-grade-<pid>-*`` after the grading process; :func:`remove_stale` deletes those of
