@@ -21,6 +21,9 @@ import sys
 if __name__ != "coursekit_harvest":  # imported; the harvest cell ships values.py's text into this namespace first
     from coursekit.grading.values import library_attr
 
+#: The file name the stubs are compiled under.
+STUB = "<coursekit-refused>"
+
 
 class Refusing:
     """While active, coursekit's own versions of a graded function raise instead of running.
@@ -44,19 +47,37 @@ class Refusing:
             obj = getattr(obj, "__func__", obj)
             if not hasattr(obj, "__code__") or obj.__code__.co_freevars:
                 continue
+            self._source(path)  # from the module's file: the function's code may be a stub already
+            if obj.__code__.co_filename == STUB:  # refused already (a kernel locked down before this worker)
+                continue
             name = path.partition(":")[2]
-            self.message = (f"coursekit's own {name} is not available while your {function} is graded: "
-                            f"{function} must do the work itself (the rest of the library may be used)")
+            message = (f"coursekit's own {name} is not available while your {function} is graded: "
+                       f"{function} must do the work itself (the rest of the library may be used)")
             ns = {}
-            exec(compile(f"def stub(*args, **kwargs):\n    raise RuntimeError({self.message!r})", "<coursekit-refused>", "exec"), ns)
+            exec(compile(f"def stub(*args, **kwargs):\n    raise RuntimeError({message!r})", STUB, "exec"), ns)
             self.saved.append((obj, obj.__code__, ns["stub"].__code__))
-            self.files.add(obj.__code__.co_filename)
-            try:
-                import inspect
 
-                self.texts.append(inspect.getsource(obj))
-            except (OSError, TypeError):
-                pass
+    def _source(self, path):
+        """Note the file of ``path``'s module and the source text of its definition (for
+        :func:`lock_down`), read with ``tokenize`` (``inspect.getblock``): compiling it, even to
+        an AST, is what a locked-down process refuses."""
+        import inspect
+        import re
+
+        module, _, attr = path.partition(":")
+        filename = getattr(sys.modules.get(module), "__file__", None)
+        if not filename:
+            return
+        self.files.add(filename)
+        try:
+            with open(filename, encoding="utf-8") as f:
+                lines = f.readlines()
+        except OSError:
+            return
+        head = re.compile(rf"^\s*def {re.escape(attr.rpartition('.')[2])}\b")
+        start = next((i for i, line in enumerate(lines) if head.match(line)), None)
+        if start is not None:
+            self.texts.append("".join(inspect.getblock(lines[start:])).strip())
 
     def __enter__(self):
         for obj, _, stub in self.saved:
@@ -85,20 +106,25 @@ class Refusing:
                     holder[:] = [stub if v is code else v for v in holder]
         files, texts = frozenset(self.files), tuple(self.texts)
         self.saved = []  # the library's code is no longer held here, where a frame could reach it
-        lock_down(files, texts, getattr(self, "message", "coursekit's own version is not available while graded"))
+        lock_down(files, texts)
 
 
-#: Audit events refused in a locked-down worker: starting programs or processes (a fresh Python
-#: would import the library unrefused), C calls through ctypes (which could undo anything), and
-#: rebuilding code (the library's own, restored into a function).
+#: Audit events refused in a locked-down process: starting programs (a fresh Python would import
+#: the library unrefused; a fork is allowed, it inherits the stubs and the hook), C calls through
+#: ctypes (which could undo anything), and rebuilding code (the library's own, restored into a function).
 REFUSED_EVENTS = frozenset({
-    "os.fork", "os.forkpty", "os.exec", "os.posix_spawn", "os.spawn", "os.system", "os.startfile", "subprocess.Popen",
+    "os.exec", "os.posix_spawn", "os.spawn", "os.system", "os.startfile", "subprocess.Popen",
     "pty.spawn", "ctypes.dlopen", "ctypes.dlsym", "ctypes.call_function", "ctypes.cdata", "ctypes.addressof",
     "code.__new__", "function.__new__"})
 
 
-def lock_down(files, texts, message):
-    """Make this process (a worker that only serves calls) refuse, through an audit hook (PEP 578:
+#: What a graded function hears when it tries to compile or load the library's code afresh.
+RELOADED = ("coursekit's own code of the graded functions may not be compiled or loaded afresh while a function is "
+            "graded: write the function yourself (the rest of the library may be used)")
+
+
+def lock_down(files, texts):
+    """Make this process (a kernel or worker that only serves calls now) refuse, through an audit hook (PEP 578:
     it can never be removed), what could fetch the library's versions around the stubs: compiling
     or running code from their source files or with their source text (``inspect.getsource``,
     ``importlib``, a reload), ``marshal``-loading it, setting a function's ``__code__``, and the
@@ -118,14 +144,14 @@ def lock_down(files, texts, message):
                 source, filename = args[0], args[1]
                 text = source.decode(errors="replace") if type(source) is bytes else source
                 bad = filename in files or (type(text) is str and any(t in text for t in texts))
-                why = message if bad else None
+                why = RELOADED if bad else None
             elif event == "exec":
-                why = message if getattr(args[0], "co_filename", None) in files else None
+                why = RELOADED if getattr(args[0], "co_filename", None) in files else None
             elif event == "marshal.loads":
-                why = message if any(f in bytes(args[0]) for f in encoded) else None
-            elif event == "object.__setattr__":
+                why = RELOADED if any(f in bytes(args[0]) for f in encoded) else None
+            elif event == "object.__setattr__":  # a function's code: only ever to one of our stubs
                 why = "changing a function's code is not available while a function is graded" \
-                    if args[1] in ("__code__", "__globals__") else None
+                    if args[1] == "__code__" and getattr(args[2], "co_filename", None) != STUB else None
             else:
                 why = None
         except Exception:  # something the hook could not read: refuse (fail closed)

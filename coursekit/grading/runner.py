@@ -467,7 +467,41 @@ def _foreign(fn, cells):
 
 
 def harvest(namespace, address, token, cells=None):
-    """Summative side: answer the grader's calls of one check, one call at a time.
+    """Summative side: answer the grader's calls of one check, one call at a time, from a fork of the kernel.
+
+    The fork (:func:`_harvest`) is locked down against coursekit's own versions of the function
+    (:meth:`Refusing.forever`) before it connects, so that nothing of the kernel's -- a patched
+    ``json`` that would rewrite each record with the library's answer on its way back -- can
+    compute that answer; threads a cell left running in the kernel are not in the fork. Where
+    ``fork`` does not exist, it runs here, unlocked. Raises ``RuntimeError`` when the fork failed.
+    """
+    if not hasattr(os, "fork") or os.environ.get("COURSEKIT_CHECK_ISOLATION", "fork") == "thread":
+        return _harvest(namespace, address, token, cells, lock=False)
+    main = threading.current_thread() is threading.main_thread()
+    old = signal.signal(signal.SIGCHLD, signal.SIG_DFL) if main else None  # a notebook may ignore SIGCHLD
+    try:
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # "multi-threaded, fork() may deadlock"
+            pid = os.fork()
+        if pid == 0:
+            code = 1
+            try:
+                _harvest(namespace, address, token, cells, lock=True)
+                code = 0
+            finally:
+                os._exit(code)
+        _, status = os.waitpid(pid, 0)
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGCHLD, old)
+    if status != 0:
+        raise RuntimeError(f"the harvest's process stopped: {_died_message(status)}")
+
+
+def _harvest(namespace, address, token, cells, lock):
+    """The body of :func:`harvest`.
 
     Connects to the grading child's socket ``address``, proves itself with ``token`` (which only
     this harvest cell knows), and receives the check's header ``{"name", "function", "output",
@@ -477,7 +511,8 @@ def harvest(namespace, address, token, cells=None):
     ``cells`` (the file names the kernel compiled the notebook's cells under), a function whose
     code comes from anywhere else -- ``from coursekit.ga import tournament``, a module on disk --
     is refused as not attempted; ``refuse`` lists coursekit's own versions of the function, which
-    raise in the process that runs it (:meth:`Refusing.forever`). A call's array arguments come
+    raise in this process (with ``lock``) and in the one that runs it (:meth:`Refusing.forever`).
+    A call's array arguments come
     as shared memory (file descriptors with its line), which the worker maps and this cell closes.
     """
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -500,6 +535,11 @@ def harvest(namespace, address, token, cells=None):
             why = "is not defined" if fn is None else f"is a {type(fn).__name__}, not a function"
         elif cells is not None:
             why = _foreign(fn, cells)
+        try:
+            if lock and check.get("refuse"):
+                Refusing(check["refuse"], check["function"]).forever()
+        except BaseException as exc:
+            why = why or f"could not be graded: the grader could not lock the harvest down ({_describe_error(exc)})"
         with Calls(fn, check["output"], timeout=check["timeout"], memory_mb=check["memory_mb"], budget=check["budget"],
                    refuse=tuple(check.get("refuse", ()))) as calls:
             while True:

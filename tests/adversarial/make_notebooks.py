@@ -467,9 +467,33 @@ DO_NOTHING = {
 #: Answers that hand in the library's work by the back door, one notebook per exercise
 #: (``cheats_<stem>.ipynb``); each must score 0. Exercise 02: each mutation returns an object whose
 #: ``to_json`` runs coursekit's own operator -- once the function has returned, when the grader
-#: converts the result.
+#: converts the result; transposition does nothing, but a cell patches ``json`` in the kernel so
+#: that the record of each call carries the library's answer on its way to the grader.
 CHEATS = {
-    "02_picture_mutations": ["from coursekit.pictures import operators", '''class Later:
+    "02_picture_mutations": ["from coursekit.pictures import operators", '''import copy, json, os
+import numpy as np
+from coursekit.pictures.genome import Genome
+
+KERNEL, CALLS = os.getpid(), {}
+_loads, _dumps = json.loads, json.dumps
+
+def loads(s, *a, **k):
+    obj = _loads(s, *a, **k)
+    if isinstance(obj, dict) and isinstance(obj.get("call"), dict):
+        CALLS[obj["call"]["id"]] = obj["call"]  # the grader's call, on its way to the function
+    return obj
+
+def dumps(obj, *a, **k):
+    call = CALLS.get(obj.get("id")) if isinstance(obj, dict) and obj.get("status") == "ok" else None
+    if call is not None and os.getpid() == KERNEL:  # the record, on its way back: the library's answer instead
+        try:
+            genome = Genome.from_json(call["args"][0]["json"])
+            obj = dict(obj, output=operators.transposition(genome, np.random.default_rng(call["seed"])).to_json())
+        except Exception:
+            pass
+    return _dumps(obj, *a, **k)
+
+json.loads, json.dumps = loads, dumps''', '''class Later:
     """Looks like a genome to the grader: it has to_json."""
     def __init__(self, work):
         self.work = work
@@ -477,7 +501,7 @@ CHEATS = {
     def to_json(self):
         return self.work().to_json()''', '''def decode(symbols):
     raise NotImplementedError()''', '''def transposition(genome, rng):
-    return Later(lambda: operators.transposition(genome, rng))''', '''def root_transposition(genome, rng):
+    return copy.deepcopy(genome)  # the patched json hands in the library's answer''', '''def root_transposition(genome, rng):
     return Later(lambda: operators.root_transposition(genome, rng))''', '''def substitution(genome, rng):
     return Later(lambda: operators.substitution(genome, rng))''', '''def head_tail_rotation(genome, rng):
     return Later(lambda: operators.head_tail_rotation(genome, rng))'''],
