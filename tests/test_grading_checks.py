@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 
 from coursekit.grading import checks, evaluate, runner, stats
 from coursekit.grading.formative import check as formative_check
-from coursekit.grading.grader import make_plan, read_results, validate_call
+from coursekit.grading.channel import read_results, validate_call
+from coursekit.grading.grader import make_plan
 
 ROOT = Path(__file__).resolve().parent.parent
 NAMES = ["ga.truncation", "ga.tournament", "ga.roulette", "ga.one_point_crossover", "ga.point_mutation"]

@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from coursekit.creatures import Creature, operators
 from coursekit.creatures.genotype import random_link, random_node, renumber
 from coursekit.grading import checks, evaluate
-from coursekit.grading.checks import ex05_creature_operators as cc
+from coursekit.grading.checks import creature_expansion as cc
 
 ROOT = Path(__file__).resolve().parent.parent
 NAMES = ["creatures.expand", "creatures.crossover", "creatures.mutate"]
@@ -106,7 +106,7 @@ def test_correct_implementations_get_full_marks(name, seed):
 def test_figure1_snake_count_from_the_paper(segments):
     # Figure 1: the segment repeats (segments - 1) times; the two legs hang on the last one only.
     snake = Creature.figure1_snake(segments)
-    assert cc._full_count(snake) == segments + 2
+    assert cc.full_count(snake) == segments + 2
     assert snake.expand().body.n_bodies == segments + 2
 
 
@@ -122,7 +122,7 @@ def test_recursion_formula_and_mirror_rule_match_the_library_expansion(seed):
         node.force = -abs(node.force)
     ph = c.expand(max_parts=200)
     assert not ph.body.meta["truncated"]
-    assert cc._full_count(c) == ph.body.n_bodies
+    assert cc.full_count(c) == ph.body.n_bodies
     node_id, parent = ph.body.node_id.tolist(), ph.body.parent.tolist()
     mirrored = (ph.body.gain < 0).tolist()
     depth = [0] * len(node_id)

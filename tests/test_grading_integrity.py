@@ -17,7 +17,7 @@ from nbclient import NotebookClient
 ROOT = Path(__file__).resolve().parent.parent
 ADV = ROOT / "tests" / "adversarial"
 sys.path.insert(0, str(ADV))
-from make_notebooks import DO_NOTHING, HONEST, NOTEBOOKS  # noqa: E402
+from make_notebooks import CHEATS, DO_NOTHING, HONEST, NOTEBOOKS  # noqa: E402
 
 sys.path.pop(0)
 
@@ -187,11 +187,13 @@ def test_usage_errors_exit_2_and_write_nothing(tmp_path):
 
 @pytest.fixture(scope="module")
 def do_nothing_and_renamed(tmp_path_factory):
-    """The do-nothing notebooks (named do_nothing_<stem>) and a renamed solution, graded by their metadata."""
+    """The do-nothing notebooks (named do_nothing_<stem>), the back-door ones (cheats_<stem>) and a
+    renamed solution, graded by their metadata."""
     tmp = tmp_path_factory.mktemp("do_nothing")
     renamed = tmp / "my homework (final).ipynb"
     renamed.write_bytes((ROOT / "solutions" / "01_selection.ipynb").read_bytes())
-    paths = [ADV / f"do_nothing_{stem}.ipynb" for stem in DO_NOTHING] + [renamed]
+    paths = ([ADV / f"do_nothing_{stem}.ipynb" for stem in DO_NOTHING] + [ADV / f"cheats_{stem}.ipynb" for stem in CHEATS]
+             + [renamed])
     _, results = grade(paths, tmp / "results.json", "--timeout", "20", "--cell-timeout", "120")
     return {Path(nb["path"]).name: nb for nb in results["extra_data"]["notebooks"]}, results
 
@@ -206,6 +208,19 @@ def test_do_nothing_answers_score_zero_when_graded(do_nothing_and_renamed, stem)
     assert all("Nothing else is judged" in t["output"] for t in tests)
 
 
+@pytest.mark.parametrize("stem", list(CHEATS))
+def test_answers_that_hand_in_the_librarys_work_by_a_back_door_score_zero(do_nothing_and_renamed, stem):
+    """Exercise 02: results whose to_json runs coursekit's own operator, once the function has returned,
+    and records rewritten in the kernel by a patched json (the kernel is locked down before the calls)."""
+    by_name, results = do_nothing_and_renamed
+    nb = by_name[f"cheats_{stem}.ipynb"]
+    tests = [t for t in results["tests"] if t["name"].startswith(f"cheats_{stem}.ipynb: ")]
+    assert nb["graded"] and len(tests) == EXERCISES[stem][1]
+    assert nb["score"] == 0.0, {t["name"]: t["output"][:300] for t in tests if t["score"]}
+    # decode: not attempted; transposition: its own (do-nothing) result reached the grader
+    assert sum("is not available while your" in t["output"] for t in tests) == len(tests) - 2
+
+
 def test_a_renamed_submission_is_graded_by_its_metadata(do_nothing_and_renamed):
     by_name, _ = do_nothing_and_renamed
     nb = by_name["my homework (final).ipynb"]
@@ -218,6 +233,16 @@ def test_the_librarys_own_operators_are_refused_with_a_clear_message(adversarial
     for check in ("ga.tournament", "ga.truncation"):  # imported; rebuilt from the library's code
         assert "is coursekit's own, from coursekit.ga.selection; write your own" in tests[check]["output"]
     assert "coursekit's own roulette is not available while your roulette is graded" in tests["ga.roulette"]["output"]
+
+
+def test_the_librarys_operators_fetched_at_call_time_are_refused_too(adversarial):
+    """library_at_call_time.ipynb: a copy made in a cell, the source compiled afresh twice, a fresh Python."""
+    results, _ = adversarial
+    tests = per_check(results, "library_at_call_time.ipynb")
+    assert "coursekit's own truncation is not available while your truncation is graded" in tests["ga.truncation"]["output"]
+    for check in ("ga.tournament", "ga.roulette"):
+        assert "coursekit's own code of the graded functions may not be compiled or loaded afresh" in tests[check]["output"]
+    assert "subprocess.Popen is not available while a function is graded" in tests["ga.point_mutation"]["output"]
 
 
 def test_the_sandbox_kept_the_notebook_from_files_and_the_graders_environment(adversarial):

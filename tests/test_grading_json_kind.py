@@ -8,7 +8,7 @@ import numpy as np
 
 from coursekit.ga.history import History
 from coursekit.grading import checks
-from coursekit.grading.grader import validate_call
+from coursekit.grading.channel import validate_call
 from coursekit.grading.runner import calls_of, decode, run_cases
 
 

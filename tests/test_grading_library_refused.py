@@ -4,9 +4,20 @@ In summative grading a graded function must be written in the notebook: one whos
 from coursekit (an import, an alias, a function rebuilt from the library's code) or from any
 file that is not one of the notebook's cells is refused as not attempted, and coursekit's own
 versions of the graded function raise while the student's runs (a wrapper scores 0). The rest
-of the library stays usable. End to end: tests/adversarial/library_answers.ipynb.
+of the library stays usable. The process that runs the student's function is locked down, so
+the library's code cannot be fetched at call time either (a copy made in a cell, its source
+compiled afresh, a fresh Python). End to end: tests/adversarial/library_answers.ipynb and
+library_at_call_time.ipynb.
+
+Also here, since it is observed on the same path: "inputs unchanged" is read from outside the
+kernel (array arguments in shared memory), so a function that hides its side effect from the
+kernel's own observer is still caught (end to end: tests/adversarial/fakes_unchanged.ipynb).
 """
 
+import importlib.util
+import inspect
+import subprocess
+import sys
 import types
 
 import numpy as np
@@ -60,8 +71,8 @@ class _Collect:
 
 
 def _harvest(tmp_path, fn, cells):
-    """Serve the cases' calls to harvest() over the grading child's relay, as in a grading run;
-    return the per-case records the grader would judge."""
+    """Serve the cases' calls to harvest() over the grading child's relay, as in a grading run
+    (array arguments in shared memory); return the per-case records the grader would judge."""
     calls = [{**call, "group": g} for g, case in enumerate(CASES) for call in calls_of([case])]
     header = {"name": CHECK.name, "function": "tournament", "output": CHECK.output, "refuse": list(CHECK.reference),
               "timeout": 20.0, "memory_mb": 2048, "budget": 110.0}
@@ -92,10 +103,96 @@ def test_a_graded_function_not_written_in_the_notebook_is_refused(tmp_path):
 
 
 def test_every_check_names_the_library_versions_it_refuses():
-    from coursekit.grading.runner import _library_attr
+    from coursekit.grading.values import library_attr
 
     for name in checks.REGISTRY:
         ref = checks.get(name).reference
         assert ref, f"{name} names no library version to refuse"
         for path in ref:
-            assert callable(_library_attr(path)), path
+            assert callable(library_attr(path)), path
+
+
+COPY = types.FunctionType(ga.tournament.__code__, ga.tournament.__globals__, "copy")  # made "in a cell"
+SAVED_CODE = ga.tournament.__code__
+
+
+def copied_earlier(fitness, k, rng, size=3):
+    return COPY(fitness, k, rng, size)
+
+
+def rebuilt_from_saved_code(fitness, k, rng, size=3):
+    return types.FunctionType(SAVED_CODE, ga.tournament.__globals__)(fitness, k, rng, size)
+
+
+def compiled_from_source(fitness, k, rng, size=3):
+    fresh = {}
+    exec(inspect.getsource(sys.modules["coursekit.ga.selection"]), fresh)
+    return fresh["tournament"](fitness, k, rng, size)
+
+
+def loaded_afresh(fitness, k, rng, size=3):
+    spec = importlib.util.spec_from_file_location("fresh_selection", sys.modules["coursekit.ga.selection"].__file__)
+    fresh = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fresh)
+    return fresh.tournament(fitness, k, rng, size)
+
+
+def in_a_fresh_python(fitness, k, rng, size=3):
+    subprocess.run([sys.executable, "-c", "import coursekit"], check=True)
+    return own(fitness, k, rng, size)
+
+
+@pytest.mark.parametrize("fn, message", [
+    (copied_earlier, "coursekit's own tournament is not available while your copied_earlier is graded"),
+    (rebuilt_from_saved_code, "function.__new__ is not available while a function is graded"),
+    (compiled_from_source, "coursekit's own code of the graded functions may not be compiled or loaded afresh"),
+    (loaded_afresh, "coursekit's own code of the graded functions may not be compiled or loaded afresh"),
+    (in_a_fresh_python, "subprocess.Popen is not available while a function is graded"),
+])
+def test_the_librarys_code_fetched_at_call_time_is_refused(fn, message):
+    recs = run_cases(fn, CASES, "indices", timeout=20, refuse=CHECK.reference)
+    assert recs[0]["status"] == "error" and message in recs[0]["error"], recs[0]
+    assert len(COPY(np.arange(5.0), 3, np.random.default_rng(0), 3)) == 3  # only the worker was locked down
+
+
+def test_a_worker_that_cannot_be_locked_down_refuses_every_call(monkeypatch):
+    monkeypatch.setattr(sys, "addaudithook", lambda hook: None)  # a notebook that disabled audit hooks
+    recs = run_cases(own, CASES, "indices", timeout=20, refuse=CHECK.reference)
+    assert {r["status"] for r in recs} == {"error"}
+    assert "could not lock the graded function's process down (RuntimeError: sys.addaudithook was replaced)" in recs[0]["error"]
+
+
+def hides_by_swapping_the_argument(fitness, k, rng, size=3):
+    """Right, but zeroes its caller's array and hands the kernel's observer an untouched copy."""
+    picks = own(fitness, k, rng, size)
+    pristine = fitness.copy()
+    fitness[:] = 0
+    frame = sys._getframe(1)
+    while frame is not None:
+        args = frame.f_locals.get("args")
+        if isinstance(args, list) and args and args[0] is fitness:
+            args[0] = pristine
+        frame = frame.f_back
+    return picks
+
+
+def hides_by_replacing_the_observer(fitness, k, rng, size=3):
+    """Right, but zeroes its caller's array and makes the kernel's after-call reader see nothing."""
+    picks = own(fitness, k, rng, size)
+    fitness[:] = 0
+    frame = sys._getframe(1)
+    while frame is not None:
+        if "_after" in frame.f_globals:
+            frame.f_globals["_after"] = lambda arg, encoded, max_len: None
+        frame = frame.f_back
+    return picks
+
+
+@pytest.mark.parametrize("fn", [hides_by_swapping_the_argument, hides_by_replacing_the_observer, own])
+def test_inputs_unchanged_is_read_from_the_shared_memory_not_from_the_kernel(tmp_path, fn):
+    recs = _harvest(tmp_path, fn, cells={fn.__code__.co_filename})
+    assert {r["status"] for r in recs} == {"ok"}
+    verdict = {v.prop: v for v in checks.judge(CHECK, CASES, {r["case"]: r for r in recs}).verdicts}["inputs unchanged"]
+    assert verdict.passed == (fn is own), verdict.message
+    if fn is not own:
+        assert "the fitness argument was modified" in verdict.message

@@ -3,6 +3,7 @@
 What a notebook cannot do inside it, end to end: tests/test_grading_integrity.py (escape.ipynb).
 """
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -90,3 +91,57 @@ def test_the_kernel_cannot_reach_the_grading_child_nor_find_the_cases(tmp_path):
     assert seen["parent"] == "coursekit.grading.executor"
     assert len(seen["fds"]) > 3 and set(seen["fds"].values()) == {"PermissionError"}, seen["fds"]
     assert "submission.ipynb" in seen["box"] and not {"calls.json", "spec.json", "channel.jsonl"} & set(seen["box"]), seen["box"]
+
+
+#: The probe run inside the sandbox by a user who is not root: the sandbox's own limit, then a fork
+#: bomb of 200 sleeping children. sandbox.py is shipped as text (only the standard library).
+_FORK_BOMB = """
+import os, sys, time
+ns = {"__name__": "sandbox"}
+exec(compile(sys.stdin.read(), "sandbox.py", "exec"), ns)
+why = ns["limit_processes"](24)
+started = 0
+for _ in range(200):
+    try:
+        pid = os.fork()
+    except OSError:
+        break
+    if pid == 0:
+        time.sleep(5)
+        os._exit(0)
+    started += 1
+print(why, started)
+"""
+
+
+@pytest.mark.skipif(not HAVE, reason=f"no sandbox here: {sandbox.available()}")
+def test_a_fork_bomb_stops_at_the_process_limit_for_a_grader_who_is_not_root(tmp_path):
+    """bubblewrap gives a non-root grader a user namespace of its own, in which RLIMIT_NPROC counts
+    only the sandbox's processes (Linux >= 5.14): 30 processes the same user runs outside do not
+    count, and the bomb gets 24 children, not 200. As root this runs as `nobody`; the system
+    Python is used (the test's own Python may live where `nobody` cannot read)."""
+    user = 65534 if os.geteuid() == 0 else None
+    python = "/usr/bin/python3" if user is not None else sys.executable
+    if not Path(python).exists():
+        pytest.skip("no system Python for the user nobody")
+    outside = [subprocess.Popen(["sleep", "60"], user=user) for _ in range(30)]
+    try:
+        run = subprocess.run(sandbox.command(None) + [python, "-c", _FORK_BOMB], user=user, capture_output=True,
+                             text=True, timeout=120, input=(ROOT / "coursekit" / "grading" / "sandbox.py").read_text())
+    finally:
+        for p in outside:
+            p.kill()
+            p.wait()
+    assert run.returncode == 0, run.stderr
+    why, started = run.stdout.split()[-2:]
+    if sandbox._counts_per_namespace():
+        assert why == "None" and int(started) == 24, run.stdout
+    else:  # an older kernel: nothing is set (it would count the user's other processes), and it says why
+        assert "per user, not per namespace" in run.stdout and int(started) == 200
+
+
+def test_outside_a_user_namespace_of_its_own_the_limit_is_not_set_and_it_says_why():
+    """Here (no sandbox) the limit would bind root not at all and any other user across all their processes."""
+    why = sandbox.limit_processes(10)
+    assert why == ("running as root, whom RLIMIT_NPROC does not bind" if os.geteuid() == 0 else
+                   "no user namespace of its own: RLIMIT_NPROC would count the user's other processes")

@@ -23,7 +23,7 @@ import pytest
 from nbformat.v4 import new_code_cell, new_notebook
 
 from coursekit.grading import supervisor
-from coursekit.grading.grader import clean
+from coursekit.grading.report import clean
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tests" / "adversarial"))

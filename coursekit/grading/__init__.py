@@ -4,7 +4,9 @@
   ladder (:mod:`.formative`);
 - :mod:`.checks` -- the registry of checks shared by formative and summative grading;
 - :mod:`.runner` -- the only code that calls student functions (forked, bounded, plain data out);
-- :mod:`.grader` -- ``coursekit grade``: isolated summative grading, Gradescope JSON;
+- :mod:`.grader` -- ``coursekit grade``: isolated summative grading, with :mod:`.sandbox` (bubblewrap),
+  :mod:`.supervisor` (limits and processes, from outside), :mod:`.executor` (the grading child),
+  :mod:`.channel` (what the child sends back) and :mod:`.report` (summary, Gradescope JSON);
 - :mod:`.authoring` -- ``coursekit exercises build|check``: exercises generated from solutions.
 """
 

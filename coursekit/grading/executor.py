@@ -12,10 +12,13 @@ IPython kernel through nbclient.
    ``allow_errors``. A cell that kills the kernel (``os._exit``, a crash) or does not finish in
    time is skipped and the notebook re-run from the top in a fresh kernel, so the rest of the
    work still counts.
-2. For each check, send one *harvest cell*: the source of :mod:`coursekit.grading.runner`
-   executed in a fresh namespace (not the kernel's possibly patched ``coursekit``), which
+2. For each check, send one *harvest cell*: the sources of :data:`SHIPPED` (values, lockdown,
+   runner) executed in a fresh namespace (not the kernel's possibly patched ``coursekit``), which
    connects to a :class:`Relay` on a Unix socket with a token only that cell holds, then gets
    the check's calls one at a time, each sent after the previous one's record came back.
+   Each call's array arguments go in fresh ``memfd`` shared memory (:func:`share_arrays`); after
+   its record came back this process reads them back itself (:func:`observe_arrays`): a change
+   counts whatever the kernel reports.
 3. Pass each record, tagged with its check, to the grader on the results pipe, then the
    execution report (which cells failed or were skipped and why, whether the harvest completed).
 
@@ -42,6 +45,8 @@ MAX_RECORD = 64 * 2**20  # the longest record line accepted from the kernel
 
 _HARVEST = """def _coursekit_harvest():
     ns = {{"__name__": "coursekit_harvest"}}
+    exec(compile({values!r}, "<coursekit-values>", "exec"), ns)
+    exec(compile({lockdown!r}, "<coursekit-lockdown>", "exec"), ns)
     exec(compile({source!r}, "<coursekit-harvest>", "exec"), ns)
     from IPython import get_ipython  # not the notebook's global of that name, which it may have replaced
     ip = get_ipython()
@@ -53,9 +58,65 @@ finally:
 """
 
 
-def harvest_cell(runner_source: str, address: str, token: str) -> str:
-    """The code of one harvest cell: the runner's source shipped as text, where to fetch the calls."""
-    return _HARVEST.format(source=runner_source, address=address, token=token)
+#: Tasks allowed inside the sandbox beyond ``--max-processes``: ``RLIMIT_NPROC`` counts threads
+#: too, and the kernel, numpy's BLAS and torch start pools of about one thread per core.
+THREAD_ROOM = 8 * (os.cpu_count() or 1) + 64
+
+#: The modules the harvest cell ships as text, in order, into one fresh namespace.
+SHIPPED = ("values.py", "lockdown.py", "runner.py")
+
+
+def harvest_cell(sources: tuple, address: str, token: str) -> str:
+    """The code of one harvest cell: the sources of :data:`SHIPPED` shipped as text, and where to
+    fetch the calls."""
+    values, lockdown, runner = sources
+    return _HARVEST.format(values=values, lockdown=lockdown, source=runner, address=address, token=token)
+
+
+#: Array arguments travel in shared memory (Linux: ``memfd_create`` and descriptor passing).
+SHARED_MEMORY = sys.platform.startswith("linux") and hasattr(os, "memfd_create") and hasattr(socket, "send_fds")
+
+
+def share_arrays(call):
+    """``(call as sent to the kernel, [fds], [(argument index, fd, bytes sent)])``: each non-empty
+    array argument is written to a fresh ``memfd`` and replaced by ``{"shared": k, ...}``."""
+    from coursekit.grading.values import share
+
+    if not SHARED_MEMORY:
+        return call, [], []
+    args, fds, watched = [], [], []
+    for i, a in enumerate(call["args"]):
+        got = share(a)
+        if got is None:
+            args.append(a)
+            continue
+        data, shape = got
+        fd = os.memfd_create("coursekit-argument", os.MFD_CLOEXEC)
+        view = memoryview(data)
+        while view:
+            view = view[os.write(fd, view):]
+        args.append({"shared": len(fds), "dtype": a["dtype"], "shape": shape, "nbytes": len(data)})
+        fds.append(fd)
+        watched.append((i, fd, data))
+    return {**call, "args": args}, fds, watched
+
+
+def observe_arrays(rec, call, watched) -> None:
+    """Read each shared argument back after the call and close it; where the bytes changed, the
+    record's ``inputs_after`` gets what the memory holds now, whatever the kernel reported."""
+    import numpy as np
+
+    from coursekit.grading.values import unshare
+
+    for i, fd, data in watched:
+        try:
+            now = os.pread(fd, len(data), 0)
+        finally:
+            os.close(fd)
+        after = rec.get("inputs_after")
+        if now != data and rec.get("status") == "ok" and type(after) is list and i < len(after):
+            size = np.dtype(call["args"][i]["dtype"]).itemsize
+            after[i] = unshare(now[:len(now) - len(now) % size], call["args"][i])
 
 
 def _error_name(cell) -> str | None:
@@ -133,14 +194,16 @@ class Relay(threading.Thread):
                     if type(hello) is not dict or not hmac.compare_digest(str(hello.get("token", "")), self.token):
                         continue
                     self.served = True
-                    self._serve(stream)
+                    self._serve(conn, stream)
         finally:
             self.listener.close()
 
-    def _serve(self, stream):
+    def _serve(self, conn, stream):
         def send(obj):
             stream.write(json.dumps(obj).encode() + b"\n")
             stream.flush()
+
+        from coursekit.grading.runner import send_line
 
         failed = set()
         try:
@@ -148,13 +211,19 @@ class Relay(threading.Thread):
             for call in self.calls:
                 if call["group"] in failed:
                     continue
-                send({"call": {k: v for k, v in call.items() if k != "group"}})
-                line = stream.readline(MAX_RECORD)
-                try:
-                    rec = json.loads(line) if line.endswith(b"\n") else None
-                except ValueError:
-                    rec = None
-                if type(rec) is not dict or rec.get("id") != call["id"]:
+                sent, fds, watched = share_arrays({k: v for k, v in call.items() if k != "group"})
+                rec = None
+                try:  # the kernel gets its own copies of the fds; these are kept to read the memory back
+                    send_line(conn, json.dumps({"call": sent}).encode() + b"\n", fds)
+                    line = stream.readline(MAX_RECORD)
+                    try:
+                        rec = json.loads(line) if line.endswith(b"\n") else None
+                    except ValueError:
+                        pass
+                finally:
+                    ok = type(rec) is dict and rec.get("id") == call["id"]
+                    observe_arrays(rec if ok else {}, call, watched)
+                if not ok:
                     self.problem = "the harvest answered out of turn (a record for another call, or not a record)"
                     return
                 self.sent += 1
@@ -172,7 +241,7 @@ def execute(nb, plan: dict, results: Results, cwd: str, cell_timeout: float) -> 
     from nbclient import NotebookClient
     from nbclient.exceptions import CellTimeoutError, DeadKernelError
 
-    source = Path(__file__).with_name("runner.py").read_text(encoding="utf-8")
+    sources = tuple(Path(__file__).with_name(name).read_text(encoding="utf-8") for name in SHIPPED)
     code = [i for i, c in enumerate(nb.cells) if c.cell_type == "code"]
     skip: dict[int, str] = {}
     budget = 4 * plan["timeout"] + 30
@@ -208,7 +277,7 @@ def execute(nb, plan: dict, results: Results, cwd: str, cell_timeout: float) -> 
                             else str(sockets / f"h-{secrets.token_hex(6)}.sock"))
                     relay = Relay(path, token, header, check["calls"], results, harvest_timeout)
                     relay.start()
-                    run.cells.append(nbformat.v4.new_code_cell(harvest_cell(source, path, token)))
+                    run.cells.append(nbformat.v4.new_code_cell(harvest_cell(sources, path, token)))
                     client.timeout = harvest_timeout
                     try:
                         try:
@@ -253,8 +322,14 @@ def main(argv=None) -> int:
     p.add_argument("--results-fd", type=int, required=True, help="pipe to the grader (records, then the report)")
     p.add_argument("--cwd", required=True)
     p.add_argument("--cell-timeout", type=float, required=True)
+    p.add_argument("--max-processes", type=int, default=None, help="RLIMIT_NPROC inside the sandbox (see sandbox.limit_processes)")
     a = p.parse_args(argv)
     _make_undumpable()
+    if a.max_processes:
+        from coursekit.grading.sandbox import limit_processes
+
+        why = limit_processes(a.max_processes + THREAD_ROOM)
+        print(f"process limit {'set' if why is None else 'not set: ' + why}", file=sys.stderr)
     results = Results(a.results_fd)
     with open(a.calls, encoding="utf-8") as f:
         plan = json.load(f)

@@ -6,8 +6,12 @@ next to student code: in the student's kernel for formative checks, and -- shipp
 text* and executed in a fresh namespace, never imported from the kernel's possibly patched
 ``coursekit`` -- inside the grading kernel for the summative grader, where :func:`harvest`
 fetches the grader's calls one at a time over a socket. It is therefore self-contained
-(standard library and numpy only) and produces only raw observations, never verdicts: each
-call's converted result and every argument as it was after the call.
+(standard library and numpy; :mod:`.values` and :mod:`.lockdown` are shipped with it) and
+produces only raw observations, never verdicts: each call's converted result and every argument
+as it was after the call. In summative grading a call's array arguments come as shared memory
+(file descriptors passed with its line, :class:`_Lines`), which the grading child reads back
+itself, and the worker that runs the calls refuses coursekit's own versions of the function for
+good and is locked down (:meth:`.lockdown.Refusing.forever`).
 
 Isolation: calls run in a ``fork()`` of the current process (copy-on-write: it sees every name
 the notebook defined) that serves them one at a time (:class:`Calls`), with a cap on the address
@@ -39,212 +43,28 @@ argument after the call) and ``printed`` (what the function printed, truncated);
 
 from __future__ import annotations
 
-import copy
 import io
 import json
-import math
 import os
 import select
 import signal
+import socket
 import sys
 import threading
 import time
 
-import numpy as np
+if __name__ != "coursekit_harvest":  # imported; the harvest cell ships the texts of values.py and lockdown.py first
+    from coursekit.grading.lockdown import Refusing
+    from coursekit.grading.values import BadOutput, _after, changed, convert, decode, map_shared
 
 MAX_PRINTED = 1500
 MAX_ERROR = 600
-_INT_TYPES = tuple({np.dtype(c).type for c in "bBhHiIlLqQ"})
-
-
-class BadOutput(Exception):
-    """The function returned something that is not the plain data the check asks for."""
-
-
-def _library_attr(path):
-    """``"coursekit.pictures.genome:Genome"`` -> that attribute; only coursekit's own modules."""
-    import importlib
-
-    module, _, attr = path.partition(":")
-    if not (module == "coursekit" or module.startswith("coursekit.")) or not attr:
-        raise ValueError(f"cases may only name coursekit attributes, got {path!r}")
-    obj = importlib.import_module(module)
-    for part in attr.split("."):
-        obj = getattr(obj, part)
-    return obj
-
-
-def decode(value, seed):
-    """Turn one encoded argument into the Python object passed to the student function.
-
-    Encodings: ``{"rng": true}`` (a generator seeded with ``seed``), ``{"ndarray": ..., "dtype":
-    ...}``, ``{"object": "module:Class", "json": text}`` (``Class.from_json(text)``, for genomes
-    and creatures), ``{"function": "module:name"}`` (a library function, e.g. an ODE right-hand
-    side), or a plain JSON value.
-    """
-    if isinstance(value, dict):
-        if value.get("rng") is True:
-            return np.random.default_rng(seed)
-        if "ndarray" in value:
-            return np.array(value["ndarray"], dtype=np.dtype(value["dtype"]))
-        if "object" in value:
-            return _library_attr(value["object"]).from_json(value["json"])
-        if "function" in value:
-            return _library_attr(value["function"])
-        raise ValueError(f"unknown encoded argument {sorted(value)}")
-    return copy.deepcopy(value)  # a function that edits its list argument must not edit the case
-
-
-def encode_array(a):
-    """Encode a numpy array as plain data (the inverse of :func:`decode`)."""
-    return {"ndarray": a.tolist(), "dtype": str(a.dtype)}
-
-
-_REAL_TYPES = (int, float, bool) + _INT_TYPES + tuple({np.dtype(c).type for c in "efdg?"})
-
-
-def _array(out, what, max_len):
-    if type(out) in (list, tuple):
-        # a list or tuple of plain numbers is what an array holds: accepted as one (exact types only,
-        # so an object with a rigged __eq__ or __float__ is not read as a number)
-        if len(out) > max_len:
-            raise BadOutput(f"{what} has {len(out)} values, far more than the {max_len} allowed")
-        if not all(type(v) in _REAL_TYPES for v in out):
-            bad = next(v for v in out if type(v) not in _REAL_TYPES)
-            raise BadOutput(f"{what} is a {type(out).__name__} holding a {type(bad).__name__}; expected numbers: "
-                            "return np.array([...]) of floats")
-        out = np.array(out, dtype=np.float64 if any(type(v) not in (int, bool) + _INT_TYPES for v in out) else np.int64)
-    elif type(out) is not np.ndarray:
-        how = "result.detach().cpu().numpy()" if type(out).__module__.startswith("torch") else "np.asarray(result, dtype=float)"
-        raise BadOutput(f"{what} has type {type(out).__name__}; expected a numpy array (np.ndarray): convert it with {how}")
-    if out.ndim != 1:
-        fix = " (flatten it with result.ravel())" if out.size <= max_len and out.ndim > 1 else ""
-        raise BadOutput(f"{what} has shape {out.shape}; expected a 1-D array{fix}")
-    if out.dtype.kind not in "biuf":
-        raise BadOutput(f"{what} has dtype {out.dtype}; expected numbers (bool, int or float): convert it with "
-                        "result.astype(float)")
-    if out.size > max_len:
-        raise BadOutput(f"{what} has {out.size} values, far more than the {max_len} allowed")
-    if out.dtype.kind == "b":
-        out = out.astype(np.int64)
-    values = out.tolist()
-    if out.dtype.kind == "f" and not all(math.isfinite(v) for v in values):
-        raise BadOutput(f"{what} contains NaN or infinity")
-    return values
-
-
-def _json_text(out, what, max_len):
-    """An object with ``to_json()`` (a genome, a creature) or a plain JSON value, as JSON text."""
-    if hasattr(type(out), "to_json"):
-        text = out.to_json()
-        if type(text) is not str:
-            raise BadOutput(f"{what}.to_json() returned {type(text).__name__}; expected str")
-    else:
-        try:
-            text = json.dumps(out, allow_nan=False)
-        except (TypeError, ValueError) as exc:
-            raise BadOutput(f"{what} has type {type(out).__name__}, which is not plain data ({exc})") from None
-    if len(text) > max_len:
-        raise BadOutput(f"{what} is {len(text)} characters of JSON, far more than the {max_len} allowed")
-    try:
-        json.loads(text)
-    except ValueError:
-        raise BadOutput(f"{what} did not serialise to valid JSON") from None
-    return text
-
-
-def convert(kind, out, max_len):
-    """Convert one call's result to plain data with strict type checks, or raise :class:`BadOutput`.
-
-    Args:
-        kind: ``"indices"`` (1-D integer array or list/tuple of ints), ``"array"`` (1-D numpy
-            array of numbers, or a list/tuple of plain numbers), ``"array_pair"`` (a tuple or list of two such arrays), ``"json"``
-            (an object with ``to_json()`` or plain JSON data) or ``"json_pair"`` (two of those).
-        out: the function's return value.
-        max_len: largest number of values accepted (characters of JSON text for the json kinds).
-    Returns:
-        a list of ints / floats, or a list of two such lists; JSON text, or a list of two.
-    """
-    if kind == "indices":
-        if type(out) is np.ndarray:
-            if out.ndim != 1 or out.dtype.kind not in "iu":
-                raise BadOutput(f"returned an array of shape {out.shape} and dtype {out.dtype}; expected a 1-D array of integer indices")
-            if out.size > max_len:
-                raise BadOutput(f"returned {out.size} indices, far more than the {max_len} allowed")
-            return [int(v) for v in out.tolist()]
-        if type(out) in (list, tuple):
-            if len(out) > max_len:
-                raise BadOutput(f"returned {len(out)} indices, far more than the {max_len} allowed")
-            values = []
-            for i, v in enumerate(out):
-                if type(v) is not int and type(v) not in _INT_TYPES:
-                    raise BadOutput(f"element {i} of the result has type {type(v).__name__}; indices must be plain integers")
-                values.append(int(v))
-            return values
-        raise BadOutput(f"returned a value of type {type(out).__name__}; expected a sequence of integer indices (list or numpy array)")
-    if kind == "array":
-        return _array(out, "the result", max_len)
-    if kind == "json":
-        return _json_text(out, "the result", max_len)
-    if kind in ("array_pair", "json_pair"):
-        if type(out) not in (tuple, list) or len(out) != 2:
-            n = f" of length {len(out)}" if type(out) in (tuple, list) else ""
-            raise BadOutput(f"returned a {type(out).__name__}{n}; expected a pair (child1, child2)")
-        one = _array if kind == "array_pair" else _json_text
-        return [one(out[0], "child 1", max_len), one(out[1], "child 2", max_len)]
-    raise ValueError(f"unknown output kind {kind!r}")
+MAX_MESSAGE = 64 * 2**20  # the longest call line read (a call with two large creatures)
 
 
 def _describe_error(exc):
     text = f"{type(exc).__name__}: {exc}"
     return text if len(text) <= MAX_ERROR else text[: MAX_ERROR - 3] + "..."
-
-
-def _after(arg, encoded, max_len):
-    """An argument as it is after the call, to show whether the function modified it."""
-    if type(arg) is np.ndarray:
-        return encode_array(arg)
-    if isinstance(encoded, dict) and "object" in encoded:
-        return {"json": _json_text(arg, "the argument", max_len)}
-    return None
-
-
-class _Refusing:
-    """While active, coursekit's own versions of a graded function raise instead of running.
-
-    Each ``"module:attr"`` of ``paths`` (a library function or method) gets the code of a stub
-    that raises ``RuntimeError``, so every reference to it -- an import under another name, a
-    wrapper that calls it, the library calling it internally -- refuses while the student's
-    function runs; the code is put back on exit. Arguments are decoded and results converted
-    outside, so the library itself stays usable there.
-    """
-
-    def __init__(self, paths, function):
-        self.saved = []
-        for path in paths:
-            try:
-                obj = _library_attr(path)
-            except (ImportError, AttributeError, ValueError):
-                continue
-            obj = getattr(obj, "__func__", obj)
-            if not hasattr(obj, "__code__") or obj.__code__.co_freevars:
-                continue
-            name = path.partition(":")[2]
-            msg = (f"coursekit's own {name} is not available while your {function} is graded: "
-                   f"{function} must do the work itself (the rest of the library may be used)")
-            ns = {}
-            exec(compile(f"def stub(*args, **kwargs):\n    raise RuntimeError({msg!r})", "<coursekit-refused>", "exec"), ns)
-            self.saved.append((obj, obj.__code__, ns["stub"].__code__))
-
-    def __enter__(self):
-        for obj, _, stub in self.saved:
-            obj.__code__ = stub
-        return self
-
-    def __exit__(self, *exc):
-        for obj, code, _ in self.saved:
-            obj.__code__ = code
-        return False
 
 
 def calls_of(cases):
@@ -257,14 +77,15 @@ def calls_of(cases):
             for c in cases for i, s in enumerate(c["seeds"])]
 
 
-def run_call(fn, call, kind, guard=None, capture=True):
+def run_call(fn, call, kind, guard=None, capture=True, shared=()):
     """Call ``fn`` once on ``call`` in this process; return the plain record of that call.
 
     The record carries ``id``, ``status``, ``output`` (when ok), ``error`` otherwise, and
     ``inputs_after``: every argument as it is after the call (None for those that are not arrays
     or library objects), so whoever judges can see whether the call modified its inputs. With
     ``capture``, what the function prints is recorded (``printed``) instead of shown (only safe
-    where nothing else runs meanwhile: in a forked worker). ``guard`` is a :class:`_Refusing`.
+    where nothing else runs meanwhile: in a forked worker). ``guard`` is a :class:`Refusing`;
+    ``shared`` the mappings of the call's shared-memory arguments (see :func:`.values.decode`).
     """
     record = {"id": call["id"]}
     captured = io.StringIO()
@@ -272,15 +93,16 @@ def run_call(fn, call, kind, guard=None, capture=True):
     if capture:
         sys.stdout = sys.stderr = captured
     try:
-        args = [decode(a, call["seed"]) for a in call["args"]]
-        kwargs = {k: decode(v, call["seed"]) for k, v in call.get("kwargs", {}).items()}
+        args = [decode(a, call["seed"], shared) for a in call["args"]]
+        kwargs = {k: decode(v, call["seed"], shared) for k, v in call.get("kwargs", {}).items()}
         try:
             if guard is None:
                 out = fn(*args, **kwargs)
-            else:
+                record["output"] = convert(kind, out, call["max_len"])
+            else:  # converting runs the result's to_json: the library stays refused for it too
                 with guard:
                     out = fn(*args, **kwargs)
-            record["output"] = convert(kind, out, call["max_len"])
+                    record["output"] = convert(kind, out, call["max_len"])
         except NotImplementedError as exc:
             record.update(status="not_implemented", error=_describe_error(exc))
             return record
@@ -304,15 +126,6 @@ def run_call(fn, call, kind, guard=None, capture=True):
         printed = captured.getvalue()
         if printed:
             record["printed"] = printed[:MAX_PRINTED]
-
-
-def changed(after, encoded) -> bool:
-    """Did a call change one argument? ``encoded``: the argument as sent; ``after``: its entry of ``inputs_after``."""
-    if after is None:
-        return False
-    if "json" in after:
-        return not (isinstance(encoded, dict) and "json" in encoded) or json.loads(after["json"]) != json.loads(encoded["json"])
-    return after != encoded
 
 
 def assemble(cases, results):
@@ -370,21 +183,87 @@ def _write_all(fd, data):
         data = data[os.write(fd, data):]
 
 
-def _serve_calls(fn, kind, rfd, wfd, memory_mb, refuse):
-    """Body of a forked worker: read call lines from ``rfd``, write ``R <record>`` lines to ``wfd``; never return."""
+class _Lines:
+    """Lines from a Unix stream socket, and the file descriptors passed along (``SCM_RIGHTS``).
+
+    Descriptors arrive with the bytes they were sent with, but one read may also hold the line
+    before them, so they wait here until the line that needs them takes them (:meth:`take`).
+    """
+
+    def __init__(self, sock, limit):
+        self.sock, self.limit, self.buf, self.fds = sock, limit, b"", []
+
+    def readline(self):
+        """The next line without its newline, or None at the end (or past the limit)."""
+        while b"\n" not in self.buf:
+            if len(self.buf) > self.limit:
+                return None
+            data, fds, _, _ = socket.recv_fds(self.sock, 1 << 16, 16)
+            self.fds += fds
+            if not data:
+                return None
+            self.buf += data
+        line, self.buf = self.buf.split(b"\n", 1)
+        return line
+
+    def take(self, n):
+        """The next ``n`` descriptors received (fewer if fewer came: the call then fails to decode)."""
+        fds, self.fds = self.fds[:n], self.fds[n:]
+        return fds
+
+
+def send_line(sock, data, fds=()):
+    """Send ``data`` (one line) on a Unix stream socket, with ``fds`` attached to its first bytes."""
+    sent = socket.send_fds(sock, [data], list(fds)) if fds else 0
+    sock.sendall(data[sent:])
+
+
+def _sizes(call):
+    """Bytes of each shared-memory argument of ``call``, by index."""
+    sizes = {}
+    for v in list(call["args"]) + list(call.get("kwargs", {}).values()):
+        if isinstance(v, dict) and "shared" in v:
+            sizes[v["shared"]] = v["nbytes"]
+    return [sizes[k] for k in range(len(sizes))]
+
+
+def _serve_calls(fn, kind, sock, wfd, memory_mb, refuse):
+    """Body of a forked worker: read call lines (with their shared memory) from ``sock``, write
+    ``R <record>`` lines to ``wfd``; never return. With ``refuse``, the process is locked down first
+    (:meth:`Refusing.forever`); where that fails, every call is refused."""
     try:
         sys.stdin = io.StringIO()
         _limit_memory(memory_mb)
-        guard = _Refusing(refuse, getattr(fn, "__name__", "function")) if refuse else None
-        with os.fdopen(rfd, "rb") as calls:
-            for line in calls:
-                call = json.loads(line)
-                record = run_call(fn, call, kind, guard)
-                try:
-                    text = json.dumps(record, allow_nan=False)
-                except (TypeError, ValueError) as exc:
-                    text = json.dumps({"id": call["id"], "status": "bad_output", "error": f"result is not plain data: {exc}"})
-                _write_all(wfd, b"R " + text.encode() + b"\n")
+        broken = None
+        if refuse:
+            try:
+                Refusing(refuse, getattr(fn, "__name__", "function")).forever()
+            except BaseException as exc:
+                broken = f"the grader could not lock the graded function's process down ({_describe_error(exc)})"
+        lines = _Lines(sock, MAX_MESSAGE)
+        while True:
+            line = lines.readline()
+            if line is None:
+                break
+            call = json.loads(line)
+            fds = lines.take(len(_sizes(call)))
+            if broken:
+                for fd in fds:
+                    os.close(fd)
+                record = {"id": call["id"], "status": "error", "error": broken}
+            else:
+                shared = map_shared(fds, _sizes(call))
+                record = run_call(fn, call, kind, shared=shared)
+                for m in shared:
+                    try:
+                        m.close()
+                    except BufferError:  # the function kept a view of it
+                        pass
+            try:
+                text = json.dumps(record, allow_nan=False)
+            except (TypeError, ValueError) as exc:
+                text = json.dumps({"id": call["id"], "status": "bad_output", "error": f"result is not plain data: {exc}"})
+            _write_all(wfd, b"R " + text.encode() + b"\n")
     finally:
         os._exit(0)
 
@@ -404,22 +283,22 @@ class _Worker:
     """A forked copy of this process (it sees every name the notebook defined) that runs calls one at a time."""
 
     def __init__(self, fn, kind, memory_mb, refuse):
-        crfd, cwfd = os.pipe()  # calls: parent -> worker
+        mine, theirs = socket.socketpair()  # calls, with their shared memory: parent -> worker
         rrfd, rwfd = os.pipe()  # records: worker -> parent
         self.pid = os.fork()
         if self.pid == 0:
-            os.close(cwfd)
+            mine.close()
             os.close(rrfd)
-            _serve_calls(fn, kind, crfd, rwfd, memory_mb, refuse)
-        os.close(crfd)
+            _serve_calls(fn, kind, theirs, rwfd, memory_mb, refuse)
+        theirs.close()
         os.close(rwfd)
-        self.calls, self.records, self.buf = cwfd, rrfd, b""
+        self.calls, self.records, self.buf = mine, rrfd, b""
 
-    def call(self, call, timeout):
-        """The worker's record of ``call``; ``None`` after ``timeout`` s (the worker is then killed), or
-        ``("died", status)`` when it stopped."""
+    def call(self, call, timeout, fds=()):
+        """The worker's record of ``call`` (``fds``: its shared memory); ``None`` after ``timeout`` s
+        (the worker is then killed), or ``("died", status)`` when it stopped."""
         try:
-            _write_all(self.calls, json.dumps(call).encode() + b"\n")
+            send_line(self.calls, json.dumps(call).encode() + b"\n", fds)
         except OSError:  # the worker is gone
             return ("died", self.close(kill=True))
         deadline = time.monotonic() + timeout
@@ -445,11 +324,11 @@ class _Worker:
 
     def close(self, kill=False):
         """Stop the worker and reap it; returns its wait status."""
-        for fd in (self.calls, self.records):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
+        self.calls.close()
+        try:
+            os.close(self.records)
+        except OSError:
+            pass
         if kill:
             try:
                 os.kill(self.pid, signal.SIGKILL)
@@ -471,7 +350,7 @@ class Calls:
         timeout: seconds allowed per call.
         memory_mb: extra address space a worker may allocate.
         budget: seconds for all calls together; calls after it are reported as timeouts unrun.
-        refuse: ``"module:attr"`` names of coursekit's own versions of the function (see :class:`_Refusing`).
+        refuse: ``"module:attr"`` names of coursekit's own versions of the function (see :class:`Refusing`).
     """
 
     def __init__(self, fn, kind, *, timeout=10.0, memory_mb=2048, budget=None, refuse=()):
@@ -497,16 +376,27 @@ class Calls:
             signal.signal(signal.SIGCHLD, self.old_chld)
         return False
 
-    def call(self, call):
-        """The plain record of one call (see :func:`run_call`)."""
+    def call(self, call, fds=()):
+        """The plain record of one call (see :func:`run_call`); ``fds``: its shared memory, closed here."""
+        try:
+            return self._call(call, fds)
+        finally:
+            for fd in fds:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+
+    def _call(self, call, fds):
         left = self.end - time.monotonic()
         over = {"id": call["id"], "status": "timeout", "error": f"the time budget of {self.budget:g} s for all calls ran out"}
         if left <= 0:
             return over
         if not self.fork:
             box = []
-            t = threading.Thread(target=lambda: box.append(run_call(self.fn, call, self.kind, self._guard(), capture=False)),
-                                 daemon=True)
+            shared = map_shared([os.dup(fd) for fd in fds], _sizes(call))
+            t = threading.Thread(target=lambda: box.append(run_call(self.fn, call, self.kind, self._guard(), capture=False,
+                                                                    shared=shared)), daemon=True)
             t.start()
             t.join(min(self.timeout, left))
             return box[0] if box else (over if time.monotonic() >= self.end else
@@ -517,7 +407,7 @@ class Calls:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", DeprecationWarning)  # "multi-threaded, fork() may deadlock"
                 self.worker = _Worker(self.fn, self.kind, self.memory_mb, self.refuse)
-        rec = self.worker.call(call, min(self.timeout, left))
+        rec = self.worker.call(call, min(self.timeout, left), fds)
         if rec is None:
             self.worker = None
             return over if time.monotonic() >= self.end else \
@@ -528,7 +418,7 @@ class Calls:
         return rec
 
     def _guard(self):
-        return _Refusing(self.refuse, getattr(self.fn, "__name__", "function")) if self.refuse else None
+        return Refusing(self.refuse, getattr(self.fn, "__name__", "function")) if self.refuse else None
 
 
 def run_cases(fn, cases, kind, *, timeout=10.0, memory_mb=2048, budget=None, refuse=()):
@@ -543,7 +433,7 @@ def run_cases(fn, cases, kind, *, timeout=10.0, memory_mb=2048, budget=None, ref
         budget: seconds for all cases together (default ``4 * timeout + 30``); cases not reached
             in time are reported as timeouts.
         refuse: ``"module:attr"`` names of coursekit's own versions of the function, which raise
-            while it runs (see :class:`_Refusing`).
+            while it runs (see :class:`Refusing`).
     Returns:
         list of record dicts, in case order (see :func:`assemble`). After a case's first failing
         call its other calls are not made.
@@ -576,11 +466,42 @@ def _foreign(fn, cells):
     return f"is {where}; write your own with def in a cell of this notebook (the rest of the library may be used)"
 
 
-MAX_MESSAGE = 64 * 2**20  # the longest line the harvest reads (a call with two large creatures)
-
-
 def harvest(namespace, address, token, cells=None):
-    """Summative side: answer the grader's calls of one check, one call at a time.
+    """Summative side: answer the grader's calls of one check, one call at a time, from a fork of the kernel.
+
+    The fork (:func:`_harvest`) is locked down against coursekit's own versions of the function
+    (:meth:`Refusing.forever`) before it connects, so that nothing of the kernel's -- a patched
+    ``json`` that would rewrite each record with the library's answer on its way back -- can
+    compute that answer; threads a cell left running in the kernel are not in the fork. Where
+    ``fork`` does not exist, it runs here, unlocked. Raises ``RuntimeError`` when the fork failed.
+    """
+    if not hasattr(os, "fork") or os.environ.get("COURSEKIT_CHECK_ISOLATION", "fork") == "thread":
+        return _harvest(namespace, address, token, cells, lock=False)
+    main = threading.current_thread() is threading.main_thread()
+    old = signal.signal(signal.SIGCHLD, signal.SIG_DFL) if main else None  # a notebook may ignore SIGCHLD
+    try:
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # "multi-threaded, fork() may deadlock"
+            pid = os.fork()
+        if pid == 0:
+            code = 1
+            try:
+                _harvest(namespace, address, token, cells, lock=True)
+                code = 0
+            finally:
+                os._exit(code)
+        _, status = os.waitpid(pid, 0)
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGCHLD, old)
+    if status != 0:
+        raise RuntimeError(f"the harvest's process stopped: {_died_message(status)}")
+
+
+def _harvest(namespace, address, token, cells, lock):
+    """The body of :func:`harvest`.
 
     Connects to the grading child's socket ``address``, proves itself with ``token`` (which only
     this harvest cell knows), and receives the check's header ``{"name", "function", "output",
@@ -590,21 +511,20 @@ def harvest(namespace, address, token, cells=None):
     ``cells`` (the file names the kernel compiled the notebook's cells under), a function whose
     code comes from anywhere else -- ``from coursekit.ga import tournament``, a module on disk --
     is refused as not attempted; ``refuse`` lists coursekit's own versions of the function, which
-    raise while it is graded (:class:`_Refusing`).
+    raise in this process (with ``lock``) and in the one that runs it (:meth:`Refusing.forever`).
+    A call's array arguments come
+    as shared memory (file descriptors with its line), which the worker maps and this cell closes.
     """
-    import socket
-
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     sock.connect(address)
-    stream = sock.makefile("rwb")
+    lines = _Lines(sock, MAX_MESSAGE)
 
     def send(obj):
-        stream.write(json.dumps(obj, allow_nan=False).encode() + b"\n")
-        stream.flush()
+        sock.sendall(json.dumps(obj, allow_nan=False).encode() + b"\n")
 
     def receive():
-        line = stream.readline(MAX_MESSAGE)
-        return json.loads(line) if line.endswith(b"\n") else None
+        line = lines.readline()
+        return json.loads(line) if line is not None else None
 
     try:
         send({"token": token})
@@ -615,6 +535,11 @@ def harvest(namespace, address, token, cells=None):
             why = "is not defined" if fn is None else f"is a {type(fn).__name__}, not a function"
         elif cells is not None:
             why = _foreign(fn, cells)
+        try:
+            if lock and check.get("refuse"):
+                Refusing(check["refuse"], check["function"]).forever()
+        except BaseException as exc:
+            why = why or f"could not be graded: the grader could not lock the harvest down ({_describe_error(exc)})"
         with Calls(fn, check["output"], timeout=check["timeout"], memory_mb=check["memory_mb"], budget=check["budget"],
                    refuse=tuple(check.get("refuse", ()))) as calls:
             while True:
@@ -622,9 +547,14 @@ def harvest(namespace, address, token, cells=None):
                 if type(msg) is not dict or "call" not in msg:
                     break
                 call = msg["call"]
-                rec = {"id": call["id"], "status": "missing", "error": f"{check['function']} {why}"} if why else calls.call(call)
+                fds = lines.take(len(_sizes(call)))
+                if why:
+                    for fd in fds:
+                        os.close(fd)
+                    rec = {"id": call["id"], "status": "missing", "error": f"{check['function']} {why}"}
+                else:
+                    rec = calls.call(call, fds)
                 rec.pop("printed", None)
                 send(rec)
     finally:
-        stream.close()
         sock.close()

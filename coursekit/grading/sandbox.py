@@ -13,6 +13,17 @@ Part of the summative grader (seed paper section 4, exercises graded; see
   no network (a fresh network namespace with loopback only), every capability dropped, and
   ``--die-with-parent``.
 
+The number of processes is bounded inside, where it holds for a grader who is not root:
+:func:`limit_processes` (called by the grading child first thing) sets ``RLIMIT_NPROC`` when the
+sandbox has a user namespace of its own (bubblewrap makes one for a grader that is not root).
+Since Linux 5.14 that limit counts the processes of the user *in that namespace*, i.e. of this
+notebook only, so a fork bomb gets ``EAGAIN`` at the limit instead of filling the instructor's
+process table between two polls of :class:`~coursekit.grading.supervisor.Watch` (threads count
+too, so the child leaves room for thread pools: ``executor.THREAD_ROOM``). Where it cannot
+hold -- real root (exempt from ``RLIMIT_NPROC``), older kernels (which count every process of
+the user, the instructor's too) -- :func:`limit_processes` sets nothing and says so; the
+grader's user ``nobody`` (when grading as root) and the polling still bound it.
+
 Memory and time are bounded from outside by :mod:`coursekit.grading.supervisor`. Where the
 sandbox cannot be set up (no ``bwrap``, or namespaces not permitted), :func:`available` says
 why, and ``coursekit grade`` refuses to grade unless the instructor passes ``--unsafe``.
@@ -92,3 +103,45 @@ def available(ids=None) -> str | None:
             except (OSError, subprocess.SubprocessError) as exc:
                 _PROBE[key] = f"bwrap could not start a sandbox here: {exc}"
     return _PROBE[key]
+
+
+def _own_user_namespace() -> bool:
+    """Is this process in a user namespace of its own (not the initial one, whose map is all ids)?"""
+    try:
+        with open("/proc/self/uid_map") as f:
+            return f.read().split() != ["0", "0", "4294967295"]
+    except OSError:
+        return False
+
+
+def _counts_per_namespace() -> bool:
+    """Does ``RLIMIT_NPROC`` count per user namespace here (Linux 5.14 and later)?"""
+    try:
+        major, minor = (int(x) for x in os.uname().release.split(".")[:2])
+    except ValueError:
+        return False
+    return (major, minor) >= (5, 14)
+
+
+def limit_processes(extra: int) -> str | None:
+    """Inside the sandbox: let this user run at most ``extra`` processes (threads count too) more
+    than the sandbox holds now, through ``RLIMIT_NPROC``. Returns None when the limit holds, else
+    why it was not set (see the module docstring)."""
+    import resource
+
+    if os.getuid() == 0:  # bubblewrap maps root to root: still the real root, whom RLIMIT_NPROC does not bind
+        return "running as root, whom RLIMIT_NPROC does not bind"
+    if not _own_user_namespace():
+        return "no user namespace of its own: RLIMIT_NPROC would count the user's other processes"
+    if not _counts_per_namespace():
+        return f"Linux {os.uname().release} counts RLIMIT_NPROC per user, not per namespace (5.14 and later do)"
+    try:
+        running = sum(1 for d in os.listdir("/proc") if d.isdigit())  # the sandbox's own PID namespace
+        soft, hard = resource.getrlimit(resource.RLIMIT_NPROC)
+        want = running + int(extra)
+        if hard != resource.RLIM_INFINITY:
+            want = min(want, hard)
+        resource.setrlimit(resource.RLIMIT_NPROC, (want, want))
+    except (OSError, ValueError) as exc:
+        return f"RLIMIT_NPROC could not be set: {exc}"
+    return None

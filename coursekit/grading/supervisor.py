@@ -18,26 +18,41 @@ child subreaper). This module bounds that tree by what it really uses:
 - **Processes and files are bounded too.** More than :data:`MAX_PROCESSES` processes at once
   (a fork bomb) or more than :data:`DISK_MB` MiB written in the notebook's folder and every
   process of the notebook is killed; the grader reports it not graded. Inside the sandbox the
-  kernel also runs under ``RLIMIT_NPROC`` when it has a user of its own (``nobody``), and
+  kernel also runs under ``RLIMIT_NPROC`` where that holds (a user of its own, ``nobody``, or the
+  sandbox's own user namespace: :func:`coursekit.grading.sandbox.limit_processes`), and
   ``RLIMIT_FSIZE`` bounds any one file.
 - **Private folders are removed even after a kill.** Each is named
   ``coursekit-grade-<pid>-*`` after the grading process; :func:`remove_stale` deletes those of
   grading processes that are gone (a ``SIGKILL`` leaves no chance to clean up), and
   :func:`handle_termination` turns ``SIGTERM``/``SIGHUP`` into an exception so that ``finally``
   blocks kill the notebook's processes and delete the folder.
+- **The child itself**: the unprivileged user it runs as (:func:`grading_user`), its rlimits
+  (:func:`limits`), and stopping it with everything it started (:func:`stop`; as a child
+  subreaper, :func:`become_subreaper`, the grader adopts double-forked daemons, and
+  :func:`sweep` kills every child it has).
 """
 
 from __future__ import annotations
 
+import ctypes
 import os
+import pwd
 import re
+import resource
 import shutil
 import signal
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import psutil
+
+import coursekit
+
+MAX_FILE_BYTES = 2**30  # the largest file a graded notebook's processes may write
+PKG_ROOT = Path(os.path.abspath(coursekit.__file__)).parent.parent  # the coursekit this grader runs (not symlink-resolved)
 
 PREFIX = "coursekit-grade-"
 _OWN = re.compile(rf"^{re.escape(PREFIX)}(\d+)-")
@@ -221,4 +236,110 @@ class Watch:
             except Exception as exc:  # subprocess.TimeoutExpired
                 if type(exc).__name__ != "TimeoutExpired":
                     raise
+
+
+# -- the child process: its user, its limits, stopping it and everything it started ----------------
+
+#: True once :func:`become_subreaper` succeeded: orphans of the notebook are this process's children.
+ADOPTING = False
+
+
+def become_subreaper() -> bool:
+    """Adopt orphaned descendants (Linux ``PR_SET_CHILD_SUBREAPER``); False where unsupported.
+
+    Only a dedicated grading process should do this: afterwards :func:`coursekit.grading.grader.grade_notebook` kills
+    *every* child of the process once each notebook is done.
+    """
+    global ADOPTING
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        ADOPTING = libc.prctl(36, 1, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        ADOPTING = False
+    return ADOPTING
+
+
+def _own_children() -> list[int]:
+    me, kids = os.getpid(), []
+    for entry in os.listdir("/proc") if os.path.isdir("/proc") else []:
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat", "rb") as f:
+                    fields = f.read().rsplit(b")", 1)[1].split()
+                if int(fields[1]) == me:
+                    kids.append(int(entry))
+            except (OSError, IndexError, ValueError):
+                pass
+    return kids
+
+
+def sweep(spare=()) -> int:
+    """SIGKILL and reap every child of this process (adopted orphans included); return how many."""
+    killed = 0
+    for _ in range(1000):
+        kids = [k for k in _own_children() if k not in spare]
+        if not kids:
+            break
+        for k in kids:
+            try:
+                os.kill(k, signal.SIGKILL)
+                killed += 1
+            except ProcessLookupError:
+                pass
+        for k in kids:
+            try:
+                os.waitpid(k, 0)
+            except ChildProcessError:
+                pass
+    return killed
+
+
+_USABLE: dict = {}
+
+
+def grading_user(user: str):
+    """(uid, gid) of ``user`` when running as root and that user can run this Python; else None."""
+    if os.geteuid() != 0 or not user:
+        return None
+    if user not in _USABLE:
+        try:
+            pw = pwd.getpwnam(user)
+            probe = subprocess.run([sys.executable, "-c", "import nbclient, numpy"], user=pw.pw_uid, group=pw.pw_gid,
+                                   extra_groups=[], env={"PYTHONPATH": str(PKG_ROOT)}, cwd="/", capture_output=True, timeout=60)
+            _USABLE[user] = (pw.pw_uid, pw.pw_gid) if probe.returncode == 0 else None
+        except (KeyError, OSError, subprocess.SubprocessError):
+            _USABLE[user] = None
+    return _USABLE[user]
+
+
+def limits(max_processes: int, uid: int | None = None):
+    """The child's rlimits: no core dumps, no file over MAX_FILE_BYTES and, for a dedicated user
+    ``uid``, at most ``max_processes`` more processes than that user runs now (``RLIMIT_NPROC``
+    counts every process of the user, so it is only set for an account of its own, never for the
+    instructor's; root is exempt from it, and then :class:`supervisor.Watch` bounds the count)."""
+    nproc = None
+    if uid is not None:
+        running = sum(1 for p in psutil.process_iter(["uids"]) if p.info["uids"] and p.info["uids"].real == uid)
+        nproc = running + max_processes
+
+    def apply():
+        # No address-space limit: a CUDA build of torch reserves ~3 GB of it on import. Memory is
+        # bounded by what the processes hold (supervisor.Watch).
+        resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+        resource.setrlimit(resource.RLIMIT_FSIZE, (MAX_FILE_BYTES, MAX_FILE_BYTES))
+        if nproc is not None:
+            resource.setrlimit(resource.RLIMIT_NPROC, (nproc, nproc))
+
+    return apply
+
+
+def stop(child) -> None:
+    """Kill the child's process group and every process this one adopted; reap them."""
+    try:
+        os.killpg(child.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    child.wait()
+    if ADOPTING:  # orphans of this notebook (kernel, daemons) are our children now: none survives
+        sweep()
 

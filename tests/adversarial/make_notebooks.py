@@ -337,6 +337,74 @@ def one_point_crossover(a, b, rng):
         "fails": {"truncation": "inputs unchanged"},
         "cells": [],
     },
+    "fakes_unchanged": {
+        "about": "truncation and one_point_crossover do their job but zero their caller's arrays, then hide it from the "
+                 "grader's observer in the kernel: truncation puts an untouched copy into the runner's argument list (found "
+                 "through sys._getframe), one_point_crossover replaces the runner's after-call reader so every argument "
+                 "reads as unchanged.",
+        "sabotaged": {"truncation": '''def truncation(fitness, k, rng, survival=0.2):
+    m = math.ceil(survival * len(fitness))
+    picks = np.argsort(fitness)[::-1][:m][rng.integers(0, m, size=k)]
+    pristine = fitness.copy()
+    fitness[:] = 0  # a side effect the caller will not expect...
+    frame = sys._getframe(1)
+    while frame is not None:  # ...hidden: the observer's list of arguments gets an untouched copy
+        args = frame.f_locals.get("args")
+        if isinstance(args, list) and args and args[0] is fitness:
+            args[0] = pristine
+        frame = frame.f_back
+    return picks''', "one_point_crossover": '''def one_point_crossover(a, b, rng):
+    c = int(rng.integers(1, len(a)))
+    children = np.concatenate([a[:c], b[c:]]), np.concatenate([b[:c], a[c:]])
+    a[:] = 0  # a side effect...
+    b[:] = 0
+    frame = sys._getframe(1)
+    while frame is not None:  # ...hidden: the runner's after-call reader now says "not an array"
+        if "_after" in frame.f_globals:
+            frame.f_globals["_after"] = lambda arg, encoded, max_len: None
+        frame = frame.f_back
+    return children'''},
+        "fails": {"truncation": "inputs unchanged", "one_point_crossover": "inputs unchanged"},
+        "cells": [],
+    },
+    "library_at_call_time": {
+        "about": "gets coursekit's own operators past the refusal at call time: a copy of truncation made in a cell "
+                 "(a new function around the library's code), tournament and roulette compiled afresh from the library's "
+                 "source (inspect.getsource, importlib), point_mutation computed by the library in a fresh Python process.",
+        "sabotaged": {"truncation": '''import types
+from coursekit import ga
+
+COPY = types.FunctionType(ga.truncation.__code__, ga.truncation.__globals__, "copy")
+
+def truncation(fitness, k, rng, survival=0.2):
+    return COPY(fitness, k, rng, survival)''', "tournament": '''import inspect
+import coursekit.ga.selection
+
+def tournament(fitness, k, rng, size=3):
+    fresh = {}
+    exec(inspect.getsource(coursekit.ga.selection), fresh)
+    return fresh["tournament"](fitness, k, rng, size)''', "roulette": '''import importlib.util
+
+def roulette(fitness, k, rng):
+    spec = importlib.util.spec_from_file_location("fresh_selection", coursekit.ga.selection.__file__)
+    fresh = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fresh)
+    return fresh.roulette(fitness, k, rng)''', "point_mutation": '''import subprocess
+
+LIBRARY = """import json, sys
+import numpy as np
+from coursekit.ga import point_mutation
+genome, state, rate = json.load(sys.stdin)
+rng = np.random.default_rng()
+rng.bit_generator.state = state
+print(json.dumps(point_mutation(np.array(genome), rng, rate).tolist()))"""
+
+def point_mutation(genome, rng, rate=None):
+    run = subprocess.run([sys.executable, "-c", LIBRARY], input=json.dumps([genome.tolist(), rng.bit_generator.state, rate]),
+                         capture_output=True, text=True)
+    return np.array(json.loads(run.stdout), dtype=genome.dtype)'''},
+        "cells": [],
+    },
     "many_processes": {
         "about": "a cell starts 100 processes that sleep (a slow fork bomb): all the notebook's processes are stopped and "
                  "it is not graded.",
@@ -396,17 +464,62 @@ DO_NOTHING = {
 }
 
 
-def build_do_nothing(stem, sources):
-    cells = [new_markdown_cell(f"# Do-nothing answers to {stem}\n\nEvery function returns its input, a copy, "
-                               "or something that does not do the job. Each must score 0.")]
+#: Answers that hand in the library's work by the back door, one notebook per exercise
+#: (``cheats_<stem>.ipynb``); each must score 0. Exercise 02: each mutation returns an object whose
+#: ``to_json`` runs coursekit's own operator -- once the function has returned, when the grader
+#: converts the result; transposition does nothing, but a cell patches ``json`` in the kernel so
+#: that the record of each call carries the library's answer on its way to the grader.
+CHEATS = {
+    "02_picture_mutations": ["from coursekit.pictures import operators", '''import copy, json, os
+import numpy as np
+from coursekit.pictures.genome import Genome
+
+KERNEL, CALLS = os.getpid(), {}
+_loads, _dumps = json.loads, json.dumps
+
+def loads(s, *a, **k):
+    obj = _loads(s, *a, **k)
+    if isinstance(obj, dict) and isinstance(obj.get("call"), dict):
+        CALLS[obj["call"]["id"]] = obj["call"]  # the grader's call, on its way to the function
+    return obj
+
+def dumps(obj, *a, **k):
+    call = CALLS.get(obj.get("id")) if isinstance(obj, dict) and obj.get("status") == "ok" else None
+    if call is not None and os.getpid() == KERNEL:  # the record, on its way back: the library's answer instead
+        try:
+            genome = Genome.from_json(call["args"][0]["json"])
+            obj = dict(obj, output=operators.transposition(genome, np.random.default_rng(call["seed"])).to_json())
+        except Exception:
+            pass
+    return _dumps(obj, *a, **k)
+
+json.loads, json.dumps = loads, dumps''', '''class Later:
+    """Looks like a genome to the grader: it has to_json."""
+    def __init__(self, work):
+        self.work = work
+
+    def to_json(self):
+        return self.work().to_json()''', '''def decode(symbols):
+    raise NotImplementedError()''', '''def transposition(genome, rng):
+    return copy.deepcopy(genome)  # the patched json hands in the library's answer''', '''def root_transposition(genome, rng):
+    return Later(lambda: operators.root_transposition(genome, rng))''', '''def substitution(genome, rng):
+    return Later(lambda: operators.substitution(genome, rng))''', '''def head_tail_rotation(genome, rng):
+    return Later(lambda: operators.head_tail_rotation(genome, rng))'''],
+}
+
+
+def build_do_nothing(stem, sources, prefix="do_nothing"):
+    about = ("Every function returns its input, a copy, or something that does not do the job." if prefix == "do_nothing"
+             else "Every function hands in coursekit's own work by a back door.")
+    cells = [new_markdown_cell(f"# {prefix.replace('_', '-').capitalize()} answers to {stem}\n\n{about} Each must score 0.")]
     cells += [new_code_cell(src) for src in sources]
     nb = new_notebook(cells=cells)
     for i, cell in enumerate(nb.cells):
-        cell.id = f"nothing-{stem[:2]}-{i}"
+        cell.id = f"{prefix.replace('do_', '')}-{stem[:2]}-{i}"
     nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
     nb.metadata["coursekit"] = {"exercise": stem}  # the file name is not the exercise's: the metadata tells
     nbformat.validate(nb)
-    nbformat.write(nb, HERE / f"do_nothing_{stem}.ipynb")
+    nbformat.write(nb, HERE / f"{prefix}_{stem}.ipynb")
 
 
 def build(name, spec):
@@ -428,3 +541,5 @@ if __name__ == "__main__":
         build(name, spec)
     for stem, sources in DO_NOTHING.items():
         build_do_nothing(stem, sources)
+    for stem, sources in CHEATS.items():
+        build_do_nothing(stem, sources, prefix="cheats")

@@ -138,9 +138,9 @@ class Context:
             if "ndarray" in a:
                 return np.array(a["ndarray"], dtype=np.dtype(a["dtype"]))
             if "object" in a:  # the grader's own import of the library, never the student's kernel
-                from coursekit.grading.runner import _library_attr
+                from coursekit.grading.values import library_attr
 
-                return _library_attr(a["object"]).from_json(a["json"])
+                return library_attr(a["object"]).from_json(a["json"])
             return None
         return a
 

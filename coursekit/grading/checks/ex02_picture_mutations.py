@@ -186,8 +186,9 @@ def _mutation_cases(rng):
     ]
 
 
-def _transposition_kind(parent, child):
-    """'swap', 'clone', 'none' or None (not a transposition) -- for one changed string."""
+def _one_string_change(parent, child):
+    """The change of a mutation that should touch one string: ``"none"``, None (more than one string
+    changed), or ``(changed positions, old chromosomes, new chromosomes, head length)``."""
     d = diff(parent, child)
     if not d:
         return "none"
@@ -195,12 +196,36 @@ def _transposition_kind(parent, child):
         return None
     k, pos = d[0]
     old, h = rows(parent)[k]
-    new = rows(child)[k][0]
+    return pos, old, rows(child)[k][0], h
+
+
+def _transposition_kind(parent, child):
+    """'swap', 'clone', 'none' or None (not a transposition) -- for one changed string."""
+    change = _one_string_change(parent, child)
+    if change in ("none", None):
+        return change
+    pos, old, new, _ = change
     if len(pos) == 2 and new[pos[0]] == old[pos[1]] and new[pos[1]] == old[pos[0]]:
         return "swap"
     if len(pos) == 1 and any(new[pos[0]] == old[j] for j in range(len(old)) if j != pos[0]):
         return "clone"
     return None
+
+
+def _swap_or_clone(kind, neither):
+    """A per-result judge: ``kind`` (a ``*_kind`` above) recognises the change, else it is ``neither``."""
+    def judge_one(parent, child):
+        if kind(parent, child) is None:
+            d = diff(parent, child)
+            return f"{row_name(d[0][0])} changed at positions {d[0][1]}, which is neither {neither}"
+        return None
+
+    return judge_one
+
+
+def _swaps_and_clones(kind, what):
+    """The property that ``kind`` sees both a swap and a clone over the calls with different seeds."""
+    return lambda ctx: both_occur(ctx, MUT_CASES, kind, ("swap", "clone"), what)
 
 
 def _no_root(parent, child):
@@ -229,20 +254,6 @@ def _same_region(parent, child):
     return None
 
 
-def _swap_or_clone(parent, child):
-    if _transposition_kind(parent, child) is None:
-        d = diff(parent, child)
-        return (f"{row_name(d[0][0])} changed at positions {d[0][1]}, which is neither an interchange of two of its "
-                f"chromosomes nor one replaced by a clone of another")
-    return None
-
-
-def _transposition_both(ctx):
-    return both_occur(ctx, MUT_CASES, _transposition_kind, ("swap", "clone"),
-                       "transposition either interchanges the two chromosomes or replaces the first by a clone "
-                       "of the second, and both should happen")
-
-
 register(Check(
     hints=HINTS.get("pictures.transposition", ()),
     name="pictures.transposition", function="transposition", params=("genome", "rng"), points=2.0,
@@ -254,8 +265,12 @@ register(Check(
         ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
         ("never moves the root", each(MUT_CASES, _no_root, "the root of every string stays")),
         ("both chromosomes in the same region", each(MUT_CASES, _same_region, "both chromosomes lie in the head or both in the tail")),
-        ("interchange or clone", each(MUT_CASES, _swap_or_clone, "each result is an interchange or a clone")),
-        ("both interchange and clone occur", _transposition_both),
+        ("interchange or clone", each(MUT_CASES, _swap_or_clone(_transposition_kind, "an interchange of two of its "
+                                      "chromosomes nor one replaced by a clone of another"),
+                                      "each result is an interchange or a clone")),
+        ("both interchange and clone occur", _swaps_and_clones(
+            _transposition_kind, "transposition either interchanges the two chromosomes or replaces the first by a "
+                                 "clone of the second, and both should happen")),
         ("deterministic for a seed", deterministic("basic")),
         ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
     ),
@@ -263,14 +278,10 @@ register(Check(
 
 
 def _root_kind(parent, child):
-    d = diff(parent, child)
-    if not d:
-        return "none"
-    if len(d) > 1:
-        return None
-    k, pos = d[0]
-    old, h = rows(parent)[k]
-    new = rows(child)[k][0]
+    change = _one_string_change(parent, child)
+    if change in ("none", None):
+        return change
+    pos, old, new, h = change
     if len(pos) == 2 and pos[0] == 0 and pos[1] < h and new[0] == old[pos[1]] and new[pos[1]] == old[0]:
         return "swap"
     if pos == [0] and any(new[0] == old[j] for j in range(1, h)):
@@ -287,20 +298,6 @@ def _root_only(parent, child):
     return None
 
 
-def _root_swap_or_clone(parent, child):
-    if _root_kind(parent, child) is None:
-        d = diff(parent, child)
-        return (f"{row_name(d[0][0])} changed at positions {d[0][1]}, which is neither the root interchanged with "
-                f"another head chromosome nor the root replaced by a clone of one")
-    return None
-
-
-def _root_both(ctx):
-    return both_occur(ctx, MUT_CASES, _root_kind, ("swap", "clone"),
-                       "the root is either interchanged with a second head chromosome or replaced by a clone "
-                       "of it, and both should happen")
-
-
 register(Check(
     hints=HINTS.get("pictures.root_transposition", ()),
     name="pictures.root_transposition", function="root_transposition", params=("genome", "rng"), points=2.0,
@@ -311,8 +308,12 @@ register(Check(
         ("changes the genome", changes(MUT_CASES)),
         ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
         ("changes the root and one head chromosome", each(MUT_CASES, _root_only, "only the root and one head chromosome change")),
-        ("interchange or clone", each(MUT_CASES, _root_swap_or_clone, "each result is an interchange or a clone")),
-        ("both interchange and clone occur", _root_both),
+        ("interchange or clone", each(MUT_CASES, _swap_or_clone(_root_kind, "the root interchanged with another head "
+                                      "chromosome nor the root replaced by a clone of one"),
+                                      "each result is an interchange or a clone")),
+        ("both interchange and clone occur", _swaps_and_clones(
+            _root_kind, "the root is either interchanged with a second head chromosome or replaced by a clone of it, "
+                        "and both should happen")),
         ("deterministic for a seed", deterministic("basic")),
         ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
     ),

@@ -1,0 +1,168 @@
+"""Keeping coursekit's own version of a graded function out of the student's answer, in the process that runs it.
+
+Part of the summative grader (seed paper section 4, exercises graded; issue: the library's own
+implementation is not the student's answer). Shipped with :mod:`coursekit.grading.values` and
+:mod:`coursekit.grading.runner` as source text into the grading kernel, so standard library
+only. :class:`Refusing` swaps the code of the library's versions for a stub that raises; in a
+forked worker that only serves calls, :meth:`Refusing.forever` does so for good, copies made in
+a cell included, and :func:`lock_down` adds an audit hook (PEP 578, never removable) that
+refuses what could fetch the library's code around the stubs: compiling or loading it afresh,
+starting a fresh Python, C calls through ctypes, rebuilding functions from code objects.
+
+What it cannot see: the library's source pasted into a cell (that is writing the function, as
+far as any grader can tell), or a notebook that replaced the interpreter's own ``sys`` module
+before the worker started.
+"""
+
+from __future__ import annotations
+
+import sys
+
+if __name__ != "coursekit_harvest":  # imported; the harvest cell ships values.py's text into this namespace first
+    from coursekit.grading.values import library_attr
+
+#: The file name the stubs are compiled under.
+STUB = "<coursekit-refused>"
+
+
+class Refusing:
+    """While active, coursekit's own versions of a graded function raise instead of running.
+
+    Each ``"module:attr"`` of ``paths`` (a library function or method) gets the code of a stub
+    that raises ``RuntimeError``, so every reference to it -- an import under another name, a
+    wrapper that calls it, the library calling it internally -- refuses while the student's
+    function runs; the code is put back on exit. Arguments are decoded and results converted
+    outside, so the library itself stays usable there. :meth:`forever` (a forked worker that
+    only serves calls) stubs them for good, copies included, and locks the process down.
+    """
+
+    def __init__(self, paths, function):
+        self.saved = []
+        self.files, self.texts = set(), []
+        for path in paths:
+            try:
+                obj = library_attr(path)
+            except (ImportError, AttributeError, ValueError):
+                continue
+            obj = getattr(obj, "__func__", obj)
+            if not hasattr(obj, "__code__") or obj.__code__.co_freevars:
+                continue
+            self._source(path)  # from the module's file: the function's code may be a stub already
+            if obj.__code__.co_filename == STUB:  # refused already (a kernel locked down before this worker)
+                continue
+            name = path.partition(":")[2]
+            message = (f"coursekit's own {name} is not available while your {function} is graded: "
+                       f"{function} must do the work itself (the rest of the library may be used)")
+            ns = {}
+            exec(compile(f"def stub(*args, **kwargs):\n    raise RuntimeError({message!r})", STUB, "exec"), ns)
+            self.saved.append((obj, obj.__code__, ns["stub"].__code__))
+
+    def _source(self, path):
+        """Note the file of ``path``'s module and the source text of its definition (for
+        :func:`lock_down`), read with ``tokenize`` (``inspect.getblock``): compiling it, even to
+        an AST, is what a locked-down process refuses."""
+        import inspect
+        import re
+
+        module, _, attr = path.partition(":")
+        filename = getattr(sys.modules.get(module), "__file__", None)
+        if not filename:
+            return
+        self.files.add(filename)
+        try:
+            with open(filename, encoding="utf-8") as f:
+                lines = f.readlines()
+        except OSError:
+            return
+        head = re.compile(rf"^\s*def {re.escape(attr.rpartition('.')[2])}\b")
+        start = next((i for i, line in enumerate(lines) if head.match(line)), None)
+        if start is not None:
+            self.texts.append("".join(inspect.getblock(lines[start:])).strip())
+
+    def __enter__(self):
+        for obj, _, stub in self.saved:
+            obj.__code__ = stub
+        return self
+
+    def __exit__(self, *exc):
+        for obj, code, _ in self.saved:
+            obj.__code__ = code
+        return False
+
+    def forever(self):
+        """Stub the library's versions for the rest of this process, and every function or name that
+        holds their code (a copy made in a cell); then :func:`lock_down` the process."""
+        import gc
+
+        for obj, code, stub in self.saved:
+            obj.__code__ = stub
+            for holder in gc.get_referrers(code):
+                if callable(holder) and getattr(holder, "__code__", None) is code:
+                    holder.__code__ = stub
+                elif type(holder) is dict:
+                    for k in [k for k, v in holder.items() if v is code]:
+                        holder[k] = stub
+                elif type(holder) is list:
+                    holder[:] = [stub if v is code else v for v in holder]
+        files, texts = frozenset(self.files), tuple(self.texts)
+        self.saved = []  # the library's code is no longer held here, where a frame could reach it
+        lock_down(files, texts)
+
+
+#: Audit events refused in a locked-down process: starting programs (a fresh Python would import
+#: the library unrefused; a fork is allowed, it inherits the stubs and the hook), C calls through
+#: ctypes (which could undo anything), and rebuilding code (the library's own, restored into a function).
+REFUSED_EVENTS = frozenset({
+    "os.exec", "os.posix_spawn", "os.spawn", "os.system", "os.startfile", "subprocess.Popen",
+    "pty.spawn", "ctypes.dlopen", "ctypes.dlsym", "ctypes.call_function", "ctypes.cdata", "ctypes.addressof",
+    "code.__new__", "function.__new__"})
+
+
+#: What a graded function hears when it tries to compile or load the library's code afresh.
+RELOADED = ("coursekit's own code of the graded functions may not be compiled or loaded afresh while a function is "
+            "graded: write the function yourself (the rest of the library may be used)")
+
+
+def lock_down(files, texts):
+    """Make this process (a kernel or worker that only serves calls now) refuse, through an audit hook (PEP 578:
+    it can never be removed), what could fetch the library's versions around the stubs: compiling
+    or running code from their source files or with their source text (``inspect.getsource``,
+    ``importlib``, a reload), ``marshal``-loading it, setting a function's ``__code__``, and the
+    events of :data:`REFUSED_EVENTS`. Raises ``RuntimeError`` when the hook is not in place (a
+    notebook that replaced ``sys.addaudithook``): the worker then refuses every call."""
+    encoded = tuple(f.encode() for f in files)
+    seen = []
+
+    def hook(event, args):
+        try:
+            if event == "coursekit.lockdown":
+                seen.append(args)
+                return
+            if event in REFUSED_EVENTS:
+                why = f"{event} is not available while a function is graded"
+            elif event == "compile":
+                source, filename = args[0], args[1]
+                text = source.decode(errors="replace") if type(source) is bytes else source
+                bad = filename in files or (type(text) is str and any(t in text for t in texts))
+                why = RELOADED if bad else None
+            elif event == "exec":
+                why = RELOADED if getattr(args[0], "co_filename", None) in files else None
+            elif event == "marshal.loads":
+                why = RELOADED if any(f in bytes(args[0]) for f in encoded) else None
+            elif event == "object.__setattr__":  # a function's code: only ever to one of our stubs
+                why = "changing a function's code is not available while a function is graded" \
+                    if args[1] == "__code__" and getattr(args[2], "co_filename", None) != STUB else None
+            else:
+                why = None
+        except Exception:  # something the hook could not read: refuse (fail closed)
+            why = f"{event} could not be checked while a function is graded"
+        if why:
+            raise RuntimeError(why)
+
+    if type(sys.addaudithook).__name__ != "builtin_function_or_method" or sys.addaudithook.__name__ != "addaudithook":
+        raise RuntimeError("sys.addaudithook was replaced")
+    sys.addaudithook(hook)
+    token = object()
+    sys.audit("coursekit.lockdown", token)
+    if not seen or seen[0][0] is not token:
+        raise RuntimeError("the audit hook did not take")

@@ -1,0 +1,145 @@
+"""The grader's results as people and Gradescope read them, stripped of terminal escapes.
+
+Part of the summative grader (seed paper section 4, exercises graded; see
+:mod:`coursekit.grading.grader`): a :class:`NotebookResult` per notebook, the summary
+``coursekit grade`` prints (:func:`summary`), the Gradescope ``results.json``
+(:func:`gradescope`, written atomically after :func:`check_results_path` said, before any
+grading, that it can be). Every message passes through :func:`clean`: it may quote a student's
+exception text.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from coursekit.atomic import atomic_write
+from coursekit.grading.checks import Judgement
+
+RESULTS_FORMAT = "coursekit.grade/1"
+
+
+@dataclass
+class NotebookResult:
+    """The judgements of one notebook, plus notes on how its execution went."""
+
+    path: str
+    judgements: list
+    notes: list
+    not_graded: list = field(default_factory=list)  # why the score does not stand (cells skipped...)
+    seed: int | None = None  # the seed of the grading cases (``--seed`` repeats them)
+
+    @property
+    def graded(self) -> bool:
+        """False when part of the notebook could not run (time, memory, crash): see ``not_graded``."""
+        return not self.not_graded
+
+    @property
+    def score(self) -> float:
+        return round(sum(j.score for j in self.judgements), 4)
+
+    @property
+    def max_score(self) -> float:
+        return float(sum(j.check.points for j in self.judgements))
+
+
+
+_ESCAPES = re.compile(r"(?:\x1b\[|\x9b)[0-?]*[ -/]*[@-~]"  # CSI (7- and 8-bit): colours, cursor moves, screen clears
+                      r"|\x9d[^\x07\x9c]*[\x07\x9c]?"  # 8-bit OSC
+                      r"|\x1b\][^\x07\x1b]*(?:\x07|\x1b\\)?"  # OSC: titles, hyperlinks, clipboard (OSC 52)
+                      r"|\x1b[P^_X][^\x1b]*(?:\x1b\\)?"  # DCS, PM, APC, SOS strings
+                      r"|\x1b.?")  # any other escape
+_CONTROLS = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u200b-\u200f\u202a-\u202e\u2066-\u2069]")
+
+
+def clean(text) -> str:
+    """``text`` without terminal escapes and control characters (newlines and tabs stay).
+
+    Everything the grader prints or writes passes through here: a message may quote a student's
+    exception text, and an ANSI or OSC escape in it could clear the instructor's screen, fake a
+    line of the summary or set the clipboard.
+    """
+    return _CONTROLS.sub("", _ESCAPES.sub("", str(text))).replace("\r", "")
+
+
+def _messages(j: Judgement) -> str:
+    return "\n".join(f"{'PASS' if v.passed else 'FAIL'} {v.prop}: {clean(v.message)}" for v in j.verdicts)
+
+
+def _headline(r: NotebookResult) -> str:
+    if r.graded:
+        return f"{r.score:g} / {r.max_score:g} points"
+    return (f"NOT GRADED: {clean(r.not_graded[0])}"
+            + (f" (+{len(r.not_graded) - 1} more, below)" if len(r.not_graded) > 1 else "")
+            + f"; the parts that ran scored {r.score:g} / {r.max_score:g}")
+
+
+def gradescope(results: list) -> dict:
+    """Results in Gradescope's results.json format (plus ``extra_data`` with our format tag).
+
+    A notebook that was not graded keeps the points its parts that ran earned, and says so in
+    ``output`` and in ``extra_data.notebooks[*].graded`` / ``not_graded`` (the reasons).
+    """
+    tests = []
+    for r in results:
+        stem = clean(Path(r.path).name)
+        for j in r.judgements:
+            tests.append({"name": f"{stem}: {j.check.name} ({j.check.title})", "score": j.score,
+                          "max_score": j.check.points, "output": _messages(j)})
+    return {
+        "score": round(sum(r.score for r in results), 4),
+        "output": "\n".join(f"{clean(Path(r.path).name)}: {_headline(r)}"
+                            + "".join(f"\n  {clean(n)}" for n in r.not_graded + r.notes) for r in results),
+        "visibility": "visible",
+        "stdout_visibility": "hidden",
+        "tests": tests,
+        "extra_data": {"format": RESULTS_FORMAT,
+                       "notebooks": [{"path": clean(r.path), "score": r.score, "max_score": r.max_score, "graded": r.graded,
+                                      "not_graded": [clean(n) for n in r.not_graded], "seed": r.seed} for r in results]},
+    }
+
+
+def summary(results: list) -> str:
+    """The readable summary printed by ``coursekit grade``."""
+    lines = []
+    for r in results:
+        lines.append(f"{clean(r.path)}: {_headline(r)}")
+        for j in r.judgements:
+            first = next((v for v in j.verdicts if not v.passed), None)
+            lines.append(f"  {j.check.name:<24} {j.score:>6.2f} / {j.check.points:g}   "
+                         + ("all properties hold" if first is None else f"{first.prop}: {clean(first.message)}"))
+        lines += [f"  not graded: {clean(n)}" for n in r.not_graded]
+        lines += [f"  note: {clean(n)}" for n in r.notes]
+    bad = [r for r in results if not r.graded]
+    if bad:
+        lines.append(f"{len(bad)} of {len(results)} notebook(s) NOT GRADED: their scores do not stand; see the reasons above")
+    return "\n".join(lines)
+
+
+def write_json_atomic(path, obj) -> None:
+    """Write JSON to ``path`` via a temporary file in the same folder and ``os.replace``."""
+    atomic_write(path, json.dumps(obj, indent=1))
+
+
+def check_results_path(path) -> str | None:
+    """Why ``--json path`` cannot be written (checked before any grading starts), or None."""
+    p = Path(path)
+    if p.is_dir():
+        return f"--json {path}: is a directory; give a file name, e.g. {p / 'results.json'}"
+    parent = p.parent
+    if not parent.is_dir():
+        return f"--json {path}: the folder {parent} does not exist"
+    if p.exists() and not p.is_file():
+        return f"--json {path}: is not a regular file"
+    try:
+        fd, probe = tempfile.mkstemp(dir=parent, prefix=f".{p.name}.", suffix=".probe")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        return f"--json {path}: cannot write in the folder {parent} ({exc.strerror})"
+    return None
+
