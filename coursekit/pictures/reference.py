@@ -19,7 +19,7 @@ import numpy as np
 
 from . import textures as T
 from .genome import Genome, Node
-from .evaluate import _parse_size, _parse_window
+from .frame import parse_size as _parse_size, parse_window as _parse_window
 
 __all__ = ["render_reference"]
 
