@@ -76,10 +76,6 @@ def choice(rng, seq):
     return seq[int(rng.integers(len(seq)))]
 
 
-def choice(rng, seq):
-    return seq[int(rng.integers(len(seq)))]
-
-
 def random_face_point(rng) -> tuple:
     """A point on the unit box surface from the predefined coordinates (one component ±1)."""
     k = int(rng.integers(3))

@@ -29,7 +29,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from typing import ClassVar, Iterable, Sequence
 
 import numpy as np
 
@@ -434,6 +434,9 @@ class Genome(_CachedHash):
     # ---- display ------------------------------------------------------------------------
     #: Side of the picture a notebook shows for a genome (``_repr_png_``), in pixels.
     REPR_SIZE = 160
+    #: ``genome -> PNG bytes`` for notebooks, set by :mod:`.gallery` (the renderer sits above
+    #: genomes: they do not import it); ``None``: no picture.
+    picture_png: ClassVar = None
 
     def __repr__(self) -> str:
         """Short: the shape and the start of the expression (``to_json`` has everything).
@@ -448,12 +451,10 @@ class Genome(_CachedHash):
         return (f"Genome({n} string{'s' * (n != 1)}, head {self.strings[0].head_length}, "
                 f"{k} coding chromosome{'s' * (k != 1)}: {expr})")
 
-    def _repr_png_(self) -> bytes:
+    def _repr_png_(self) -> bytes | None:
         """The picture, for notebooks (``REPR_SIZE`` pixels square, rendered in this process)."""
-        from .evaluate import render
-        from .gallery import png_bytes
-
-        return png_bytes(render([self], size=(self.REPR_SIZE, self.REPR_SIZE), workers=1)[0])
+        draw = type(self).picture_png
+        return None if draw is None else draw(self)
 
     # ---- files --------------------------------------------------------------------------
     def to_dict(self) -> dict:

@@ -138,7 +138,7 @@ class _Waves:
 
         ctx = c if isinstance(coords, int) else Context(stack([i.ctx.x for i in insts]), stack([i.ctx.y for i in insts]),
                                             c.H, c.W, c.px, c.py, c.time, c.res, Memo())
-        s, p = first.node.symbol, [stack([i.node.params[k] for i in insts]) for k in range(len(first.node.params))]
+        p = [stack([i.node.params[k] for i in insts]) for k in range(len(first.node.params))]
         inputs = [stack([i.inputs[k].value for i in insts], shapes[k]) for k in range(len(first.inputs))]
         if first.kind == "eval":
             value = apply_kernel(first.node, ctx, p, inputs)

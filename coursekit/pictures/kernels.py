@@ -41,7 +41,7 @@ import numpy as np
 import torch
 
 from . import textures as T
-from .context import BIG, Context, fmod, fold, sane, separable
+from .context import Context, fmod, fold, sane, separable
 from .primitives import image_kernel
 
 __all__: list[str] = []  # everything here is reached through the registry
@@ -338,7 +338,7 @@ def _mod(a, b):
 
 
 def _quant(v):
-    """fold(v) in 256 levels (int32); ``_sane`` gives a fresh tensor, folded in place."""
+    """fold(v) in 256 levels (int32); ``sane`` gives a fresh tensor, folded in place."""
     v = sane(v)
     return v.sub_((v * 0.5).round_(), alpha=2.0).abs_().mul_(255.999).to(torch.int32)  # >= 0: floor
 

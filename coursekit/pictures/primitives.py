@@ -204,7 +204,11 @@ def register_primitive(primitive: Primitive, *, image=None, pixel=None, replace:
                            image=lambda ctx, p, a: torch.tanh(a),
                            pixel=lambda ref, x, y, p, a: tuple(math.tanh(v) for v in a))
 
-    Registering changes what random genomes draw from: same seed, other genomes.
+    The whole-image kernel must compute each image of a batch as it would compute it alone
+    (plain arithmetic does; some vectorised library functions round the last elements of a
+    tensor differently, see :mod:`.kernels`), or pictures rendered in waves differ in the last
+    bits. Registering changes what random genomes draw from: same seed, other genomes (a
+    ``weight`` and ``root`` of 0 keep it out of random draws).
     """
     if not isinstance(primitive, Primitive):
         raise TypeError(f"primitive: expected a Primitive, got {type(primitive).__name__}")
