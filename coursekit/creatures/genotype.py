@@ -67,7 +67,7 @@ from .morphology import (
 )
 from .neural import MAX_BRAIN_NEURONS, Neuron, _need_keys, validate_neuron
 from .phenotype import MAX_PARTS, expand
-from .render import render
+from . import render as rendering  # the module (the package's name `render` is the function)
 
 __all__ = ["FORMAT", "Creature", "ChildLink", "Node", "Recursion", "Symmetry", "JOINT_DOF", "MAX_HALF_EXTENT",
            "MIN_HALF_EXTENT", "MAX_NODES", "MAX_CHILDREN", "MAX_RECURSION_ENTRIES", "MAX_RECURSIVE_LIMIT",
@@ -158,7 +158,7 @@ class Creature:
         """PNG, HTML (the PNG with its summary below) and text, from one rendering."""
         from coursekit.pictures.gallery import png_bytes  # not at import: it loads torch
 
-        png = png_bytes(render(self, size=self.REPR_SIZE) / 255.0)
+        png = png_bytes(rendering.render(self, size=self.REPR_SIZE) / 255.0)
         s = self.summary()
         caption = (f"{s['parts']} parts, {s['joints']} joints, {s['dof']} DOF (+6 free root), "
                    f"{s['mass']:.3g} kg, {s['neurons']} neurons; genotype of {s['nodes']} nodes")
