@@ -7,7 +7,9 @@ to dodge a cycle still makes the modules depend on each other, only later and ou
 imports under ``if TYPE_CHECKING:`` (never executed) are left out. ``from package import name``
 is an edge to the submodule ``package.name`` when there is one, else to the package's
 ``__init__``; a module's own parent packages are not counted for the import machinery's implicit
-loading of them (``from . import sibling`` reaches the sibling, not the package's ``__init__``).
+loading of them (``from . import sibling`` reaches the sibling, not the package's ``__init__``;
+the check modules of ``coursekit.grading.checks`` import ``register`` from their package, which
+finds them on disk rather than importing them by name).
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from coursekit.pictures import context as Cx
-from coursekit.pictures import kernels as K
+from coursekit.pictures.kernels import pointwise as KP
 from coursekit.pictures import operators as O
 from coursekit.pictures.evaluate import render
 from coursekit.pictures.genome import Chromosome, ChromosomeString, Genome
@@ -44,7 +44,7 @@ def test_bit_select_is_torch_where_bit_for_bit(a, b, mask):
     a = torch.tensor(a, dtype=torch.float32).reshape(1, 1, 2, 3)
     b = torch.tensor(b, dtype=torch.float32).reshape(1, 1, 2, 1)  # broadcast like a scalar column
     m = torch.tensor(mask).reshape(1, 1, 2, 3)
-    got = K._select(m, a, b)
+    got = KP._select(m, a, b)
     want = torch.where(m, b, a)
     assert torch.equal(got.view(torch.int32), want.view(torch.int32))
 

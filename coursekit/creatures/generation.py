@@ -30,7 +30,7 @@ from .morphology import (
     Symmetry,
     renumber,
 )
-from .neural import MAX_BRAIN_NEURONS, MAX_NEURONS, N_SENSORS, Input, Neuron, _is_int, random_input, random_neuron
+from .neural import MAX_BRAIN_NEURONS, MAX_NEURONS, N_SENSORS, Input, Neuron, is_int, random_input, random_neuron
 from .phenotype import MAX_PARTS, expand
 
 __all__ = ["SIZES", "COORDS", "FORCES", "REVOLUTE_LIMITS", "PRISMATIC_LIMITS", "SCALES", "AXES", "ROTATIONS", "FACES",
@@ -167,10 +167,10 @@ def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), 
     """
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"Creature.random: rng must be a numpy.random.Generator, got {type(rng).__name__}")
-    lo, hi = (n_nodes, n_nodes) if _is_int(n_nodes) else tuple(n_nodes)
+    lo, hi = (n_nodes, n_nodes) if is_int(n_nodes) else tuple(n_nodes)
     if not 1 <= lo <= hi <= MAX_NODES:
         raise ValueError(f"Creature.random.n_nodes: need 1 <= lo <= hi <= {MAX_NODES}, got {n_nodes!r}")
-    if not _is_int(max_children) or not 1 <= max_children <= MAX_CHILDREN:
+    if not is_int(max_children) or not 1 <= max_children <= MAX_CHILDREN:
         raise ValueError(f"Creature.random.max_children: must be in [1, {MAX_CHILDREN}], got {max_children!r}")
     for name, (a, b), cap in (("neurons", neurons, MAX_NEURONS), ("brain_neurons", brain_neurons, MAX_BRAIN_NEURONS)):
         if not 0 <= a <= b <= cap:
@@ -179,7 +179,7 @@ def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), 
         if not 0.0 <= p <= 1.0:
             raise ValueError(f"Creature.random.{name}: must be a probability in [0, 1], got {p!r}")
     max_parts = MAX_PARTS if max_parts is None else max_parts
-    if not _is_int(max_parts) or max_parts < hi:
+    if not is_int(max_parts) or max_parts < hi:
         raise ValueError(f"Creature.random.max_parts: must be an int >= the largest node count {hi}, got {max_parts!r}")
     count = int(rng.integers(lo, hi + 1))
     nodes = [random_node(rng) for _ in range(count)]
@@ -259,7 +259,7 @@ def figure1_snake(segments: int = 4) -> tuple[list, list]:
     Args:
         segments: number of body segments (1..MAX_RECURSIVE_LIMIT + 1).
     """
-    if not _is_int(segments) or not 1 <= segments <= MAX_RECURSIVE_LIMIT + 1:
+    if not is_int(segments) or not 1 <= segments <= MAX_RECURSIVE_LIMIT + 1:
         raise ValueError(f"figure1_snake.segments: must be an int in [1, {MAX_RECURSIVE_LIMIT + 1}], got {segments!r}")
     brain = [Neuron("oscillate_wave", [Input(None, 0, 0.0)], 1.0)]
     # Slender-body (resistive-force) theory for a travelling wave in a viscous medium gives a

@@ -65,7 +65,7 @@ from .morphology import (
     renumber,
     validate_node,
 )
-from .neural import MAX_BRAIN_NEURONS, Neuron, _need_keys, validate_neuron
+from .neural import MAX_BRAIN_NEURONS, Neuron, need_keys, validate_neuron
 from .phenotype import MAX_PARTS, expand
 from . import render as rendering  # the module (the package's name `render` is the function)
 
@@ -182,7 +182,7 @@ class Creature:
             raise TypeError(f"creature: expected a JSON object, got {type(d).__name__}")
         if d.get("format") != FORMAT:
             raise ValueError(f"creature.format: expected {FORMAT!r}, got {d.get('format')!r} (not a coursekit creature file?)")
-        _need_keys(d, ("nodes", "brain"), "creature")
+        need_keys(d, ("nodes", "brain"), "creature")
         if not isinstance(d["nodes"], list) or not isinstance(d["brain"], list):
             raise TypeError("creature.nodes / creature.brain: expected lists")
         nodes = [node_from_dict(n, f"creature.nodes[{i}]") for i, n in enumerate(d["nodes"])]

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .body import MAX_HALF_EXTENT, MIN_HALF_EXTENT
-from .neural import MAX_NEURONS, N_SENSORS, Input, Neuron, _is_int, _is_real, _need_keys, validate_input, validate_neuron
+from .neural import MAX_NEURONS, N_SENSORS, Input, Neuron, is_int, is_real, need_keys, validate_input, validate_neuron
 
 __all__ = ["JOINT_DOF", "MAX_NODES", "MAX_CHILDREN", "MAX_RECURSION_ENTRIES", "MAX_RECURSIVE_LIMIT", "MAX_SYMMETRY",
            "MAX_FORCE", "SCALE_RANGE", "IDENTITY", "ChildLink", "Recursion", "Symmetry", "Node", "node_from_dict",
@@ -60,7 +60,7 @@ IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 
 
 def _vec(v, where: str, *, lo=-1.0, hi=1.0) -> None:
-    if not isinstance(v, (list, tuple)) or len(v) != 3 or not all(_is_real(c) for c in v):
+    if not isinstance(v, (list, tuple)) or len(v) != 3 or not all(is_real(c) for c in v):
         raise ValueError(f"{where}: expected 3 finite numbers, got {v!r}")
     if lo is not None and not all(lo - 1e-12 <= c <= hi + 1e-12 for c in v):
         raise ValueError(f"{where}: every component must be in [{lo}, {hi}], got {list(v)}")
@@ -68,7 +68,7 @@ def _vec(v, where: str, *, lo=-1.0, hi=1.0) -> None:
 
 def _rot(R, where: str) -> None:
     if (not isinstance(R, (list, tuple)) or len(R) != 3
-            or not all(isinstance(r, (list, tuple)) and len(r) == 3 and all(_is_real(v) for v in r) for r in R)):
+            or not all(isinstance(r, (list, tuple)) and len(r) == 3 and all(is_real(v) for v in r) for r in R)):
         raise ValueError(f"{where}: expected a 3x3 rotation matrix of finite numbers, got {R!r}")
     A = np.asarray(R, dtype=float)
     if np.abs(A).max() > 1.0 + 1e-9 or np.abs(A @ A.T - np.eye(3)).max() > 1e-9 or np.linalg.det(A) < 0:
@@ -157,21 +157,21 @@ def _tuple(v):
 
 
 def node_from_dict(d, where: str) -> Node:
-    _need_keys(d, _NODE_KEYS, where)
+    need_keys(d, _NODE_KEYS, where)
     for k in ("children", "recursion", "symmetry", "neurons", "effectors"):
         if not isinstance(d[k], list):
             raise TypeError(f"{where}.{k}: expected a list, got {type(d[k]).__name__}")
     children = []
     for k, c in enumerate(d["children"]):
-        _need_keys(c, ("child", "pos", "rot", "scale", "terminal_only", "reflect"), f"{where}.children[{k}]")
+        need_keys(c, ("child", "pos", "rot", "scale", "terminal_only", "reflect"), f"{where}.children[{k}]")
         children.append(ChildLink(c["child"], _tuple(c["pos"]), _tuple(c["rot"]), c["scale"], c["terminal_only"], c["reflect"]))
     recursion = []
     for k, r in enumerate(d["recursion"]):
-        _need_keys(r, ("pos", "scale", "rot"), f"{where}.recursion[{k}]")
+        need_keys(r, ("pos", "scale", "rot"), f"{where}.recursion[{k}]")
         recursion.append(Recursion(_tuple(r["pos"]), r["scale"], _tuple(r["rot"])))
     symmetry = []
     for k, s in enumerate(d["symmetry"]):
-        _need_keys(s, ("child", "axis"), f"{where}.symmetry[{k}]")
+        need_keys(s, ("child", "axis"), f"{where}.symmetry[{k}]")
         symmetry.append(Symmetry(s["child"], s["axis"]))
     neurons = [Neuron.from_dict(n, f"{where}.neurons[{k}]") for k, n in enumerate(d["neurons"])]
     effectors = [None if e is None else Input.from_dict(e, f"{where}.effectors[{k}]") for k, e in enumerate(d["effectors"])]
@@ -194,14 +194,14 @@ def validate_node(node: Node, where: str, n_nodes: int, n_brain: int) -> None:
     if abs(math.hypot(*node.joint_axis) - 1.0) > 1e-9:
         raise ValueError(f"{where}.joint_axis: must be a unit vector, got {list(node.joint_axis)}")
     lim = node.limits
-    if not isinstance(lim, (list, tuple)) or len(lim) != 2 or not all(_is_real(v) for v in lim) or not lim[0] < 0 < lim[1]:
+    if not isinstance(lim, (list, tuple)) or len(lim) != 2 or not all(is_real(v) for v in lim) or not lim[0] < 0 < lim[1]:
         raise ValueError(f"{where}.limits: need (lo, hi) with lo < 0 < hi, got {lim!r}")
     bound = math.pi if node.joint_type == "revolute" else MAX_HALF_EXTENT
     if -lim[0] > bound or lim[1] > bound:
         raise ValueError(f"{where}.limits: {node.joint_type} limits must lie within ±{bound:g}, got {list(lim)}")
-    if not _is_real(node.force) or node.force == 0 or abs(node.force) > MAX_FORCE:
+    if not is_real(node.force) or node.force == 0 or abs(node.force) > MAX_FORCE:
         raise ValueError(f"{where}.force: must be nonzero with |force| <= {MAX_FORCE}, got {node.force!r}")
-    if not _is_int(node.recursive_limit) or not 0 <= node.recursive_limit <= MAX_RECURSIVE_LIMIT:
+    if not is_int(node.recursive_limit) or not 0 <= node.recursive_limit <= MAX_RECURSIVE_LIMIT:
         raise ValueError(f"{where}.recursive_limit: must be an int in [0, {MAX_RECURSIVE_LIMIT}], got {node.recursive_limit!r}")
     if len(node.children) > MAX_CHILDREN:
         raise ValueError(f"{where}.children: at most {MAX_CHILDREN} links, got {len(node.children)}")
@@ -209,15 +209,15 @@ def validate_node(node: Node, where: str, n_nodes: int, n_brain: int) -> None:
         w = f"{where}.children[{k}]"
         if not isinstance(c, ChildLink):
             raise TypeError(f"{w}: expected a ChildLink, got {type(c).__name__}")
-        if not _is_int(c.child) or not 0 <= c.child < n_nodes:
+        if not is_int(c.child) or not 0 <= c.child < n_nodes:
             raise ValueError(f"{w}.child: must be a node id in [0, {n_nodes}), got {c.child!r}")
         _vec(c.pos, f"{w}.pos")
         _rot(c.rot, f"{w}.rot")
-        if not _is_real(c.scale) or not SCALE_RANGE[0] <= c.scale <= SCALE_RANGE[1]:
+        if not is_real(c.scale) or not SCALE_RANGE[0] <= c.scale <= SCALE_RANGE[1]:
             raise ValueError(f"{w}.scale: must be in {list(SCALE_RANGE)}, got {c.scale!r}")
         if not isinstance(c.terminal_only, bool):
             raise TypeError(f"{w}.terminal_only: expected a bool, got {c.terminal_only!r}")
-        if not _is_int(c.reflect) or c.reflect not in (-1, 0, 1, 2):
+        if not is_int(c.reflect) or c.reflect not in (-1, 0, 1, 2):
             raise ValueError(f"{w}.reflect: must be -1 (none), 0, 1 or 2, got {c.reflect!r}")
     if len(node.recursion) > MAX_RECURSION_ENTRIES:
         raise ValueError(f"{where}.recursion: at most {MAX_RECURSION_ENTRIES} entries, got {len(node.recursion)}")
@@ -227,7 +227,7 @@ def validate_node(node: Node, where: str, n_nodes: int, n_brain: int) -> None:
             raise TypeError(f"{w}: expected a Recursion, got {type(r).__name__}")
         _vec(r.pos, f"{w}.pos")
         _rot(r.rot, f"{w}.rot")
-        if not _is_real(r.scale) or not SCALE_RANGE[0] <= r.scale <= SCALE_RANGE[1]:
+        if not is_real(r.scale) or not SCALE_RANGE[0] <= r.scale <= SCALE_RANGE[1]:
             raise ValueError(f"{w}.scale: must be in {list(SCALE_RANGE)}, got {r.scale!r}")
     if len(node.symmetry) > MAX_SYMMETRY:
         raise ValueError(f"{where}.symmetry: at most {MAX_SYMMETRY} entries, got {len(node.symmetry)}")
@@ -236,9 +236,9 @@ def validate_node(node: Node, where: str, n_nodes: int, n_brain: int) -> None:
         w = f"{where}.symmetry[{k}]"
         if not isinstance(s, Symmetry):
             raise TypeError(f"{w}: expected a Symmetry, got {type(s).__name__}")
-        if not _is_int(s.child) or s.child not in linked:
+        if not is_int(s.child) or s.child not in linked:
             raise ValueError(f"{w}.child: must name a node this node links to ({sorted(linked)}), got {s.child!r}")
-        if not _is_int(s.axis) or s.axis not in (0, 1, 2):
+        if not is_int(s.axis) or s.axis not in (0, 1, 2):
             raise ValueError(f"{w}.axis: must be 0, 1 or 2, got {s.axis!r}")
     if len(node.neurons) > MAX_NEURONS:
         raise ValueError(f"{where}.neurons: at most {MAX_NEURONS} neurons, got {len(node.neurons)}")

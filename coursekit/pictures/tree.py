@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from . import kernels  # noqa: F401  (binds the built-in kernels in the registry)
+from . import kernels  # noqa: F401  (importing it binds the built-in kernels in the registry)
 from . import primitives as P
 from .context import Context
 from .genome import Node
