@@ -13,7 +13,8 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from coursekit.pictures import evaluate as E
+from coursekit.pictures import context as Cx
+from coursekit.pictures.kernels import pointwise as KP
 from coursekit.pictures import operators as O
 from coursekit.pictures.evaluate import render
 from coursekit.pictures.genome import Chromosome, ChromosomeString, Genome
@@ -43,7 +44,7 @@ def test_bit_select_is_torch_where_bit_for_bit(a, b, mask):
     a = torch.tensor(a, dtype=torch.float32).reshape(1, 1, 2, 3)
     b = torch.tensor(b, dtype=torch.float32).reshape(1, 1, 2, 1)  # broadcast like a scalar column
     m = torch.tensor(mask).reshape(1, 1, 2, 3)
-    got = E._select(m, a, b)
+    got = KP._select(m, a, b)
     want = torch.where(m, b, a)
     assert torch.equal(got.view(torch.int32), want.view(torch.int32))
 
@@ -51,7 +52,7 @@ def test_bit_select_is_torch_where_bit_for_bit(a, b, mask):
 @settings(max_examples=60, deadline=None)
 @given(v=st.lists(st.floats(-1e6, 1e6, width=32), min_size=1, max_size=50))
 def test_fold_is_the_period_two_mirror(v):
-    got = E.fold(torch.tensor(v, dtype=torch.float32)).double().numpy()
+    got = Cx.fold(torch.tensor(v, dtype=torch.float32)).double().numpy()
     m = np.mod(np.asarray(v, dtype=np.float64), 2.0)
     want = np.where(m > 1.0, 2.0 - m, m)
     assert np.all((got >= 0.0) & (got <= 1.0))
@@ -68,7 +69,7 @@ def test_banded_blur_tiles_are_three_replicate_box_passes(n, r):
     want = np.stack([box(box(box(e))) for e in np.eye(n)], axis=1)  # column j = response to e_j
     dense = np.zeros((n, n))
     row = 0
-    for lo, hi, m in E._Resources.on("cpu").box_matrix(n, r):
+    for lo, hi, m in Cx.Resources.on("cpu").box_matrix(n, r):
         assert lo >= 0 and hi <= n
         dense[row:row + m.shape[0], lo:hi] = m.numpy()
         row += m.shape[0]
@@ -91,7 +92,7 @@ def test_noise_paths_match_the_reference(freq, window):
 
 
 def test_pixmap_paths_and_cache_agree_with_the_reference():
-    cache = E._Resources.on("cpu")
+    cache = Cx.Resources.on("cpu")
     pic = C("pixmap", (1.5,))
     plain, rotated = one(pic, h=1), one(C("rotate", (0.0,)), pic, h=1)
     negative = one(C("invert"), pic, h=1)
@@ -104,7 +105,7 @@ def test_pixmap_paths_and_cache_agree_with_the_reference():
     assert mismatch(first, render_reference(plain, (18, 22), window=window), 1e-4) == 0.0
     for k in range(40):  # many windows: the cache stays within its byte budget
         render(plain, 64, window=(k, 0.0, k + 1.0, 1.0))
-    assert 0 < cache._sampled_bytes <= E._CACHE_BYTES
+    assert 0 < cache._sampled_bytes <= Cx.CACHE_BYTES
     assert cache._sampled_bytes == sum(v.numel() * v.element_size() for v in cache._sampled.values())
 
 

@@ -1,6 +1,7 @@
 """Swimming creatures (paper section 2, after Sims 1994).
 
-- :mod:`.genotype` — the morphology graph (section 2.1.1) and :class:`Creature`;
+- :mod:`.genotype` — :class:`Creature`, the genotype (section 2.1): the morphology graph of
+  :mod:`.morphology` (2.1.1) and a brain, made at random or by hand in :mod:`.generation` (2.2.2);
 - :mod:`.neural` — the nested neural genotype and Sims' 23 neuron functions (2.1.2);
 - :mod:`.operators` — recombination, grafting and mutation (2.2);
 - :mod:`.phenotype` — expansion into a :class:`~.body.BodyTree` (2.3);

@@ -66,6 +66,8 @@ SWEEPS_PER_SECOND = 8.0
 #: The thinnest a part may be (half extent, metres): paper-thin flippers are stiff for any
 #: explicit integrator and an exploit in the literature (see reference/creatures.md).
 MIN_HALF_EXTENT = 0.025
+#: The largest a part may be (half extent, metres); genotype sizes and expanded parts stay within both.
+MAX_HALF_EXTENT = 1.0
 
 
 @dataclass

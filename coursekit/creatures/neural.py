@@ -114,7 +114,7 @@ class Input:
 
     @classmethod
     def from_dict(cls, d, where: str) -> "Input":
-        _need_keys(d, ("morph", "ctrl", "weight"), where)
+        need_keys(d, ("morph", "ctrl", "weight"), where)
         return cls(d["morph"], d["ctrl"], d["weight"])
 
 
@@ -131,13 +131,13 @@ class Neuron:
 
     @classmethod
     def from_dict(cls, d, where: str) -> "Neuron":
-        _need_keys(d, ("func", "param", "inputs"), where)
+        need_keys(d, ("func", "param", "inputs"), where)
         if not isinstance(d["inputs"], list):
             raise TypeError(f"{where}.inputs: expected a list, got {type(d['inputs']).__name__}")
         return cls(d["func"], [Input.from_dict(x, f"{where}.inputs[{k}]") for k, x in enumerate(d["inputs"])], d["param"])
 
 
-def _need_keys(d, keys, where: str) -> None:
+def need_keys(d, keys, where: str) -> None:
     if not isinstance(d, dict):
         raise TypeError(f"{where}: expected a JSON object, got {type(d).__name__}")
     missing = [k for k in keys if k not in d]
@@ -145,11 +145,11 @@ def _need_keys(d, keys, where: str) -> None:
         raise ValueError(f"{where}: missing field(s) {missing}")
 
 
-def _is_int(v) -> bool:
+def is_int(v) -> bool:
     return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
 
 
-def _is_real(v) -> bool:
+def is_real(v) -> bool:
     return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and math.isfinite(v)
 
 
@@ -162,15 +162,15 @@ def validate_input(inp: Input, where: str, *, brain: bool, n_local: int, n_brain
     """
     if not isinstance(inp, Input):
         raise TypeError(f"{where}: expected an Input, got {type(inp).__name__}")
-    if not _is_real(inp.weight) or abs(inp.weight) > WEIGHT_LIMIT:
+    if not is_real(inp.weight) or abs(inp.weight) > WEIGHT_LIMIT:
         raise ValueError(f"{where}.weight: must be finite with |weight| <= {WEIGHT_LIMIT}, got {inp.weight!r}")
-    if not _is_int(inp.ctrl) or inp.ctrl < 0:
+    if not is_int(inp.ctrl) or inp.ctrl < 0:
         raise ValueError(f"{where}.ctrl: must be an int >= 0, got {inp.ctrl!r}")
     m = inp.morph
     if m is None:
         return
     allowed = (-2, 0, 1) if brain else tuple(range(-2, MAX_CHILD_REF + 1))
-    if not _is_int(m) or m not in allowed:
+    if not is_int(m) or m not in allowed:
         raise ValueError(f"{where}.morph: must be None (constant) or one of {list(allowed)}, got {m!r}")
     if m == -2 or (brain and m == 0):
         if inp.ctrl >= n_brain:
@@ -188,7 +188,7 @@ def validate_neuron(n: Neuron, where: str, *, brain: bool, n_local: int, n_brain
         raise TypeError(f"{where}: expected a Neuron, got {type(n).__name__}")
     if not isinstance(n.func, str) or n.func not in FUNCTIONS:
         raise ValueError(f"{where}.func: unknown neuron function {n.func!r}; allowed: {', '.join(FUNCTION_NAMES)}")
-    if not _is_real(n.param):
+    if not is_real(n.param):
         raise ValueError(f"{where}.param: must be a finite number, got {n.param!r}")
     lo, hi = PARAM_RANGE.get(n.func, (-np.inf, np.inf))
     if not lo <= n.param <= hi:

@@ -28,31 +28,33 @@ import copy
 
 import numpy as np
 
-from .genotype import (
+from .generation import (
     AXES,
     COORDS,
     FORCES,
-    MAX_CHILDREN,
-    MAX_NODES,
-    MAX_RECURSION_ENTRIES,
-    MAX_RECURSIVE_LIMIT,
-    MAX_SYMMETRY,
     PRISMATIC_LIMITS,
     REVOLUTE_LIMITS,
     ROTATIONS,
     SCALES,
     SIZES,
-    Creature,
-    Node,
-    Symmetry,
-    _choice,
+    choice,
     mirror_axis,
-    preorder,
-    renumber,
     random_face_point,
     random_link,
     random_node,
     random_recursion,
+)
+from .genotype import Creature
+from .morphology import (
+    MAX_CHILDREN,
+    MAX_NODES,
+    MAX_RECURSION_ENTRIES,
+    MAX_RECURSIVE_LIMIT,
+    MAX_SYMMETRY,
+    Node,
+    Symmetry,
+    preorder,
+    renumber,
 )
 from .neural import (
     FUNCTION_NAMES,
@@ -116,7 +118,7 @@ def repair(nodes: list, brain: list, rng: np.random.Generator, *, reattach: bool
         i = orphans[0]
         hosts = [h for h in reach if len(nodes[h].children) < MAX_CHILDREN and not _reaches(nodes, i, h)]
         p = old_parent.get(i)
-        host = p if p in hosts else (_choice(rng, sorted(hosts)) if hosts else None)
+        host = p if p in hosts else (choice(rng, sorted(hosts)) if hosts else None)
         if host is None:
             nodes[i] = None  # nowhere to hang it: collected
             continue
@@ -293,16 +295,16 @@ def _step(rng, values: tuple, current) -> float:
     """Move to a neighbour of ``current`` in the sorted value list (or a random entry)."""
     vals = list(values)
     if current in vals:
-        k = vals.index(current) + _choice(rng, (-1, 1))
+        k = vals.index(current) + choice(rng, (-1, 1))
         return vals[min(max(k, 0), len(vals) - 1)]
-    return _choice(rng, vals)
+    return choice(rng, vals)
 
 
 def _mutate_joint(node: Node, rng) -> None:
     """Step 1: joint axis and joint position (rarely the joint type)."""
     r = rng.random()
     if r < 0.4:
-        node.joint_axis = _choice(rng, AXES)
+        node.joint_axis = choice(rng, AXES)
     elif r < 0.8:
         node.joint_pos = random_face_point(rng)
     else:
@@ -315,7 +317,7 @@ def _mutate_limits(node: Node, rng, redraw: bool = False) -> None:
     vals = REVOLUTE_LIMITS if node.joint_type == "revolute" else PRISMATIC_LIMITS
     lo, hi = -node.limits[0], node.limits[1]
     if redraw:
-        node.limits = (-_choice(rng, vals), _choice(rng, vals))
+        node.limits = (-choice(rng, vals), choice(rng, vals))
     elif rng.random() < 0.5:
         node.limits = (-_step(rng, vals, lo), hi)
     else:
@@ -344,7 +346,7 @@ def _mutate_recursion(node: Node, rng) -> None:
     elif r < 0.5:
         node.recursion.pop(int(rng.integers(len(node.recursion))))
     elif r < 0.8:
-        node.recursive_limit = int(min(max(node.recursive_limit + _choice(rng, (-1, 1)), 0), MAX_RECURSIVE_LIMIT))
+        node.recursive_limit = int(min(max(node.recursive_limit + choice(rng, (-1, 1)), 0), MAX_RECURSIVE_LIMIT))
     else:
         e = node.recursion[int(rng.integers(len(node.recursion)))]
         e.scale = _step(rng, SCALES, e.scale)
@@ -356,7 +358,7 @@ def _mutate_symmetry(node: Node, rng) -> None:
     linked = sorted({c.child for c in node.children} - {s.child for s in node.symmetry})
     r = rng.random()
     if linked and len(node.symmetry) < MAX_SYMMETRY and (r < 0.5 or not node.symmetry):
-        child = _choice(rng, linked)
+        child = choice(rng, linked)
         axis = mirror_axis(rng, node, child)
         if axis is not None:
             node.symmetry.append(Symmetry(child, axis))
@@ -380,13 +382,13 @@ def _mutate_link(link, n_nodes: int, rng) -> None:
         if max(abs(v) for v in link.pos) < 1.0:
             link.pos = random_face_point(rng)
     elif r < 0.45:
-        link.rot = _choice(rng, ROTATIONS)
+        link.rot = choice(rng, ROTATIONS)
     elif r < 0.6:
         link.scale = _step(rng, SCALES, link.scale)
     elif r < 0.7:
         link.terminal_only = not link.terminal_only
     elif r < 0.8:
-        link.reflect = _choice(rng, (-1, 0, 1, 2))
+        link.reflect = choice(rng, (-1, 0, 1, 2))
     else:
         link.child = int(rng.integers(n_nodes))  # repair drops it if it closes a cycle
 
@@ -433,7 +435,7 @@ def mutate(c: Creature, rng: np.random.Generator, *, rate: float = 1.0, p_delete
                 if nodes[j] is not None:
                     node.children.append(random_link(rng, j, node, nodes[j]))
         if rng.random() < p_modify * scale:
-            picked = [f for f in MODIFY_STEPS if rng.random() < 1.0 / 3.0] or [_choice(rng, MODIFY_STEPS)]
+            picked = [f for f in MODIFY_STEPS if rng.random() < 1.0 / 3.0] or [choice(rng, MODIFY_STEPS)]
             for f in picked:
                 f(node, rng)
         for link in node.children:
@@ -474,7 +476,7 @@ def _mutate_network(neurons: list, effectors: list | None, rng, p: float, *, bra
                 lo, hi = PARAM_RANGE[neuron.func]
                 neuron.param = float(np.clip(neuron.param + rng.normal(0.0, 0.2 * (hi - lo)), lo, hi))
             elif r < 0.65:
-                neuron.func = _choice(rng, FUNCTION_NAMES)
+                neuron.func = choice(rng, FUNCTION_NAMES)
                 lo, hi = PARAM_RANGE.get(neuron.func, (0.0, 0.0))
                 if not lo <= neuron.param <= hi:
                     neuron.param = random_param(neuron.func, rng)

@@ -38,9 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .body import MIN_HALF_EXTENT, PRISMATIC, REVOLUTE, BodyTree, effector_strength, rotation_about
+from .body import MAX_HALF_EXTENT, MIN_HALF_EXTENT, PRISMATIC, REVOLUTE, BodyTree, effector_strength, rotation_about
 from .brain import Brain, build_brain
-from .genotype import MAX_HALF_EXTENT, Creature
 
 MAX_PARTS = 64
 
@@ -90,17 +89,18 @@ def _place(inst_parent: _Instance, half_parent: np.ndarray, pos, rot, mirror: np
     return anchor, (G[:, None] * R) * Fc[None, :], Fc
 
 
-def expand(creature: Creature, max_parts: int = MAX_PARTS) -> Phenotype:
+def expand(creature, max_parts: int = MAX_PARTS) -> Phenotype:
     """Instantiate every virtual node of ``creature`` (see the module docstring).
 
     Args:
-        creature: a valid genotype.
+        creature: a valid genotype: a :class:`~coursekit.creatures.genotype.Creature` (or
+            anything holding its ``nodes`` and ``brain`` lists).
         max_parts: the part cap (>= 1).
 
     Returns:
         A :class:`Phenotype` whose ``body.node_id`` names the genotype node of every part.
     """
-    if not isinstance(creature, Creature):
+    if not (isinstance(getattr(creature, "nodes", None), list) and isinstance(getattr(creature, "brain", None), list)):
         raise TypeError(f"expand: expected a Creature, got {type(creature).__name__}")
     if not isinstance(max_parts, (int, np.integer)) or max_parts < 1:
         raise ValueError(f"expand.max_parts: must be an int >= 1, got {max_parts!r}")

@@ -31,14 +31,12 @@ _BOX_CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-
 
 
 def _body_of(obj) -> BodyTree:
-    from .genotype import Creature
-
-    if isinstance(obj, Creature):
-        return obj.expand().body
     if isinstance(obj, Phenotype):
         return obj.body
     if isinstance(obj, BodyTree):
         return obj
+    if callable(getattr(obj, "expand", None)) and hasattr(obj, "nodes"):  # a Creature (genotype.py sits above)
+        return obj.expand().body
     raise TypeError(f"render: expected a Creature, Phenotype or BodyTree, got {type(obj).__name__}")
 
 

@@ -1,8 +1,10 @@
 """Genetic pictures (paper section 3, after Sims 1991).
 
-Genomes of chromosome strings linked by a PreHeader (:mod:`.genome`), a primitive set
-(:mod:`.primitives`), a tensorised whole-image evaluator (:mod:`.evaluate`) with a per-pixel
-reference (:mod:`.reference`), the paper's four mutations and three recombinations
+Genomes of chromosome strings linked by a PreHeader (:mod:`.genome`), a primitive set and its
+registry (:mod:`.primitives`), a tensorised whole-image evaluator (:mod:`.evaluate`, one descent
+through :mod:`.local` or :mod:`.workers`, :mod:`.grouped`, :mod:`.tree` and :mod:`.kernels` on
+:mod:`.context`) with a per-pixel reference (:mod:`.reference`), the paper's four mutations and
+three recombinations
 (:mod:`.operators`), image files carrying their genome (:mod:`.files`), previews that keep
 flat pictures and copies out of the gallery (:mod:`.variety`) and an interactive gallery where
 the user is the fitness function (:mod:`.gallery`).

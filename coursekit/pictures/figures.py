@@ -18,9 +18,9 @@ from __future__ import annotations
 import math
 
 import matplotlib.pyplot as plt
-from matplotlib.patches import FancyArrowPatch, FancyBboxPatch, Rectangle
+from matplotlib.patches import FancyArrowPatch, Rectangle
 
-from .genome import Genome, _karva
+from .genome import Genome, karva
 
 #: colours: head chromosomes, tail chromosomes, the PreHeader, non-coding ones
 HEAD, TAIL, PRE, OFF = "#4c72b0", "#55a868", "#c44e52", "#c8c8c8"
@@ -70,7 +70,7 @@ def draw_string(genome: Genome, k: int, ax=None, *, title: bool = True):
     s = genome.strings[k]
     ax = ax or plt.subplots(figsize=(max(3.0, 0.55 * len(s)), 3.4))[1]
     linked = bool(genome.active[k])
-    children, orf = _karva(s.chromosomes, lambda c: c.arity)
+    children, orf = karva(s.chromosomes, lambda c: c.arity)
     pos = tree_layout(children)
     span = max(x for x, _ in pos.values())
     row_x = lambda i: (i - (len(s) - 1) / 2) * max(1.0, (span + 1) / len(s)) + span / 2  # noqa: E731
@@ -111,7 +111,7 @@ def draw_preheader(genome: Genome, ax=None):
     """Draw the PreHeader as the paper's ring: its chromosomes and the strings, linked as decoding reads them."""
     ax = ax or plt.subplots(figsize=(3.4, 3.4))[1]
     items = list(genome.preheader) + list(range(len(genome.strings)))
-    kids, orf = _karva(items, lambda it: 0 if isinstance(it, int) else it.arity)
+    kids, orf = karva(items, lambda it: 0 if isinstance(it, int) else it.arity)
     n = len(items)
     angle = [math.pi / 2 - 2 * math.pi * i / n for i in range(n)]
     xy = [(math.cos(a), math.sin(a)) for a in angle]

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .evaluate import render
+from .genome import Genome
 from .session import GALLERY_FORMAT, Ancestor, Evolution, GalleryState, Generation, Origin
 from .variety import random_population
 
@@ -56,6 +57,14 @@ def png_bytes(image: np.ndarray) -> bytes:
     buf = io.BytesIO()
     PILImage.fromarray(np.round(image * 255).astype(np.uint8)).save(buf, format="PNG", compress_level=1)
     return buf.getvalue()
+
+
+def genome_png(genome: Genome) -> bytes:
+    """A genome's notebook picture (``Genome._repr_png_``): ``REPR_SIZE`` pixels square, rendered in this process."""
+    return png_bytes(render([genome], size=(genome.REPR_SIZE, genome.REPR_SIZE), workers=1)[0])
+
+
+Genome.picture_png = staticmethod(genome_png)
 
 
 def thumbnail_bytes(image: np.ndarray) -> bytes:

@@ -29,7 +29,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from typing import ClassVar, Iterable, Sequence
 
 import numpy as np
 
@@ -283,7 +283,7 @@ class Node:
         return sum(1 for _ in self.walk())
 
 
-def _karva(items: Sequence, arity_of) -> tuple[list[tuple[int, ...]], int]:
+def karva(items: Sequence, arity_of) -> tuple[list[tuple[int, ...]], int]:
     """Breadth-first (Karva) reading: children index lists per item and the ORF length."""
     children: list[tuple[int, ...]] = [()] * len(items)
     level, nxt = [0], 1
@@ -344,10 +344,10 @@ class Genome(_CachedHash):
         """Levels of the expression tree (a terminal alone: 1), counted without recursion."""
         levels = {}
         for k, s in enumerate(self.strings):
-            kids, _ = _karva(s.chromosomes, lambda c: c.arity)
+            kids, _ = karva(s.chromosomes, lambda c: c.arity)
             levels[k] = _levels(kids)
         items = list(self.preheader) + list(range(len(self.strings)))
-        kids, _ = _karva(items, lambda it: 0 if isinstance(it, int) else it.arity)
+        kids, _ = karva(items, lambda it: 0 if isinstance(it, int) else it.arity)
         depth, stack = 0, [(0, 1)]
         while stack:
             i, d = stack.pop()
@@ -395,7 +395,7 @@ class Genome(_CachedHash):
     # ---- decoding -----------------------------------------------------------------------
     def _string_tree(self, k: int) -> Node:
         s = self.strings[k]
-        kids, _ = _karva(s.chromosomes, lambda c: c.arity)
+        kids, _ = karva(s.chromosomes, lambda c: c.arity)
 
         def build(i):
             return Node(s.chromosomes[i], tuple(build(j) for j in kids[i]), (k, i))
@@ -404,7 +404,7 @@ class Genome(_CachedHash):
     def decode(self) -> Node:
         """The expression tree (PreHeader read first, then the string roots as its tail)."""
         items = list(self.preheader) + list(range(len(self.strings)))
-        kids, _ = _karva(items, lambda it: 0 if isinstance(it, int) else it.arity)
+        kids, _ = karva(items, lambda it: 0 if isinstance(it, int) else it.arity)
 
         def build(i):
             it = items[i]
@@ -434,6 +434,9 @@ class Genome(_CachedHash):
     # ---- display ------------------------------------------------------------------------
     #: Side of the picture a notebook shows for a genome (``_repr_png_``), in pixels.
     REPR_SIZE = 160
+    #: ``genome -> PNG bytes`` for notebooks, set by :mod:`.gallery` (the renderer sits above
+    #: genomes: they do not import it); ``None``: no picture.
+    picture_png: ClassVar = None
 
     def __repr__(self) -> str:
         """Short: the shape and the start of the expression (``to_json`` has everything).
@@ -448,12 +451,10 @@ class Genome(_CachedHash):
         return (f"Genome({n} string{'s' * (n != 1)}, head {self.strings[0].head_length}, "
                 f"{k} coding chromosome{'s' * (k != 1)}: {expr})")
 
-    def _repr_png_(self) -> bytes:
+    def _repr_png_(self) -> bytes | None:
         """The picture, for notebooks (``REPR_SIZE`` pixels square, rendered in this process)."""
-        from .evaluate import render
-        from .gallery import png_bytes
-
-        return png_bytes(render([self], size=(self.REPR_SIZE, self.REPR_SIZE), workers=1)[0])
+        draw = type(self).picture_png
+        return None if draw is None else draw(self)
 
     # ---- files --------------------------------------------------------------------------
     def to_dict(self) -> dict:

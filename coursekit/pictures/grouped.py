@@ -7,7 +7,7 @@ a shape): on a GPU, about 140,000 kernel launches, each on one small image, and 
 arithmetic, bound the speed. Here the whole population is evaluated in *waves*: every node whose
 inputs are ready, in any genome and any coordinate context, joins the wave, and the nodes of a
 wave with the same primitive and the same input types (scalar, colour, pixel map; see
-:mod:`.evaluate`) are evaluated together by one call of that primitive on their stacked inputs
+:mod:`.kernels`) are evaluated together by one call of that primitive on their stacked inputs
 and parameters. The number of operations then grows with the number of waves (the trees'
 depth) and of distinct primitives, not with the population.
 
@@ -20,7 +20,7 @@ coordinates are stacked as they are, except a separable context (unwarped, or a 
 uniform displacement), which is used unstacked, since noise and pixel maps sample such
 coordinates by rows and columns. The pictures are bit for bit those of genome-by-genome
 evaluation, because every primitive computes each image of a batch as it would alone (see
-:mod:`.evaluate`, batch invariance; tested).
+:mod:`.kernels`, batch invariance; tested).
 """
 
 from __future__ import annotations
@@ -29,30 +29,10 @@ from collections import defaultdict
 
 import torch
 
-from .evaluate import _NEIGHBOURHOOD as _NEIGHBOURHOOD_FNS
-from .evaluate import (
-    _POINTWISE2,
-    _WARPS,
-    _BNode,
-    _Ctx,
-    _eval_node,
-    _Memo,
-    _warp_context,
-)
+from .context import Context
+from .tree import BNode, Memo, apply_kernel
 
 __all__ = ["evaluate_population"]
-
-# pointwise functions of several arguments (an argument broadcast beforehand gives the same
-# values), and functions that broadcast their argument to the whole image first
-_BROADCAST = frozenset(_POINTWISE2) | {"dissolve"}
-_NEIGHBOURHOOD = frozenset(_NEIGHBOURHOOD_FNS)
-
-
-def _separable(ctx: _Ctx) -> bool:
-    """Coordinates of one image, ``x`` along columns only and ``y`` along rows only (the unwarped
-    context, or one a warp left separable): noise and pixel maps sample them by rows and
-    columns, which stacking would turn into per-pixel sampling."""
-    return ctx.x.shape[:3] == (1, 1, 1) and ctx.y.shape[0] == 1 and ctx.y.shape[3] == 1
 
 
 def _broadcast(*shapes) -> tuple:
@@ -65,7 +45,7 @@ class _Inst:
 
     __slots__ = ("ctx", "inputs", "kind", "node", "parents", "value", "waiting")
 
-    def __init__(self, node: _BNode, ctx: _Ctx):
+    def __init__(self, node: BNode, ctx: Context):
         self.node, self.ctx = node, ctx
         self.inputs: list[_Inst] = []
         self.kind = "eval"
@@ -84,12 +64,12 @@ class _Waves:
         self.instances: dict = {}
         self.ready: list[_Inst] = []
 
-    def request(self, node: _BNode, ctx: _Ctx) -> _Inst:
+    def request(self, node: BNode, ctx: Context) -> _Inst:
         key = (id(node), id(ctx))
         inst = self.instances.get(key)
         if inst is None:
             inst = self.instances[key] = _Inst(node, ctx)
-            if node.symbol in _WARPS:  # first the displacement (if any), then the warped subtree
+            if node.form == "warp":  # first the displacement (if any), then the warped subtree
                 self._wait(inst, [self.request(c, ctx) for c in node.children[1:]], "warp")
             else:
                 self._wait(inst, [self.request(c, ctx) for c in node.children], "eval")
@@ -124,14 +104,15 @@ class _Waves:
                 # coordinates keep their shapes (a warp can leave them separable, which changes
                 # how noise and pixel maps are sampled); inputs are broadcast to one shape before
                 # stacking where that gives the same values: fewer, larger groups
-                if _separable(ctx):  # not stacked: the primitive sees this very context
+                if ctx.separable:  # not stacked: the primitive sees this very context
                     coords = id(ctx)
                 else:
                     coords = (ctx.x.shape[1:], ctx.y.shape[1:])
                 shapes = tuple(i.value.shape[1:] for i in inst.inputs)
-                if s in _BROADCAST:
+                form = inst.node.form
+                if form == "pointwise":  # broadcast beforehand: the same values
                     shapes = (_broadcast(*shapes),) * len(shapes)
-                elif s in _NEIGHBOURHOOD:
+                elif form == "neighbourhood":
                     shapes = tuple((v[0], ctx.H, ctx.W) for v in shapes)
                 groups[(s, coords, shapes)].append(inst)
             for (_, coords, shapes), insts in groups.items():
@@ -155,22 +136,22 @@ class _Waves:
             assert v.shape[0] == sum(sizes), (first.node.symbol, v.shape, sizes)
             return torch.split(v, sizes)
 
-        ctx = c if isinstance(coords, int) else _Ctx(stack([i.ctx.x for i in insts]), stack([i.ctx.y for i in insts]),
-                                            c.H, c.W, c.px, c.py, c.time, c.res, _Memo())
-        s, p = first.node.symbol, [stack([i.node.params[k] for i in insts]) for k in range(len(first.node.params))]
+        ctx = c if isinstance(coords, int) else Context(stack([i.ctx.x for i in insts]), stack([i.ctx.y for i in insts]),
+                                            c.H, c.W, c.px, c.py, c.time, c.res, Memo())
+        p = [stack([i.node.params[k] for i in insts]) for k in range(len(first.node.params))]
         inputs = [stack([i.inputs[k].value for i in insts], shapes[k]) for k in range(len(first.inputs))]
         if first.kind == "eval":
-            value = _eval_node(_BNode(s, p, [_BNode("const", [v], [], False) for v in inputs], False), ctx)
+            value = apply_kernel(first.node, ctx, p, inputs)
             for inst, v in zip(insts, split(value)):
                 self._done(inst, v)
             return
-        w = _warp_context(s, ctx, p, inputs[0] if inputs else None)
+        w = first.node.kernel(ctx, p, *inputs)
         for inst, x, y in zip(insts, split(w.x), split(w.y)):
-            w = _Ctx(x, y, c.H, c.W, c.px, c.py, c.time, c.res, c.memo)
+            w = Context(x, y, c.H, c.W, c.px, c.py, c.time, c.res, c.memo)
             self._wait(inst, [self.request(inst.node.children[0], w)], "alias")
 
 
-def evaluate_population(roots: list[_BNode], ctx: _Ctx) -> list[torch.Tensor]:
+def evaluate_population(roots: list[BNode], ctx: Context) -> list[torch.Tensor]:
     """Values of the batch trees ``roots`` in the context ``ctx``, evaluated in waves."""
     waves = _Waves()
     insts = [waves.request(r, ctx) for r in roots]

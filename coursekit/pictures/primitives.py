@@ -3,9 +3,30 @@
 A *chromosome* is one primitive plus its parameter values. Primitives come in three kinds, as
 in the paper: ``ZeroArgChrom`` (terminals: constants, colours, coordinates, ramps, noise,
 turbulence, gradients, pixel maps), ``OneArgChrom`` and ``TwoArgChrom`` (functions). This module
-is the registry: name, arity, parameters (with the range a random chromosome draws them
-from) and what each primitive does. The whole-image implementations live in
-:mod:`coursekit.pictures.evaluate`, the per-pixel ones in :mod:`coursekit.pictures.reference`.
+is the registry, the one place the genome alphabet, the whole-image evaluator and the per-pixel
+reference read: name, arity, parameters (with the range a random chromosome draws them from),
+what each primitive does, how the evaluator feeds it (its ``form``, below) and its two
+implementations. The built-in whole-image implementations live in :mod:`.kernels` and the
+per-pixel ones in :mod:`.reference`, each bound to its name with :func:`image_kernel` /
+:func:`pixel_kernel`; a primitive of one's own is one call, :func:`register_primitive`, giving
+both.
+
+**Forms.** A whole-image kernel gets the :class:`~.context.Context`, the parameters ``p`` (a
+list of ``(B, 1, 1, 1)`` tensors) and its arguments' values, and its form says how:
+
+- ``terminal`` (arity 0): ``f(ctx, p)``;
+- ``pointwise``: ``f(ctx, p, a[, b])``, the value at a pixel depends on the arguments at that
+  pixel only (arguments may be broadcast to one shape beforehand: the values do not change);
+- ``filter``: ``f(ctx, p, a)`` with ``a`` as it is (``blur``, ``band-pass``);
+- ``neighbourhood``: ``f(ctx, p, a)`` with ``a`` expanded to the whole image first;
+- ``warp``: ``f(ctx, p[, b])`` returns the context (new coordinates) in which the first argument
+  is evaluated (``b``: the value of the second argument).
+
+A per-pixel function gets plain floats: ``terminal`` and ``pointwise`` ones
+``f(ref, x, y, p[, a, b])`` (``a``, ``b``: tuples of 1 or 3 channels; returns such a tuple),
+``filter`` and ``neighbourhood`` ones ``f(ref, p, grid, i, j)`` (``grid``: the argument on the
+whole pixel grid, :class:`~.reference.Grid`), ``warp`` ones ``f(p, x, y[, b])`` returning the new
+``(x, y)``; ``ref`` gives ``time`` and ``noise(u, v)``.
 
 Conventions shared by both evaluators:
 
@@ -37,8 +58,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Param", "Primitive", "PRIMITIVES", "names", "arity", "get", "terminals", "functions",
-           "max_arity", "PIXMAPS"]
+__all__ = ["Param", "Primitive", "PRIMITIVES", "FORMS", "IMAGE_KERNELS", "PIXEL_KERNELS", "names", "arity", "get",
+           "terminals", "functions", "max_arity", "register_primitive", "image_kernel", "pixel_kernel", "PIXMAPS"]
+
+#: How the evaluators feed a primitive (module docstring).
+FORMS = ("terminal", "pointwise", "filter", "neighbourhood", "warp")
 
 
 @dataclass(frozen=True)
@@ -52,7 +76,11 @@ class Param:
 
 @dataclass(frozen=True)
 class Primitive:
-    """One primitive: name, arity (0, 1 or 2), parameters and a one-line description."""
+    """One primitive: name, arity (0, 1 or 2), parameters, a one-line description, and what the
+    evaluators need: its ``form`` (default ``terminal`` for arity 0, else ``pointwise``), its
+    ``cost`` (milliseconds per node at 256 x 256 on one CPU core, used only to share a
+    population fairly between worker processes) and whether it ``samples`` coordinates (noise,
+    pictures: about 3x dearer on warped coordinates, whole images instead of rows)."""
 
     name: str
     arity: int
@@ -61,6 +89,13 @@ class Primitive:
     sims: bool = False  # in Sims' 1991 function list (or his published genotypes)
     weight: float = 1.0  # relative chance that a random chromosome of its kind is this one
     root: float = 1.0  # relative chance that a random genome's root is this one (functions)
+    form: str = ""
+    cost: float = 0.05
+    samples: bool = False
+
+    def __post_init__(self):
+        if not self.form:
+            object.__setattr__(self, "form", "terminal" if self.arity == 0 else "pointwise")
 
     @property
     def kind(self) -> str:
@@ -81,69 +116,143 @@ _LIST = [
               "a colour constant (vector)", True, weight=1.5),
     Primitive("x", 0, (), "the horizontal pixel position", True),
     Primitive("y", 0, (), "the vertical pixel position", True),
-    Primitive("radius", 0, (), "distance from the centre (0.5, 0.5)"),
-    Primitive("angle", 0, (), "angle around the centre, 0..1 for a full turn"),
+    Primitive("radius", 0, (), "distance from the centre (0.5, 0.5)", cost=0.1),
+    Primitive("angle", 0, (), "angle around the centre, 0..1 for a full turn", cost=0.11),
     Primitive("ramp", 0, (Param("direction", 0.0, 1.0), Param("frequency", 0.5, 6.0)),
               "sawtooth ramp frac(frequency * (p . d)) along direction d (turns)"),
     Primitive("gradient", 0, (Param("r0", 0.0, 1.0), Param("g0", 0.0, 1.0), Param("b0", 0.0, 1.0),
                               Param("r1", 0.0, 1.0), Param("g1", 0.0, 1.0), Param("b1", 0.0, 1.0),
                               Param("direction", 0.0, 1.0)),
-              "colour gradient from colour 0 to colour 1 along a direction, mirrored each unit", weight=1.5),
+              "colour gradient from colour 0 to colour 1 along a direction, mirrored each unit", weight=1.5, cost=0.15),
     Primitive("bw-noise", 0, (Param("frequency", 1.0, 12.0),) + _OFF,
-              "smooth value noise, grey; the offsets make each chromosome's field its own", True),
+              "smooth value noise, grey; the offsets make each chromosome's field its own", True, cost=0.4, samples=True),
     Primitive("color-noise", 0, (Param("frequency", 1.0, 12.0),) + _OFF,
-              "smooth value noise, one field per RGB channel", True, weight=1.5),
+              "smooth value noise, one field per RGB channel", True, weight=1.5, cost=1.0, samples=True),
     Primitive("turbulence", 0, (Param("frequency", 1.0, 8.0), Param("octaves", 2.0, 5.0)) + _OFF,
-              "multi-octave noise: sum of |2 noise - 1| halving amplitude per octave"),
+              "multi-octave noise: sum of |2 noise - 1| halving amplitude per octave", cost=1.3, samples=True),
     Primitive("pixmap", 0, (Param("picture", 0.0, float(len(PIXMAPS))),),
-              "a picture from scikit-image covering the unit square, mirrored outside", weight=0.3),
+              "a picture from scikit-image covering the unit square, mirrored outside", weight=0.3, cost=0.55, samples=True),
     Primitive("time", 0, (), "the animation time (the render option time=)", weight=0.2),
     # ---- OneArgChrom --------------------------------------------------------------------
     Primitive("abs", 1, (), "absolute value", True),
-    Primitive("sin", 1, (), "0.5 + 0.5 sin(2 pi a): one period per unit, into [0, 1]", True),
-    Primitive("cos", 1, (), "0.5 + 0.5 cos(2 pi a)", True),
-    Primitive("log", 1, (), "protected natural log: log(|a| + 1e-6)", True),
-    Primitive("atan", 1, (), "atan(a) / pi + 0.5, into (0, 1)", True),
+    Primitive("sin", 1, (), "0.5 + 0.5 sin(2 pi a): one period per unit, into [0, 1]", True, cost=0.12),
+    Primitive("cos", 1, (), "0.5 + 0.5 cos(2 pi a)", True, cost=0.08),
+    Primitive("log", 1, (), "protected natural log: log(|a| + 1e-6)", True, cost=0.09),
+    Primitive("atan", 1, (), "atan(a) / pi + 0.5, into (0, 1)", True, cost=0.08),
     Primitive("round", 1, (), "nearest integer, floor(a + 0.5)", True, root=0.0),
     Primitive("invert", 1, (), "1 - a (the photographic negative)", True),
     Primitive("hsv-to-rgb", 1, (),
-              "read a colour as (hue, saturation, value); a grey a is the hue at full s, v", True, root=4.0),
+              "read a colour as (hue, saturation, value); a grey a is the hue at full s, v", True, root=4.0, cost=0.4),
     Primitive("swirl", 1, (Param("strength", -8.0, 8.0), Param("extent", 0.1, 0.8)),
-              "re-evaluate a on coordinates turned about the centre by strength*exp(-r/extent)"),
+              "re-evaluate a on coordinates turned about the centre by strength*exp(-r/extent)", form="warp", cost=0.4),
     Primitive("rotate", 1, (Param("turns", 0.0, 1.0),),
-              "re-evaluate a on coordinates rotated about the centre", True),
+              "re-evaluate a on coordinates rotated about the centre", True, form="warp", cost=0.12),
     Primitive("blur", 1, (Param("sigma", 0.002, 0.05),),
-              "Gaussian-like blur (three box passes), sigma in world units", True),
+              "Gaussian-like blur (three box passes), sigma in world units", True, form="filter", cost=0.5),
     Primitive("band-pass", 1, (Param("sigma", 0.002, 0.03),),
-              "0.5 + blur(a, sigma) - blur(a, 3 sigma)", True),
+              "0.5 + blur(a, sigma) - blur(a, 3 sigma)", True, form="filter", cost=1.1),
     Primitive("bump", 1, (Param("azimuth", 0.0, 1.0), Param("height", 0.005, 0.1)),
-              "emboss: light a height field (grey of a) from an azimuth", True, root=0.0),
+              "emboss: light a height field (grey of a) from an azimuth", True, root=0.0, form="neighbourhood", cost=0.35),
     Primitive("grad-mag", 1, (Param("gain", 0.01, 0.3),),
-              "gain * |gradient of a| (grey of a), world units", True, root=0.0),
-    Primitive("grad-dir", 1, (), "direction of the gradient of a, 0..1 for a full turn", True, root=0.0),
+              "gain * |gradient of a| (grey of a), world units", True, root=0.0, form="neighbourhood", cost=0.24),
+    Primitive("grad-dir", 1, (), "direction of the gradient of a, 0..1 for a full turn", True, root=0.0, form="neighbourhood", cost=0.23),
     # ---- TwoArgChrom --------------------------------------------------------------------
     Primitive("plus", 2, (), "a + b", True),
     Primitive("minus", 2, (), "a - b", True),
     Primitive("times", 2, (), "a * b", True),
-    Primitive("divide", 2, (), "protected a / b: |b| is kept at least 1e-3", True),
-    Primitive("mod", 2, (), "protected a mod b (sign of b); a where |b| < 1e-3", True),
-    Primitive("expt", 2, (), "protected |a| ** b = exp(clip(b log(|a| + 1e-6), -30, 30))", True),
+    Primitive("divide", 2, (), "protected a / b: |b| is kept at least 1e-3", True, cost=0.15),
+    Primitive("mod", 2, (), "protected a mod b (sign of b); a where |b| < 1e-3", True, cost=0.37),
+    Primitive("expt", 2, (), "protected |a| ** b = exp(clip(b log(|a| + 1e-6), -30, 30))", True, cost=0.23),
     Primitive("min", 2, (), "smaller of a and b", True),
     Primitive("max", 2, (), "larger of a and b", True),
-    Primitive("and", 2, (), "bitwise and of a and b quantised to 8 bits (after folding)", True),
-    Primitive("or", 2, (), "bitwise or of a and b quantised to 8 bits", True),
-    Primitive("xor", 2, (), "bitwise xor of a and b quantised to 8 bits", True),
+    Primitive("and", 2, (), "bitwise and of a and b quantised to 8 bits (after folding)", True, cost=0.3),
+    Primitive("or", 2, (), "bitwise or of a and b quantised to 8 bits", True, cost=0.3),
+    Primitive("xor", 2, (), "bitwise xor of a and b quantised to 8 bits", True, cost=0.35),
     Primitive("dissolve", 2, (Param("amount", 0.0, 1.0), Param("rate", 0.0, 1.0)) + _OFF,
               "per-cell random choice of b over a; the fraction frac(amount + rate*time) picks b",
-              True),
+              True, cost=0.6, samples=True),
     Primitive("warp-swirl", 2, (Param("strength", -8.0, 8.0),),
-              "re-evaluate a on coordinates swirled by strength * grey(b)"),
+              "re-evaluate a on coordinates swirled by strength * grey(b)", form="warp", cost=0.25),
     Primitive("warp-by", 2, (Param("amount", -0.5, 0.5),),
               "re-evaluate a on coordinates displaced by amount * (b - 0.5) (first two channels)",
-              True),
+              True, form="warp", cost=0.09),
 ]
 
 PRIMITIVES: dict[str, Primitive] = {p.name: p for p in _LIST}
+#: Whole-image implementations by primitive name (the built-ins: :mod:`.kernels`).
+IMAGE_KERNELS: dict = {}
+#: Per-pixel implementations by primitive name (the built-ins: :mod:`.reference`).
+PIXEL_KERNELS: dict = {}
+
+
+def register_primitive(primitive: Primitive, *, image=None, pixel=None, replace: bool = False) -> Primitive:
+    """Add ``primitive`` to the alphabet, with its whole-image (``image``) and per-pixel
+    (``pixel``) implementations (module docstring, *Forms*). From then on random genomes and
+    mutations can draw it (in proportion to its ``weight``), genomes holding it decode,
+    render and are read back from files, and the reference evaluates it.
+
+    Args:
+        primitive: the declaration; its name must be new unless ``replace``.
+        image, pixel: the implementations (both needed to render it with both evaluators).
+        replace: allow redefining a primitive of the same name (a notebook cell run again).
+    Returns:
+        ``primitive``.
+
+    For example (a pointwise function of one argument)::
+
+        register_primitive(Primitive("tanh", 1, (), "hyperbolic tangent"),
+                           image=lambda ctx, p, a: torch.tanh(a),
+                           pixel=lambda ref, x, y, p, a: tuple(math.tanh(v) for v in a))
+
+    The whole-image kernel must compute each image of a batch as it would compute it alone
+    (plain arithmetic does; some vectorised library functions round the last elements of a
+    tensor differently, see :mod:`.kernels`), or pictures rendered in waves differ in the last
+    bits. Registering changes what random genomes draw from: same seed, other genomes (a
+    ``weight`` and ``root`` of 0 keep it out of random draws).
+    """
+    if not isinstance(primitive, Primitive):
+        raise TypeError(f"primitive: expected a Primitive, got {type(primitive).__name__}")
+    if not isinstance(primitive.name, str) or not primitive.name or any(c.isspace() or c in "()" for c in primitive.name):
+        raise ValueError(f"primitive.name: {primitive.name!r} must be a non-empty name without spaces or parentheses")
+    if primitive.arity not in (0, 1, 2) or isinstance(primitive.arity, bool):
+        raise ValueError(f"primitive.arity: {primitive.arity!r} must be 0, 1 or 2 (the tail length depends on the largest)")
+    if primitive.form not in FORMS:
+        raise ValueError(f"primitive.form: {primitive.form!r} must be one of {', '.join(FORMS)}")
+    if (primitive.form == "terminal") != (primitive.arity == 0) or (primitive.form in ("filter", "neighbourhood")
+                                                                   and primitive.arity != 1):
+        raise ValueError(f"primitive.form: {primitive.form!r} does not fit arity {primitive.arity} (terminal: 0; "
+                         "filter, neighbourhood: 1; pointwise, warp: 1 or 2)")
+    for k, prm in enumerate(primitive.params):
+        if not isinstance(prm, Param) or not prm.low <= prm.high:
+            raise ValueError(f"primitive.params[{k}]: {prm!r} must be a Param with low <= high")
+    if primitive.name in PRIMITIVES and not replace:
+        raise ValueError(f"primitive.name: {primitive.name!r} is already registered (replace=True redefines it)")
+    for where, fn in (("image", image), ("pixel", pixel)):
+        if fn is not None and not callable(fn):
+            raise TypeError(f"{where}: expected a function, got {type(fn).__name__}")
+    PRIMITIVES[primitive.name] = primitive
+    for table, fn in ((IMAGE_KERNELS, image), (PIXEL_KERNELS, pixel)):
+        if fn is not None:
+            table[primitive.name] = fn
+        else:
+            table.pop(primitive.name, None)
+    return primitive
+
+
+def _binder(table: dict, what: str):
+    def bind(name: str):
+        get(name)  # a declared primitive
+
+        def decorate(fn):
+            table[name] = fn
+            return fn
+        return decorate
+    bind.__doc__ = f"Decorator: ``fn`` is the {what} implementation of the declared primitive ``name``."
+    return bind
+
+
+image_kernel = _binder(IMAGE_KERNELS, "whole-image")
+pixel_kernel = _binder(PIXEL_KERNELS, "per-pixel")
 
 
 def names() -> list[str]:
@@ -166,17 +275,14 @@ def arity(name: str) -> int:
 
 def terminals() -> list[str]:
     """Names of the ZeroArgChrom primitives (allowed in a tail)."""
-    return [p.name for p in _LIST if p.arity == 0]
+    return [p.name for p in PRIMITIVES.values() if p.arity == 0]
 
 
 def functions() -> list[str]:
     """Names of the OneArgChrom and TwoArgChrom primitives."""
-    return [p.name for p in _LIST if p.arity > 0]
-
-
-_MAX_ARITY = max(p.arity for p in _LIST)
+    return [p.name for p in PRIMITIVES.values() if p.arity > 0]
 
 
 def max_arity() -> int:
-    """n, the largest arity in the set (it fixes the tail length t = h (n - 1) + 1)."""
-    return _MAX_ARITY
+    """n, the largest arity in the set (it fixes the tail length t = h (n - 1) + 1): 2."""
+    return 2

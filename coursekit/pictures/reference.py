@@ -5,9 +5,11 @@ does exactly that in plain Python floats (double precision), one pixel at a time
 ``math`` module: it is the independent definition the tensorised :mod:`.evaluate` is tested
 against, and the baseline of the lesson's speed comparison. It is slow on purpose.
 
-Neighbourhood primitives (``blur``, ``band-pass``, ``bump``, ``grad-mag``, ``grad-dir``) need
-their argument at neighbouring pixels: the argument is evaluated pixel by pixel on the whole
-grid (memoised) and filtered with explicit loops, borders replicated. Coordinate transforms
+Each primitive's per-pixel function is bound to its name in the registry of :mod:`.primitives`
+(:func:`~.primitives.pixel_kernel`, signatures by form there). Neighbourhood primitives
+(``blur``, ``band-pass``, ``bump``, ``grad-mag``, ``grad-dir``) need their argument at
+neighbouring pixels: the argument is evaluated pixel by pixel on the whole grid (memoised,
+:class:`Grid`) and filtered with explicit loops, borders replicated. Coordinate transforms
 evaluate their argument at the transformed coordinates of the pixel.
 """
 
@@ -17,11 +19,13 @@ import math
 
 import numpy as np
 
+from . import primitives as P
 from . import textures as T
+from .frame import parse_size, parse_window
 from .genome import Genome, Node
-from .evaluate import _parse_size, _parse_window
+from .primitives import pixel_kernel
 
-__all__ = ["render_reference"]
+__all__ = ["Grid", "render_reference"]
 
 _BIG = 1e6
 TWO_PI = 2.0 * math.pi
@@ -147,109 +151,98 @@ class _Reference:
             self.memo[key] = self._ev(n, i, j, C)
         return self.memo[key]
 
-    def _ev(self, n: Node, i, j, C):  # noqa: C901 - one branch per primitive, on purpose
+    def _ev(self, n: Node, i, j, C):
         s, p, k = n.symbol, n.params, n.children
-        x, y = C(i, j)
-        if s == "const":
-            return (p[0],)
-        if s == "color":
-            return tuple(p[:3])
-        if s == "x":
-            return (x,)
-        if s == "y":
-            return (y,)
-        if s == "radius":
-            return (math.hypot(x - 0.5, y - 0.5),)
-        if s == "angle":
-            return ((math.atan2(y - 0.5, x - 0.5) / TWO_PI) % 1.0,)
-        if s in ("ramp", "gradient"):
-            a = TWO_PI * (p[0] if s == "ramp" else p[6])
-            along = x * math.cos(a) + y * math.sin(a)
-            if s == "ramp":
-                v = p[1] * along
-                return (v - math.floor(v),)
-            t = _fold(along)
-            return tuple(p[c] + (p[3 + c] - p[c]) * t for c in range(3))
-        if s == "bw-noise":
-            return (self.noise(x * p[0] + p[1], y * p[0] + p[2]),)
-        if s == "color-noise":
-            return tuple(self.noise(x * p[0] + p[1] + sx, y * p[0] + p[2] + sy) for sx, sy in T.CHANNEL_SHIFT)
-        if s == "turbulence":
-            octaves = int(min(max(math.floor(p[1]), 1), 8))
-            total = norm = 0.0
-            for o in range(octaves):
-                f = p[0] * 2.0 ** o
-                nv = self.noise(x * f + p[2] + o * T.OCTAVE_SHIFT[0], y * f + p[3] + o * T.OCTAVE_SHIFT[1])
-                total += 0.5 ** o * abs(2.0 * nv - 1.0)
-                norm += 0.5 ** o
-            return (total / norm,)
-        if s == "pixmap":
-            img = T.pixmap(T.pixmap_index(p[0]))
-            h, w = img.shape[:2]
-            fx = min(max(_fold(x) * w - 0.5, 0.0), w - 1.0)
-            fy = min(max(_fold(y) * h - 0.5, 0.0), h - 1.0)
-            x0, y0 = int(math.floor(fx)), int(math.floor(fy))
-            x1, y1 = min(x0 + 1, w - 1), min(y0 + 1, h - 1)
-            tx, ty = fx - x0, fy - y0
-            return tuple(float((img[y0, x0, c] * (1 - tx) + img[y0, x1, c] * tx) * (1 - ty)
-                               + (img[y1, x0, c] * (1 - tx) + img[y1, x1, c] * tx) * ty) for c in range(3))
-        if s == "time":
-            return (self.time,)
-        # ---- one argument -----------------------------------------------------------------
-        if s in _ONE:
-            return _ONE[s](self.ev(k[0], i, j, C))
-        if s == "blur":
-            return tuple(self.blur(k[0], C, p[0])[i][j])
-        if s == "band-pass":
-            a, b = self.blur(k[0], C, p[0])[i][j], self.blur(k[0], C, 3.0 * p[0])[i][j]
-            return tuple(0.5 + u - v for u, v in zip(a, b))
-        if s in ("bump", "grad-mag", "grad-dir"):
-            gx, gy = self.gradient(k[0], C, i, j)
-            if s == "grad-mag":
-                return (p[0] * math.hypot(gx, gy),)
-            if s == "grad-dir":
-                return ((math.atan2(gy, gx) / TWO_PI) % 1.0,)
-            a = TWO_PI * p[0]
-            nx, ny = -gx * p[1], -gy * p[1]
-            dot = (nx * math.cos(a) + ny * math.sin(a) + 1.0) / math.sqrt(2.0)
-            return (max(dot / math.sqrt(nx * nx + ny * ny + 1.0), 0.0),)
-        if s in ("swirl", "rotate"):
-            def make(ii, jj, C=C, p=p, s=s):
-                xx, yy = C(ii, jj)
-                if s == "rotate":
-                    ang = TWO_PI * p[0]
-                else:
-                    ang = p[0] * math.exp(-math.hypot(xx - 0.5, yy - 0.5) / max(p[1], 1e-3))
-                return _turn(xx, yy, ang)
-            return self.ev(k[0], i, j, self.coords(n, C, make))
-        # ---- two arguments ----------------------------------------------------------------
-        if s in _TWO:
-            return _map2(_TWO[s], self.ev(k[0], i, j, C), self.ev(k[1], i, j, C))
-        if s in _BITS:
-            op = _BITS[s]
-            return _map2(lambda u, v: op(_quant(u), _quant(v)) / 255.0,
-                         self.ev(k[0], i, j, C), self.ev(k[1], i, j, C))
-        if s == "warp-swirl":
-            def make(ii, jj, C=C, p=p, k=k):
-                xx, yy = C(ii, jj)
-                return _turn(xx, yy, p[0] * _grey(self.ev(k[1], ii, jj, C))[0])
-            return self.ev(k[0], i, j, self.coords(n, C, make))
-        if s == "warp-by":
-            def make(ii, jj, C=C, p=p, k=k):
-                xx, yy = C(ii, jj)
-                b = self.ev(k[1], ii, jj, C)
-                d0, d1 = (b[0], b[1]) if len(b) == 3 else (b[0], b[0])
-                return xx + p[0] * (d0 - 0.5), yy + p[0] * (d1 - 0.5)
-            return self.ev(k[0], i, j, self.coords(n, C, make))
-        if s == "dissolve":
-            a, b = self.ev(k[0], i, j, C), self.ev(k[1], i, j, C)
-            ci = math.floor(_sane(x * T.DISSOLVE_CELLS + p[2])) % T.LATTICE
-            cj = math.floor(_sane(y * T.DISSOLVE_CELLS + p[3])) % T.LATTICE
-            amount = (p[0] + p[1] * self.time) % 1.0
-            pick = b if self.table[cj, ci] < amount else a
-            n3 = max(len(a), len(b))
-            return pick * (n3 // len(pick))
-        raise ValueError(f"primitive {s!r} has no per-pixel implementation")  # pragma: no cover
+        f = P.PIXEL_KERNELS.get(s)
+        if f is None:
+            raise ValueError(f"primitive {s!r} has no per-pixel implementation (register one with "
+                             "coursekit.pictures.primitives.register_primitive(..., pixel=...))")
+        form = P.get(s).form
+        if form == "terminal":
+            return f(self, *C(i, j), p)
+        if form == "pointwise":
+            return f(self, *C(i, j), p, *[self.ev(c, i, j, C) for c in k])
+        if form == "filter" or form == "neighbourhood":
+            return f(self, p, Grid(self, k[0], C), i, j)
+
+        def make(ii, jj):  # a warp: the first argument at the transformed coordinates
+            return f(p, *C(ii, jj), *[self.ev(c, ii, jj, C) for c in k[1:]])
+        return self.ev(k[0], i, j, self.coords(n, C, make))
+
+
+class Grid:
+    """An argument of a neighbourhood primitive on the whole pixel grid (evaluated once)."""
+
+    __slots__ = ("ref", "node", "C")
+
+    def __init__(self, ref: _Reference, node: Node, C):
+        self.ref, self.node, self.C = ref, node, C
+
+    def blur(self, sigma: float) -> list:
+        """Rows of channel lists: three box passes of radius ``sigma`` (world units) per axis."""
+        return self.ref.blur(self.node, self.C, sigma)
+
+    def gradient(self, i: int, j: int) -> tuple[float, float]:
+        """Central differences of the grey value at pixel ``(i, j)``, per world unit."""
+        return self.ref.gradient(self.node, self.C, i, j)
+
+
+# ---- terminals: f(ref, x, y, p) ---------------------------------------------------------------
+
+def _along(x, y, turns):
+    a = TWO_PI * turns
+    return x * math.cos(a) + y * math.sin(a)
+
+
+def _ramp(ref, x, y, p):
+    v = p[1] * _along(x, y, p[0])
+    return (v - math.floor(v),)
+
+
+def _gradient(ref, x, y, p):
+    t = _fold(_along(x, y, p[6]))
+    return tuple(p[c] + (p[3 + c] - p[c]) * t for c in range(3))
+
+
+def _turbulence(ref, x, y, p):
+    octaves = int(min(max(math.floor(p[1]), 1), 8))
+    total = norm = 0.0
+    for o in range(octaves):
+        f = p[0] * 2.0 ** o
+        nv = ref.noise(x * f + p[2] + o * T.OCTAVE_SHIFT[0], y * f + p[3] + o * T.OCTAVE_SHIFT[1])
+        total += 0.5 ** o * abs(2.0 * nv - 1.0)
+        norm += 0.5 ** o
+    return (total / norm,)
+
+
+def _pixmap(ref, x, y, p):
+    img = T.pixmap(T.pixmap_index(p[0]))
+    h, w = img.shape[:2]
+    fx = min(max(_fold(x) * w - 0.5, 0.0), w - 1.0)
+    fy = min(max(_fold(y) * h - 0.5, 0.0), h - 1.0)
+    x0, y0 = int(math.floor(fx)), int(math.floor(fy))
+    x1, y1 = min(x0 + 1, w - 1), min(y0 + 1, h - 1)
+    tx, ty = fx - x0, fy - y0
+    return tuple(float((img[y0, x0, c] * (1 - tx) + img[y0, x1, c] * tx) * (1 - ty)
+                       + (img[y1, x0, c] * (1 - tx) + img[y1, x1, c] * tx) * ty) for c in range(3))
+
+
+_TERMINALS = {
+    "const": lambda ref, x, y, p: (p[0],),
+    "color": lambda ref, x, y, p: tuple(p[:3]),
+    "x": lambda ref, x, y, p: (x,),
+    "y": lambda ref, x, y, p: (y,),
+    "radius": lambda ref, x, y, p: (math.hypot(x - 0.5, y - 0.5),),
+    "angle": lambda ref, x, y, p: ((math.atan2(y - 0.5, x - 0.5) / TWO_PI) % 1.0,),
+    "ramp": _ramp,
+    "gradient": _gradient,
+    "bw-noise": lambda ref, x, y, p: (ref.noise(x * p[0] + p[1], y * p[0] + p[2]),),
+    "color-noise": lambda ref, x, y, p: tuple(ref.noise(x * p[0] + p[1] + sx, y * p[0] + p[2] + sy)
+                                              for sx, sy in T.CHANNEL_SHIFT),
+    "turbulence": _turbulence,
+    "pixmap": _pixmap,
+    "time": lambda ref, x, y, p: (ref.time,),
+}
 
 
 def _turn(x, y, ang):
@@ -310,6 +303,70 @@ _TWO = {
 _BITS = {"and": lambda u, v: u & v, "or": lambda u, v: u | v, "xor": lambda u, v: u ^ v}
 
 
+# ---- dissolve, neighbourhoods and warps ----------------------------------------------------
+
+def _dissolve(ref, x, y, p, a, b):
+    ci = math.floor(_sane(x * T.DISSOLVE_CELLS + p[2])) % T.LATTICE
+    cj = math.floor(_sane(y * T.DISSOLVE_CELLS + p[3])) % T.LATTICE
+    amount = (p[0] + p[1] * ref.time) % 1.0
+    pick = b if ref.table[cj, ci] < amount else a
+    n3 = max(len(a), len(b))
+    return pick * (n3 // len(pick))
+
+
+def _band_pass(ref, p, grid, i, j):
+    a, b = grid.blur(p[0])[i][j], grid.blur(3.0 * p[0])[i][j]
+    return tuple(0.5 + u - v for u, v in zip(a, b))
+
+
+def _bump(ref, p, grid, i, j):
+    gx, gy = grid.gradient(i, j)
+    a = TWO_PI * p[0]
+    nx, ny = -gx * p[1], -gy * p[1]
+    dot = (nx * math.cos(a) + ny * math.sin(a) + 1.0) / math.sqrt(2.0)
+    return (max(dot / math.sqrt(nx * nx + ny * ny + 1.0), 0.0),)
+
+
+def _grad_mag(ref, p, grid, i, j):
+    return (p[0] * math.hypot(*grid.gradient(i, j)),)
+
+
+def _grad_dir(ref, p, grid, i, j):
+    gx, gy = grid.gradient(i, j)
+    return ((math.atan2(gy, gx) / TWO_PI) % 1.0,)
+
+
+def _swirl(p, x, y):
+    return _turn(x, y, p[0] * math.exp(-math.hypot(x - 0.5, y - 0.5) / max(p[1], 1e-3)))
+
+
+def _warp_by(p, x, y, b):
+    d0, d1 = (b[0], b[1]) if len(b) == 3 else (b[0], b[0])
+    return x + p[0] * (d0 - 0.5), y + p[0] * (d1 - 0.5)
+
+
+def _one(fn):
+    return lambda ref, x, y, p, a: fn(a)
+
+
+def _two(fn):
+    return lambda ref, x, y, p, a, b: _map2(fn, a, b)
+
+
+def _bits(op):
+    return lambda ref, x, y, p, a, b: _map2(lambda u, v: op(_quant(u), _quant(v)) / 255.0, a, b)
+
+
+for _table, _wrap in ((_TERMINALS, None), (_ONE, _one), (_TWO, _two), (_BITS, _bits)):
+    for _name, _fn in _table.items():
+        pixel_kernel(_name)(_fn if _wrap is None else _wrap(_fn))
+for _name, _fn in (("dissolve", _dissolve), ("blur", lambda ref, p, grid, i, j: tuple(grid.blur(p[0])[i][j])),
+                   ("band-pass", _band_pass), ("bump", _bump), ("grad-mag", _grad_mag), ("grad-dir", _grad_dir),
+                   ("swirl", _swirl), ("rotate", lambda p, x, y: _turn(x, y, TWO_PI * p[0])),
+                   ("warp-swirl", lambda p, x, y, b: _turn(x, y, p[0] * _grey(b)[0])), ("warp-by", _warp_by)):
+    pixel_kernel(_name)(_fn)
+
+
 def render_reference(genome: Genome, size=(16, 16), *, window=(0.0, 0.0, 1.0, 1.0), time: float = 0.0
                      ) -> np.ndarray:
     """Evaluate ``genome`` pixel by pixel in Python floats.
@@ -324,8 +381,8 @@ def render_reference(genome: Genome, size=(16, 16), *, window=(0.0, 0.0, 1.0, 1.
     """
     if not isinstance(genome, Genome):
         raise TypeError(f"genome: expected a Genome, got {type(genome).__name__}")
-    H, W = _parse_size(size)
-    ref = _Reference(H, W, _parse_window(window), time)
+    H, W = parse_size(size)
+    ref = _Reference(H, W, parse_window(window), time)
     tree = genome.decode()
     out = np.empty((H, W, 3))
     for i in range(H):

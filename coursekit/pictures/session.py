@@ -25,7 +25,6 @@ whose preview looks like a parent's or another child's is bred again.
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator, Mapping, NamedTuple

@@ -29,6 +29,7 @@ import numpy as np
 
 from .evaluate import render
 from .genome import Genome
+from .operators import coding
 
 __all__ = ["PREVIEW", "SAME", "FLAT", "MIN_NODES", "preview", "dull", "greyscale", "random_population",
            "distinct_children"]
@@ -128,8 +129,6 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *, 
     more. If anything the iterator gives is not a :class:`Genome` (a student's operator gone
     wrong), the children are returned unchecked for the caller to report.
     """
-    from .operators import coding
-
     if not all(isinstance(p, Genome) for p in parents):
         return [next(children) for _ in range(n)]
     seen = {coding(p) for p in parents}

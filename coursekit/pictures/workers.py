@@ -28,7 +28,7 @@ from multiprocessing import shared_memory
 import numpy as np
 import torch
 
-from .evaluate import render_chunk
+from .local import render_chunk
 
 __all__ = ["render_parts", "shutdown"]
 
@@ -116,8 +116,8 @@ def render_parts(units: list[tuple[list[int], list]], costs: list[float], shape:
     """Render a population in the worker processes.
 
     Args:
-        units: ``(rows, genomes)`` pairs: genomes evaluated together as one batch (same-shaped
-            trees) and their rows in the population; every row appears once.
+        units: ``(rows, trees)`` pairs: decoded trees evaluated together as one batch
+            (same-shaped trees) and their rows in the population; every row appears once.
         costs: estimated cost of each unit (used to balance the workers).
         shape: ``(H, W)``.
         options: ``window`` (parsed), ``time`` and ``group``.

@@ -102,21 +102,6 @@ def transform_matrix(xp, E, r):
     return X
 
 
-def rotation_about(xp, axis, angle):
-    """Rodrigues: (..., 3, 3) rotation by ``angle`` (...) about unit ``axis`` (..., 3)."""
-    x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
-    c, s = xp.cos(angle), xp.sin(angle)
-    C = 1.0 - c
-    return xp.stack(
-        [
-            xp.stack([c + x * x * C, x * y * C - z * s, x * z * C + y * s], axis=-1),
-            xp.stack([y * x * C + z * s, c + y * y * C, y * z * C - x * s], axis=-1),
-            xp.stack([z * x * C - y * s, z * y * C + x * s, c + z * z * C], axis=-1),
-        ],
-        axis=-2,
-    )
-
-
 # ---------------------------------------------------------------- quaternions (w, x, y, z)
 
 

@@ -1,0 +1,43 @@
+"""The frame of a picture: its size in pixels and the world window it shows (paper section 3.2).
+
+Both evaluators (:mod:`.evaluate`, :mod:`.reference`) read ``size`` and ``window`` through these
+functions, so a bad value gets the same clear error from either.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["MAX_PIXELS", "parse_size", "parse_window"]
+
+MAX_PIXELS = 4096 * 4096  # pixels of one rendered picture at most (a 4096^2 poster: 192 MiB of float32)
+
+
+def parse_size(size) -> tuple[int, int]:
+    """``(height, width)`` from an int or a pair of positive ints (ValueError naming ``size``)."""
+    if isinstance(size, (int, np.integer)) and not isinstance(size, bool):
+        size = (size, size)
+    try:
+        h, w = (int(v) for v in size)
+        ok = all(float(v) == int(v) for v in size)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok or h < 1 or w < 1:
+        raise ValueError(f"size: {size!r} must be an int or (height, width) of positive ints")
+    if h * w > MAX_PIXELS:
+        raise ValueError(f"size: {h} x {w} is {h * w:,} pixels; a picture has at most {MAX_PIXELS:,} "
+                         f"(4096 x 4096): render a smaller size, or zoom with window= and tile")
+    return h, w
+
+
+def parse_window(window) -> tuple[float, float, float, float]:
+    """``(x0, y0, x1, y1)`` as floats, finite, with a non-empty extent (ValueError naming ``window``)."""
+    try:
+        x0, y0, x1, y1 = (float(v) for v in window)
+    except (TypeError, ValueError):
+        raise ValueError(f"window: {window!r} must be (x0, y0, x1, y1)") from None
+    if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or x0 == x1 or y0 == y1:
+        raise ValueError(f"window: {window!r} must be finite with x0 != x1 and y0 != y1")
+    return x0, y0, x1, y1
