@@ -18,8 +18,9 @@ from hypothesis import strategies as st
 from coursekit import ga
 from coursekit.creatures import Creature, simulate
 from coursekit.creatures.fitness import swimming_fitness as library_fitness
-from coursekit.grading import evaluate
+from coursekit.grading import checks, evaluate
 from coursekit.grading.checks import for_notebook
+from coursekit.grading.runner import run_cases
 from coursekit.grading.checks.ex08_fitness_and_reproduction import (circling, in_place, one_push, quotas,
                                                                     sample_times, steady_swimmer, survivors_of)
 
@@ -310,3 +311,19 @@ def test_the_solution_reproduction_drives_evolve_swimmers_like_the_library_selec
         mine = np.bincount(reproduce(f, k, np.random.default_rng(1)), minlength=n)
         lib = np.bincount(ga.sims_select(f, k, np.random.default_rng(1)), minlength=n)
         assert mine.tolist() == lib.tolist()
+
+
+def wrapped_library_fitness(com, times):
+    return library_fitness(com, times)
+
+
+@pytest.mark.parametrize("name, wrapper", [("swimmers.fitness", wrapped_library_fitness), ("swimmers.reproduce", library_select)])
+def test_the_library_versions_are_refused_while_graded(name, wrapper):
+    """Summative grading refuses coursekit's own fitness and Sims selection inside the student's function."""
+    check = checks.get(name)
+    cases = check.cases(np.random.default_rng(7))
+    records = run_cases(wrapper, cases, check.output, timeout=30, refuse=check.reference)
+    assert {r["status"] for r in records} == {"error"}
+    assert "is not available while your" in records[0]["error"]
+    honest = fitness if name == "swimmers.fitness" else reproduce
+    assert {r["status"] for r in run_cases(honest, cases, check.output, timeout=30, refuse=check.reference)} == {"ok"}

@@ -442,7 +442,6 @@ def _all_zero(ctx):
 
 
 def _rounds_up(ctx):
-    f = ctx.arg("seven", 0)
     for out in ctx.out("seven"):
         if len(set(out)) != 2:
             return False, (f"with 7 creatures and survival 0.2, {len(set(out))} of them got offspring; 1.4 creatures "
