@@ -6,6 +6,7 @@ fails exactly that property, and do-nothing answers (a constant, zeros, a fixed 
 alone) score 0. The paths the checks draw are cross-checked against what they claim to be.
 """
 
+import json
 import math
 from pathlib import Path
 
@@ -21,7 +22,7 @@ from coursekit.creatures.fitness import swimming_fitness as library_fitness
 from coursekit.grading import checks, evaluate
 from coursekit.grading.checks import for_notebook
 from coursekit.grading.runner import run_cases
-from coursekit.grading.checks.ex08_fitness_and_reproduction import (circling, in_place, one_push, quotas,
+from coursekit.grading.checks.ex08_fitness_and_reproduction import (Paths, circling, in_place, one_push, quotas,
                                                                     sample_times, steady_swimmer, survivors_of)
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -129,6 +130,11 @@ def fitness_in_place(com, times):
     return fitness(com, times)
 
 
+def fitness_rescales_paths(com, times):
+    com *= 1.0 + 1e-9  # "normalises" the paths -- in the caller's array
+    return fitness(com, times)
+
+
 def reproduce_too_few(fitness, k, rng, survival=0.2):
     return reproduce(fitness, k - 1, rng, survival)
 
@@ -179,6 +185,7 @@ WRONG = [
     ("swimmers.fitness", fitness_final_distance, "one push and coasting scores below a steady swimmer"),
     ("swimmers.fitness", fitness_batch_ranks, "each creature is scored on its own"),
     ("swimmers.fitness", fitness_in_place, "inputs unchanged"),
+    ("swimmers.fitness", fitness_rescales_paths, "inputs unchanged"),
     ("swimmers.reproduce", reproduce_too_few, "returns k valid indices"),
     ("swimmers.reproduce", reproduce_uniform_survivors, "offspring in proportion to fitness"),
     ("swimmers.reproduce", reproduce_sorted, "shuffled, so that mates are random"),
@@ -281,6 +288,18 @@ def test_one_push_covers_its_distance_mostly_early_and_circling_stays_on_its_cir
     np.testing.assert_allclose(np.linalg.norm(np.diff(c, axis=0), axis=1).sum(), 0.75 * 10.0, rtol=1e-3)
     w = in_place(t, 0.02, 1.0)
     assert np.max(np.linalg.norm(w, axis=1)) <= 0.03 and np.linalg.norm(np.diff(w, axis=0), axis=1).sum() > 1.0
+
+
+def test_paths_travel_as_json_and_compute_plain_arrays():
+    p = Paths.from_json(Paths.to_json(np.arange(24.0).reshape(2, 4, 3).view(Paths)))
+    assert isinstance(p, np.ndarray) and p.shape == (2, 4, 3)
+    for result in (p - p[:, :1], np.linalg.norm(p, axis=2), p.max(axis=1), np.diff(p, axis=1), np.maximum(p, 0)):
+        assert type(result) is np.ndarray  # what a student's function returns converts like any array
+    q = Paths.from_json(p.to_json())
+    q -= 1.0  # in place: the object the grader holds sees it
+    assert type(q) is Paths and json.loads(q.to_json()) != json.loads(p.to_json())
+    with pytest.raises(ValueError, match="coursekit.paths/1"):
+        Paths.from_json('{"format": "other/1", "paths": []}')
 
 
 def test_quotas_share_out_k_and_survivors_are_the_best():

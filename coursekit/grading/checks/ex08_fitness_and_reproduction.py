@@ -10,7 +10,8 @@ which then drive the evolution of swimmers. The checks never compare with a refe
   direction, the sample rate, the duration or the start time; one push and coasting, circling
   and wobbling in place score below a steady swimmer (Sims' two exploits, and noise); each
   creature is scored on its own. The job comes first, as a gate: faster steady swimmers score
-  higher, so a constant, a zero or a random fitness scores 0.
+  higher, so a constant, a zero or a random fitness scores 0. The paths travel to the student's
+  function as :class:`Paths`, a numpy array that the grader can compare before and after a call.
 - ``reproduce(fitness, k, rng, survival=0.2)`` is judged on the parent indices it returns: only
   the best ``ceil(survival * n)`` reproduce (the gate, with more than one of them: a function
   that always picks the best, or any fixed index, scores 0), each survivor's number of offspring
@@ -22,6 +23,7 @@ which then drive the evolution of swimmers. The checks never compare with a refe
 
 from __future__ import annotations
 
+import json
 import math
 from collections import Counter
 
@@ -30,7 +32,7 @@ import numpy as np
 from coursekit.grading.checks import Check, exercise, register
 from coursekit.grading.checks.properties import COPY_ARRAY, NEW_ARRAYS, RNG, array, deterministic, seeds, unmodified
 
-__all__ = ["circling", "in_place", "one_push", "sample_times", "steady_swimmer"]
+__all__ = ["Paths", "circling", "in_place", "one_push", "sample_times", "steady_swimmer"]
 
 #: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
 HINTS = {
@@ -152,8 +154,57 @@ def _random_direction(rng):
     return d / np.linalg.norm(d)
 
 
+class Paths(np.ndarray):
+    """Centre-of-mass paths ``(C, T, 3)`` as the checks send them: a numpy array in every respect.
+
+    The grader tells whether a call changed an argument from the argument's plain-data form, which
+    for an array argument is a flat list; these 3-D arrays travel as JSON instead
+    (:meth:`from_json` / :meth:`to_json`, the form genomes and creatures travel in). Whatever a
+    function computes from them (numpy functions, operators, methods) is a plain ``numpy.ndarray``.
+    """
+
+    FORMAT = "coursekit.paths/1"
+
+    @classmethod
+    def from_json(cls, text: str) -> "Paths":
+        data = json.loads(text)
+        if not (isinstance(data, dict) and data.get("format") == cls.FORMAT and "paths" in data):
+            raise ValueError(f"Paths.from_json: expected a {cls.FORMAT!r} document")
+        return np.asarray(data["paths"], dtype=np.float64).view(cls)
+
+    def to_json(self) -> str:
+        return _paths_json(self)
+
+    def __array_ufunc__(self, ufunc, method, *inputs, **kwargs):
+        out = kwargs.get("out")
+        if out:
+            kwargs["out"] = _plain(out)
+        result = getattr(ufunc, method)(*_plain(inputs), **kwargs)
+        return out[0] if out and len(out) == 1 and isinstance(out[0], Paths) else result  # x -= y keeps x
+
+    def __array_function__(self, func, types, args, kwargs):
+        return func(*_plain(args), **_plain(kwargs))
+
+
+def _plain(x):
+    """``x`` with every :class:`Paths` in it viewed as a plain ndarray (the same memory)."""
+    if isinstance(x, Paths):
+        return x.view(np.ndarray)
+    if isinstance(x, (tuple, list)):
+        return type(x)(_plain(v) for v in x)
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    return x
+
+
+def _paths_json(paths) -> str:
+    return json.dumps({"format": Paths.FORMAT, "paths": np.asarray(paths, dtype=np.float64).tolist()})
+
+
 def _paths_case(cid, paths, times):
-    return {"id": cid, "args": [array(np.stack(paths)), array(times)], "seeds": [0], "max_len": len(paths)}
+    text = _paths_json(np.stack(paths))
+    com = {"object": f"{__name__}:Paths", "json": text}
+    return {"id": cid, "args": [com, array(times)], "seeds": [0], "max_len": 2 * len(text) + len(times)}
 
 
 def _fitness_cases(rng):
