@@ -268,8 +268,8 @@ def _faster_higher(ctx):
     for i in range(len(f) - 1):
         if not f[i + 1] > f[i]:
             return False, (f"steady swimmers at {speeds[i]:.3f} and {speeds[i + 1]:.3f} m/s scored {f[i]:.4g} and "
-                           f"{f[i + 1]:.4g}: the faster one must score higher. That is a fitness function's job; "
-                           "nothing else is judged until it does")
+                           f"{f[i + 1]:.4g}: the faster one must score higher. That is a fitness function's job. "
+                           "Nothing else is judged until it does")
     return True, f"faster steady swimmers score higher ({len(f)} speeds from {speeds[0]:.2f} to {speeds[-1]:.2f} m/s)"
 
 
