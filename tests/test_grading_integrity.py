@@ -25,7 +25,8 @@ pytestmark = pytest.mark.slow
 CHECK_OF = {name: f"ga.{name}" for name in HONEST}
 # exercise notebook stem -> (max points, number of checks); each is graded once as solution and as exercise
 EXERCISES = {"01_selection": (10.0, 5), "02_picture_mutations": (10.0, 5), "03_picture_recombination": (6.0, 3),
-             "05_creature_operators": (12.0, 3), "06_wire_a_brain": (8.0, 2), "07_swimming_physics": (10.0, 2)}
+             "05_creature_operators": (12.0, 3), "06_wire_a_brain": (8.0, 2), "07_swimming_physics": (10.0, 2),
+             "08_fitness_and_reproduction": (10.0, 2)}
 
 
 SECRET = "grader-secret-7d1f"  # in the grader's environment only: no notebook may read it

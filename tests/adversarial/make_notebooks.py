@@ -458,6 +458,9 @@ DO_NOTHING = {
     return np.zeros(6)  # no water''', '''def rkn_step(f, t, y, v, h):
     a = f(t, y, v)  # explicit Euler, first order
     return y + h * v, v + h * a'''],
+    "08_fitness_and_reproduction": ["import numpy as np", '''def swimming_fitness(com, times):
+    return np.full(len(com), 0.1)  # everyone swims the same''', '''def reproduce(fitness, k, rng, survival=0.2):
+    return np.zeros(k, dtype=np.int64)  # the first creature, whatever its fitness'''],
     "06_wire_a_brain": ['''def resolve(morph, part, parent, children):
     return None  # every id reads nothing''', '''def wire_snake(snake):
     return snake.copy()  # the body, never wired'''],
