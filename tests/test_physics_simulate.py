@@ -272,3 +272,42 @@ def test_a_body_cut_off_at_the_part_cap_scores_zero():
     r = simulate([big, Creature.figure1_snake()], 1.0)
     assert np.linalg.norm(r.com[0, -1] - r.com[0, 0]) > 1e-3  # what is left of it moves
     assert r.fitness[0] == 0.0 and r.fitness[1] > 0  # but the cut-off body scores nothing
+
+
+def test_a_fitness_of_ones_own_scores_the_paths_and_flagged_creatures_still_score_zero(monkeypatch):
+    # exercise 08: a student's fitness(com, times) replaces Sims' inside simulate (and so inside
+    # evolve_swimmers), but what the simulator flags -- here every creature a step carried past a
+    # limit, with the allowed excess set to 0 -- scores 0 whatever that function says
+    import sys
+
+    from coursekit.creatures import Creature
+
+    simulate_module = sys.modules[simulate.__module__]
+
+    creatures = [Creature.figure1_snake(), Creature.paddle_turtle()]
+    seen = {}
+
+    def leftwards(com, times):
+        seen["args"] = com, times
+        com[:] = 0.0  # a copy: the result's paths are not changed
+        return np.full(len(com), 0.25)
+
+    r = simulate(creatures, 1.0, fitness=leftwards)
+    assert seen["args"][0].shape == r.com.shape and np.any(r.com != 0)
+    np.testing.assert_array_equal(r.fitness, [0.25, 0.25])
+    sims = simulate(creatures, 1.0, fitness=swimming_fitness)  # the library's own, passed in, is the default
+    np.testing.assert_array_equal(sims.fitness, simulate(creatures, 1.0).fitness)
+    monkeypatch.setattr(simulate_module, "MAX_EXCESS", 0.0)
+    flagged = simulate(creatures, 1.0, fitness=leftwards)
+    assert np.all(flagged.limit_excess[flagged.fitness == 0.0] > 0) and np.any(flagged.fitness == 0.0)
+
+
+@pytest.mark.parametrize("returns, message", [
+    (lambda com, times: np.ones(len(com) + 1), "expected (2,)"),
+    (lambda com, times: -np.ones(len(com)), "finite and >= 0"),
+    (lambda com, times: np.full(len(com), np.nan), "finite and >= 0"),
+])
+def test_a_fitness_that_returns_the_wrong_thing_is_named(returns, message):
+    trees = [random_body_tree(np.random.default_rng(i), (2, 3)) for i in range(2)]
+    with pytest.raises(ValueError, match=rf"fitness: <lambda>\(com, times\) returned .*{message.replace('(', '[(]').replace(')', '[)]')}"):
+        simulate(trees, 0.5, fitness=returns)

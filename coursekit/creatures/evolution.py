@@ -147,7 +147,8 @@ def evolve_swimmers(
             swims in, a batch per worker (:class:`SwimmerFitness`); the result is bit for bit the
             serial one.
         **simulate_options: options for :func:`~coursekit.creatures.simulate.simulate` (``dt``,
-            ``settle``, ``backend``, ``drag_coefficient`` ...).
+            ``settle``, ``backend``, ``drag_coefficient``, ``fitness`` -- a function
+            ``fitness(com, times)`` scoring the paths in place of Sims' -- ...).
 
     Returns:
         The engine's :class:`~coursekit.ga.EvolutionResult`; ``best`` is the fastest swimmer.

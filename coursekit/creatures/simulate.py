@@ -71,6 +71,19 @@ def _brains(creatures):
     return BrainBatch([p.brain for p in phenotypes]), [p.body for p in phenotypes]
 
 
+def _scores(fitness, com, times) -> np.ndarray:
+    """A user's ``fitness(com, times)``, checked: one finite score >= 0 per creature."""
+    name = getattr(fitness, "__name__", "fitness")
+    if not callable(fitness):
+        raise TypeError(f"fitness: must be a function fitness(com, times) -> (C,) scores, got {type(fitness).__name__}")
+    scores = np.asarray(fitness(com, times), dtype=np.float64)
+    if scores.shape != (com.shape[0],):
+        raise ValueError(f"fitness: {name}(com, times) returned shape {scores.shape}; expected ({com.shape[0]},), one score per creature")
+    if not np.all(np.isfinite(scores)) or np.any(scores < 0):
+        raise ValueError(f"fitness: {name}(com, times) returned {scores.tolist()}; every score must be finite and >= 0")
+    return scores
+
+
 def simulate(
     creatures,
     seconds: float = 10.0,
@@ -81,6 +94,7 @@ def simulate(
     initial_state=None,
     progress: bool = False,
     record_every: int = 0,
+    fitness=None,
     **options,
 ) -> SimulationResult:
     """Simulate and score a population of swimmers together.
@@ -98,6 +112,10 @@ def simulate(
         initial_state: optional ``(qpos, qvel)`` in MuJoCo layout; default at rest at the origin.
         progress: show a tqdm progress bar.
         record_every: record every creature's ``qpos`` every this many steps (0: don't).
+        fitness: optional ``fitness(com, times) -> (C,)`` scoring the centre-of-mass paths
+            (exercise 08) in place of :func:`~coursekit.creatures.fitness.swimming_fitness`; it
+            gets copies, and a creature the simulator flags (diverged, cut at the part cap, a
+            joint the step could not hold) still scores 0.
         **options: passed to :class:`~coursekit.creatures.physics.world.World` (``backend``,
             ``device``, ``integrator``, ``drag_coefficient``, ``contacts``, caps ...).
 
@@ -177,7 +195,11 @@ def simulate(
     np.maximum.at(excess, m.joint_creature, bk.to_numpy(worst))
     broken = excess > MAX_EXCESS if world.limits is not None else np.zeros(m.n_creatures, dtype=bool)
     # a joint the step could not hold is no stroke: such a swim scores 0 too
-    fitness = swimming_fitness(com, times, world.diverged | truncated | broken)
+    flagged = world.diverged | truncated | broken
+    if fitness is None:
+        fitness = swimming_fitness(com, times, flagged)
+    else:
+        fitness = np.where(flagged, 0.0, _scores(fitness, com.copy(), times.copy()))
     qpos, qvel = world.get_state()
     trajectory = frame_times = None
     if record_every:
