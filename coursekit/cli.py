@@ -54,9 +54,18 @@ def _cmd_lab(args: argparse.Namespace) -> int:
 def _cmd_demo(args: argparse.Namespace) -> int:
     from coursekit import demos
 
+    sizes = dict(population=args.population, generations=args.generations, seconds=args.seconds, seed=args.seed,
+                 workers=args.workers)
+    if args.name is None:
+        result = demos.both(args.out or "coursekit-demo", **sizes)
+        summary = result["swimmers"]
+        print(f"best swimmer: {summary['best_speed']:.3f} m/s = {summary['best_body_lengths_per_second']:.3f} body lengths/s, "
+              f"{summary['best_parts']} parts; audit: {summary['audit']}")
+        print(f"demo written in {result['wall_seconds']:.0f} s (evolution {summary['wall_seconds']['evolution']:.0f} s "
+              f"on {summary['workers']} processes); open {result['index']}")
+        return 0
     if args.name == "swimmers":
-        summary = demos.swimmers(args.out or "swimmers-demo", population=args.population, generations=args.generations,
-                                 seconds=args.seconds, seed=args.seed)
+        summary = demos.swimmers(args.out or "swimmers-demo", **sizes)
         print(f"best swimmer: {summary['best_speed']:.3f} m/s = {summary['best_body_lengths_per_second']:.3f} body lengths/s "
               f"(fitness {summary['best_fitness']:.4f} m/s), {summary['best_parts']} parts")
         print(f"audit: {summary['audit']}")
@@ -127,9 +136,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-browser", action="store_true", help="do not open a browser window")
     s.set_defaults(func=_cmd_lab)
 
-    s = sub.add_parser("demo", help="instructor demos: evolve swimmers (files), breed pictures (JupyterLab)")
-    s.add_argument("name", choices=["swimmers", "pictures"])
-    s.add_argument("--out", help="output folder (swimmers: default swimmers-demo/)")
+    s = sub.add_parser("demo", help="instructor demos: both into one folder with an index.html (no name), "
+                                    "evolve swimmers (files), breed pictures (JupyterLab)")
+    s.add_argument("name", nargs="?", choices=["swimmers", "pictures"],
+                   help="one demo (default: both, into --out with an index.html)")
+    s.add_argument("--out", help="output folder (default coursekit-demo/; swimmers alone: swimmers-demo/)")
     s.add_argument("--dir", default=DEFAULT_COURSE_DIR, help=f"pictures: the working folder the course is copied to (default ./{DEFAULT_COURSE_DIR})")
     s.add_argument("--population", type=int, help="population size (default by COURSEKIT_PROFILE)")
     s.add_argument("--generations", type=int, help="generations (default by COURSEKIT_PROFILE)")
@@ -139,6 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--disk-mb", type=int, default=1024, help="MiB of files a notebook may write in its folder (default 1024); "
                    "past them all of its processes are stopped and it is reported as not graded")
     s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    s.add_argument("--workers", type=int, help="processes the swimmers swim in (default: one per core)")
     s.add_argument("--no-browser", action="store_true", help="pictures: do not open a browser window")
     s.set_defaults(func=_cmd_demo)
 

@@ -1,31 +1,77 @@
-"""Instructor demos: the whole thing, live, from one command (``coursekit demo NAME``).
+"""Instructor demos: the whole thing, live, from one command (``coursekit demo [NAME]``).
 
-- ``swimmers``: evolve a population of swimmers (paper section 2) in the batched simulator and
-  write what a lecture wants to show: the best creature's genome, a picture of it, a GIF of it
-  swimming, the fitness plot of the run, and its audit (:mod:`coursekit.creatures.audit`: does
-  it swim, or exploit the simulator?).
+- ``coursekit demo`` (no name): :func:`both` -- the swimmers and the pictures into one folder,
+  with an ``index.html`` that opens them all: the live run's champion swimming (MP4, GIF), its
+  key frames (the paper's Figure 3), the fitness plot, the shipped champions beside it, and the
+  gallery of a scripted breeding session.
+- ``swimmers``: :func:`swimmers` -- evolve a population of swimmers (paper section 2), on every
+  core, and write what a lecture wants to show: the best creature's genome, a picture of it, a
+  film of it swimming, its key frames, the fitness plot of the run, and its audit
+  (:mod:`coursekit.creatures.audit`: does it swim, or exploit the simulator?).
 - ``pictures``: breed genetic pictures (paper section 3) in the click-to-select gallery: the CLI
-  opens ``demos/picture_breeding.ipynb`` in JupyterLab.
+  opens ``demos/picture_breeding.ipynb`` in JupyterLab. :func:`pictures` is the same loop with
+  no one to click (for :func:`both`): the script picks the most colourful pictures.
 """
 
 from __future__ import annotations
 
+import html
 import json
+import os
+import re
+import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
+from coursekit.atomic import atomic_write
 from coursekit.profile import sized
+
+#: The swimmer films' frame size and rate (even sizes: H.264 needs them).
+FILM_SIZE, FILM_FPS = (480, 360), 20
+KEY_FRAMES, KEY_FRAME_SIZE = 4, (320, 240)
+
+
+def shipped_champions() -> list:
+    """The pre-evolved swimmers that ship with the kit: ``coursekit.creatures.champions()``.
+
+    In a version of coursekit that ships none (no ``champions`` function yet), an empty list:
+    the demos then say so instead of showing anything in their place.
+    """
+    from coursekit import creatures
+
+    champions = getattr(creatures, "champions", None)
+    return list(champions()) if callable(champions) else []
+
+
+def _film(creature, trajectory, frame_times, folder: Path, stem: str) -> dict:
+    """Write ``stem.mp4``, ``stem.gif`` (one pass) and ``stem-keyframes.png`` of a recorded swim."""
+    from coursekit.creatures.render import animate, keyframes
+
+    names = {"mp4": f"{stem}.mp4", "gif": f"{stem}.gif", "keyframes": f"{stem}-keyframes.png"}
+    animate(creature, trajectory, [folder / names["mp4"], folder / names["gif"]], fps=FILM_FPS, size=FILM_SIZE,
+            frame_times=frame_times)
+    keyframes(creature, trajectory, folder / names["keyframes"], n=KEY_FRAMES, size=KEY_FRAME_SIZE, frame_times=frame_times)
+    return names
 
 
 def swimmers(out="swimmers-demo", *, population: int | None = None, generations: int | None = None,
-             seconds: float | None = None, seed: int = 0, progress: bool = True) -> dict:
-    """Evolve swimmers and write ``best.json``, ``best.png``, ``best.gif`` and ``fitness.png`` to ``out``.
+             seconds: float | None = None, seed: int = 0, workers: int | None = None, progress: bool = True) -> dict:
+    """Evolve swimmers and write the champion's files and the run's fitness plot to ``out``.
 
-    Sizes default by profile (classroom: 60 creatures, 10 generations, 5 s swims; ci: tiny).
+    Files: ``best.json``, ``best.png``, ``best.mp4`` and ``best.gif`` (the champion swimming, the
+    camera following it), ``best-keyframes.png`` (Figure 3), ``fitness.png``, ``summary.json``,
+    and for every shipped champion (:func:`shipped_champions`) ``champion-K.*`` films and key frames.
+
+    Sizes default by profile (classroom: 40 creatures, 8 generations, 4 s swims; ci: tiny).
+
+    Args:
+        workers: processes the population swims in (default: one per core; 1: this process).
+            The run is bit for bit the same either way.
 
     Returns:
-        A summary dict (also written as ``summary.json``).
+        A summary dict (also written as ``summary.json``), with the wall times of its parts.
     """
     import matplotlib
 
@@ -34,23 +80,39 @@ def swimmers(out="swimmers-demo", *, population: int | None = None, generations:
 
     from coursekit.creatures import evolve_swimmers, simulate
     from coursekit.creatures.audit import audit
-    from coursekit.creatures.render import animate, render
-    from coursekit.atomic import atomic_write
+    from coursekit.creatures.render import render
 
-    population = population or sized(classroom=60, ci=6)
-    generations = sized(classroom=10, ci=1) if generations is None else generations
-    seconds = seconds or sized(classroom=5.0, ci=0.5)
+    population = population or sized(classroom=40, ci=6)
+    generations = sized(classroom=8, ci=1) if generations is None else generations
+    seconds = seconds or sized(classroom=4.0, ci=0.5)
+    workers = workers or os.cpu_count() or 1
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    wall, t0 = {}, time.perf_counter()
     rng = np.random.default_rng(seed)
-    result = evolve_swimmers(generations=generations, rng=rng, population_size=population, seconds=seconds,
-                             progress=progress, random_options=dict(max_parts=16))
-    best = result.best
-    atomic_write(out / "best.json", best.to_json())
-    render(best, out / "best.png")
-    replay = simulate([best], seconds, record_every=3)
-    animate(best, replay.trajectory[0], out / "best.gif", fps=20)
-    report = audit([best], seconds)[0]  # is it swimming, or exploiting the simulator?
+    pool = ProcessPoolExecutor(workers) if workers > 1 else None
+    try:
+        result = evolve_swimmers(generations=generations, rng=rng, population_size=population, seconds=seconds,
+                                 progress=progress, random_options=dict(max_parts=16), executor=pool)
+        wall["evolution"] = time.perf_counter() - t0
+        best, champions = result.best, shipped_champions()
+        t = time.perf_counter()
+        # The audit (is it swimming, or exploiting the simulator?) runs in a worker while this
+        # process films the champion and the shipped champions (one batch: the same swims as alone).
+        audited = pool.submit(audit, [best], seconds) if pool is not None else None
+        atomic_write(out / "best.json", best.to_json())
+        render(best, out / "best.png")
+        replay = simulate([best, *champions], seconds, record_every=3)  # 20 frames per simulated second at dt = 1/60
+        films = _film(best, replay.trajectory[0], replay.frame_times, out, "best")
+        shown = [{"parts": int(c.expand().body.n_bodies),
+                  **_film(c, replay.trajectory[k + 1], replay.frame_times, out, f"champion-{k}")}
+                 for k, c in enumerate(champions)]
+        wall["films"] = time.perf_counter() - t
+        report = (audited.result() if audited is not None else audit([best], seconds))[0]
+        wall["films and audit"] = time.perf_counter() - t
+    finally:
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
     fig, ax = plt.subplots(figsize=(6, 3.5))
     result.history.plot(ax=ax)
     ax.set_ylabel("fitness: swimming speed (m/s)")
@@ -61,14 +123,169 @@ def swimmers(out="swimmers-demo", *, population: int | None = None, generations:
     fig.tight_layout()
     fig.savefig(out / "fitness.png", dpi=100)
     plt.close(fig)
+    wall["total"] = time.perf_counter() - t0
     summary = {
-        "population": population, "generations": generations, "seconds": seconds, "seed": seed,
+        "population": population, "generations": generations, "seconds": seconds, "seed": seed, "workers": workers,
         "best_fitness": float(result.best_fitness), "best_parts": int(best.expand().body.n_bodies),
         "best_speed": report.speed, "best_body_length": report.body_length,
         "best_body_lengths_per_second": report.body_lengths_per_second,
         "audit": str(report), "audit_passed": report.passed,
         "history_best": [float(x) for x in result.history.best],
-        "files": sorted(p.name for p in out.iterdir()),
+        "films": films, "champions": shown, "wall_seconds": {k: round(v, 2) for k, v in wall.items()},
     }
+    summary["files"] = sorted({p.name for p in out.iterdir() if not p.name.startswith(".")} | {"summary.json"})
     atomic_write(out / "summary.json", json.dumps(summary, indent=2))
     return summary
+
+
+def _colourful(images: np.ndarray) -> np.ndarray:
+    """Hasler and Suesstrunk's colourfulness of ``(N, H, W, 3)`` images in [0, 1] (the script's taste)."""
+    rg = images[..., 0] - images[..., 1]
+    yb = 0.5 * (images[..., 0] + images[..., 1]) - images[..., 2]
+    std = np.hypot(rg.std(axis=(1, 2)), yb.std(axis=(1, 2)))
+    mean = np.hypot(rg.mean(axis=(1, 2)), yb.mean(axis=(1, 2)))
+    return std + 0.3 * mean
+
+
+def _sheet(images: np.ndarray, columns: int, picked, gap: int = 6) -> np.ndarray:
+    """The gallery's grid as one uint8 picture; the picks framed in orange."""
+    n, h, w, _ = images.shape
+    rows = -(-n // columns)
+    sheet = np.full((rows * (h + gap) + gap, columns * (w + gap) + gap, 3), 255, dtype=np.uint8)
+    for i, img in enumerate(images):
+        y, x = gap + (i // columns) * (h + gap), gap + (i % columns) * (w + gap)
+        if i in picked:
+            sheet[y - gap // 2: y + h + gap // 2, x - gap // 2: x + w + gap // 2] = (230, 85, 13)
+        sheet[y: y + h, x: x + w] = np.clip(img * 255 + 0.5, 0, 255).astype(np.uint8)
+    return sheet
+
+
+def pictures(out="pictures-demo", *, generations: int | None = None, size: int | None = None, picks: int = 2,
+             seed: int = 0) -> dict:
+    """A breeding session (paper section 3) with the script as the audience, written to ``out``.
+
+    Sims' 4 x 5 gallery of random pictures; in every generation the script picks the ``picks``
+    most colourful pictures (Hasler and Suesstrunk's measure: the script's taste, where a room
+    would click) and breeds the next generation from them (:meth:`Evolution.next_generation`:
+    the paper's seven operators at random). Files: ``gallery-G.png`` (generation G, the picks
+    framed), ``favourite-K.png`` (the last picks, with their genomes inside:
+    :func:`~coursekit.pictures.load_genome`), ``gallery_session.json`` (``Gallery.load`` goes
+    on breeding from it in a notebook) and ``summary.json``.
+
+    Sizes default by profile (classroom: 3 generations of 128-pixel pictures; ci: 1 of 32).
+    """
+    from coursekit.creatures.render import write_png
+    from coursekit.pictures import render, save_image
+    from coursekit.pictures.session import Evolution, GalleryState
+    from coursekit.pictures.variety import random_population
+
+    generations = sized(classroom=3, ci=1) if generations is None else generations
+    size = size or sized(classroom=128, ci=32)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    evo = Evolution(GalleryState(random_population(rng, 20)), rng, autosave=out / "gallery_session.json")
+    sheets, chosen = [], []
+    for g in range(generations + 1):
+        images = render(evo.state.population, size)
+        chosen = [int(i) for i in np.argsort(-_colourful(images), kind="stable")[:picks]]
+        sheets.append(f"gallery-{g}.png")
+        write_png(_sheet(images, 5, chosen), out / sheets[-1])
+        for i in chosen:
+            evo.select(i, True)
+        if g < generations:
+            evo.next_generation()
+    favourites = []
+    for k, i in enumerate(chosen):
+        favourites.append(f"favourite-{k}.png")
+        save_image(out / favourites[-1], evo.state.population[i], size=sized(classroom=512, ci=64))
+    summary = {"generations": generations, "size": size, "picks": picks, "seed": seed, "sheets": sheets,
+               "favourites": favourites, "expressions": [evo.state.population[i].expression() for i in chosen],
+               "wall_seconds": round(time.perf_counter() - t0, 2)}
+    atomic_write(out / "summary.json", json.dumps(summary, indent=2))
+    return summary
+
+
+_PAGE = """<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>coursekit demo</title>
+<style>
+body {{ font-family: system-ui, sans-serif; max-width: 1400px; margin: 2em auto; padding: 0 1em; color: #222; }}
+h1, h2 {{ font-weight: 600; }} img, video {{ max-width: 100%; }} figure {{ margin: 1em 0; }}
+figcaption {{ color: #555; font-size: 0.9em; }} .row {{ display: flex; flex-wrap: wrap; gap: 1.5em; align-items: flex-start; }}
+code {{ background: #f3f3f3; padding: 0 0.2em; }}
+</style></head><body>
+<h1>coursekit: evolved swimmers and bred pictures</h1>
+<p>Made by <code>coursekit demo</code> in {total:.0f} s. After <em>On Artificial Intelligence and Motivation in
+Computer Graphics Education</em> and Karl Sims' <em>Evolving Virtual Creatures</em> (1994) and
+<em>Artificial Evolution for Computer Graphics</em> (1991).</p>
+<h2>Swimmers: a live run</h2>
+<p>{population} random creatures, {generations} generations of Sims' recipe, {seconds:g} s of swimming each
+({evolution:.0f} s on {workers} processes). The champion swims {speed:.3f} m/s =
+{blps:.3f} body lengths per second. Audit: {audit}</p>
+<div class="row">
+<figure><video src="{mp4}" autoplay loop muted controls playsinline width="{fw}" height="{fh}"></video>
+<figcaption>The champion swimming (the camera follows it; orange: its centre of mass's path;
+the grid stays put in the water). Also as a <a href="{gif}">GIF</a>; its genome: <a href="{json}">best.json</a>.</figcaption></figure>
+<figure><img src="{fitness}" alt="fitness per generation"><figcaption>Best, mean and median fitness per generation.</figcaption></figure>
+</div>
+<figure><img src="{keyframes}" alt="key frames"><figcaption>Key frames, time increasing from left to right (the paper's Figure 3).</figcaption></figure>
+<h2>Shipped champions</h2>
+{champions}
+<h2>Pictures: a breeding session</h2>
+<p>Sims' gallery of 20 random pictures. With no room to click, the script picked the {picks} most colourful
+(framed in orange) and bred each next generation from them with the paper's seven operators.
+Breed your own: <code>coursekit demo pictures</code> (the session goes on from
+<a href="{session}">gallery_session.json</a> with <code>Gallery.load</code>).</p>
+{sheets}
+<div class="row">{favourites}</div>
+</body></html>
+"""
+
+
+def _links(page: str) -> list[str]:
+    return re.findall(r'(?:src|href)="([^"]+)"', page)
+
+
+def both(out="coursekit-demo", *, population: int | None = None, generations: int | None = None,
+         seconds: float | None = None, seed: int = 0, workers: int | None = None, progress: bool = True) -> dict:
+    """Both demos into ``out`` (``swimmers/``, ``pictures/``) and an ``index.html`` that opens them.
+
+    Returns:
+        ``{"swimmers": ..., "pictures": ..., "index": path, "wall_seconds": ...}``; every file the
+        page links to exists (checked before the page is written).
+    """
+    out = Path(out)
+    t0 = time.perf_counter()
+    sw = swimmers(out / "swimmers", population=population, generations=generations, seconds=seconds, seed=seed,
+                  workers=workers, progress=progress)
+    pi = pictures(out / "pictures", seed=seed)
+    total = time.perf_counter() - t0
+    esc = html.escape
+    if sw["champions"]:
+        champions = "\n".join(
+            f'<figure><video src="swimmers/{c["mp4"]}" autoplay loop muted controls playsinline width="{FILM_SIZE[0]}" '
+            f'height="{FILM_SIZE[1]}"></video><img src="swimmers/{c["keyframes"]}" alt="key frames">'
+            f'<figcaption>Champion {k} ({c["parts"]} parts); <a href="swimmers/{c["gif"]}">GIF</a>.</figcaption></figure>'
+            for k, c in enumerate(sw["champions"]))
+        champions = f'<div class="row">{champions}</div>'
+    else:
+        champions = ("<p>This version of coursekit ships no pre-evolved champions "
+                     "(<code>coursekit.creatures.champions()</code> is not there yet).</p>")
+    sheets = "\n".join(f'<figure><img src="pictures/{s}" alt="generation {g}"><figcaption>Generation {g}'
+                       f'{" (random)" if g == 0 else ""}.</figcaption></figure>' for g, s in enumerate(pi["sheets"]))
+    favourites = "\n".join(f'<figure><img src="pictures/{f}" alt="favourite {k}" width="256"><figcaption><code>'
+                           f'{esc(e[:120])}{"..." if len(e) > 120 else ""}</code></figcaption></figure>'
+                           for k, (f, e) in enumerate(zip(pi["favourites"], pi["expressions"])))
+    page = _PAGE.format(
+        total=total, population=sw["population"], generations=sw["generations"], seconds=sw["seconds"],
+        evolution=sw["wall_seconds"]["evolution"], workers=sw["workers"], speed=sw["best_speed"],
+        blps=sw["best_body_lengths_per_second"], audit=esc(sw["audit"]), fw=FILM_SIZE[0], fh=FILM_SIZE[1],
+        mp4=f"swimmers/{sw['films']['mp4']}", gif=f"swimmers/{sw['films']['gif']}", json="swimmers/best.json",
+        fitness="swimmers/fitness.png", keyframes=f"swimmers/{sw['films']['keyframes']}", champions=champions,
+        picks=pi["picks"], session="pictures/gallery_session.json", sheets=sheets, favourites=favourites)
+    missing = [link for link in _links(page) if not (out / link).is_file()]
+    if missing:
+        raise RuntimeError(f"index.html would link to files the demo did not write: {missing}")
+    atomic_write(out / "index.html", page)
+    return {"swimmers": sw, "pictures": pi, "index": out / "index.html", "wall_seconds": round(total, 2)}

@@ -109,11 +109,65 @@ def test_swimmers_demo_writes_what_a_lecture_shows(tmp_path):
     subprocess.run([sys.executable, "-m", "coursekit", "demo", "swimmers", "--out", str(out), "--seed", "3"],
                    check=True, env=env, capture_output=True)
     summary = json.loads((out / "summary.json").read_text())
-    assert {"best.json", "best.png", "best.gif", "fitness.png"} <= set(summary["files"])
+    assert {"best.json", "best.png", "best.gif", "best.mp4", "best-keyframes.png", "fitness.png"} <= set(summary["files"])
+    assert set(summary["files"]) == {p.name for p in out.iterdir()}
     best = Creature.from_json((out / "best.json").read_text())
     assert best.expand().body.n_bodies == summary["best_parts"]
     assert summary["best_fitness"] == max(summary["history_best"])
     assert Image.open(out / "best.gif").n_frames > 1
+
+
+def test_demo_without_a_name_writes_both_demos_and_a_page_that_opens_them(tmp_path):
+    """`coursekit demo --out DIR`: the swimmers (film, key frames, fitness plot) and the bred
+    pictures in one folder, and an index.html whose every link and picture is a file there."""
+    import json
+    import os
+    from html.parser import HTMLParser
+
+    import imageio_ffmpeg
+    from PIL import Image
+
+    env = {**os.environ, "COURSEKIT_PROFILE": "ci"}
+    out = tmp_path / "demo"
+    run = subprocess.run([sys.executable, "-m", "coursekit", "demo", "--out", str(out), "--seed", "1"],
+                         env=env, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert f"open {out / 'index.html'}" in run.stdout
+
+    class Links(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.links = []
+
+        def handle_starttag(self, tag, attrs):
+            self.links += [(tag, v) for k, v in attrs if k in ("src", "href")]
+
+    page = Links()
+    page.feed((out / "index.html").read_text())
+    targets = [v for _, v in page.links]
+    assert targets and all((out / v).is_file() for v in targets), [v for v in targets if not (out / v).is_file()]
+    assert ("video", "swimmers/best.mp4") in page.links and "swimmers/best.gif" in targets
+    assert {"swimmers/best-keyframes.png", "swimmers/fitness.png", "pictures/gallery-0.png"} <= set(targets)
+    assert any(v.startswith("pictures/favourite-") for v in targets)
+    summary = json.loads((out / "swimmers" / "summary.json").read_text())
+    frames = imageio_ffmpeg.count_frames_and_secs(str(out / "swimmers" / "best.mp4"))[0]
+    assert frames == Image.open(out / "swimmers" / "best.gif").n_frames > 1
+    strip = Image.open(out / "swimmers" / "best-keyframes.png")
+    assert strip.size[0] > 3 * strip.size[1]  # key frames side by side
+    from coursekit.demos import shipped_champions
+
+    champions = shipped_champions()
+    assert len(summary["champions"]) == len(champions)
+    if not champions:  # the page says so rather than show something else in their place
+        assert "ships no pre-evolved champions" in (out / "index.html").read_text()
+    pictures = json.loads((out / "pictures" / "summary.json").read_text())
+    sheet = Image.open(out / "pictures" / "gallery-0.png")
+    assert len(pictures["sheets"]) == pictures["generations"] + 1 and sheet.size[0] > sheet.size[1]  # 4 x 5 gallery
+    from coursekit.pictures import Gallery, load_genome
+
+    assert load_genome(out / "pictures" / "favourite-0.png").expression() == pictures["expressions"][0]
+    gallery = Gallery.load(out / "pictures" / "gallery_session.json", size=16)  # breeding goes on from it
+    assert gallery.state.generation == pictures["generations"]
 
 
 def test_bench_names_what_it_has_and_what_it_needs():

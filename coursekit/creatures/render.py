@@ -1,9 +1,21 @@
-"""Looking at creatures: off-screen pyvista pictures of expanded bodies (paper section 2.3, Fig. 1).
+"""Looking at creatures: off-screen pyvista pictures and films of expanded bodies (paper section 2.3, Figs. 1 and 3).
 
 Parts are drawn as boxes coloured by their depth in the part tree (root dark, leaves bright,
 matplotlib's ``viridis``), with every joint's axis as a short red line through its anchor
-(prismatic joints in blue). Rendering is off-screen through VTK's EGL window (no X server);
-``VTK_DEFAULT_OPENGL_WINDOW`` is set to ``vtkEGLRenderWindow`` unless the caller chose one.
+(prismatic joints in blue) and a grey rod along every prismatic joint, so a part that slides
+out stays joined to its parent on screen as in the physics.
+
+- :func:`render`, :func:`view`: one picture, the camera fitted to the projected body (:func:`frame`);
+- :class:`Clip`, :func:`frames`, :func:`animate`: a recorded swim filmed with a camera that
+  follows the smoothed centre of mass and keeps every part in the picture over the whole clip,
+  with the centre of mass's trail, over a grid fixed in the water; GIF (Pillow) and MP4
+  (H.264 through imageio-ffmpeg's ffmpeg) from one pass;
+- :func:`keyframes`: the paper's Figure 3, key frames side by side with their times.
+
+Rendering is off-screen through VTK's EGL window (no X server); ``VTK_DEFAULT_OPENGL_WINDOW``
+is set to ``vtkEGLRenderWindow`` unless the caller chose one. Every picture of a process is
+drawn by one plotter, made on first use and emptied between pictures: making a GL context
+costs more than drawing a small creature.
 
 Mesa's software renderer and triton (which CUDA builds of torch import on first use of
 ``torch._dynamo``) each load their own LLVM, and triton loaded after Mesa crashes the process
@@ -13,6 +25,8 @@ module imports ``torch._dynamo`` when triton is installed: loaded in that order,
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import importlib.util
 import os
 import warnings
@@ -108,9 +122,11 @@ def frame(points, azimuth: float, elevation: float, aspect: float, *, view_angle
     return centre + distance * back, centre, up
 
 
-def _check_size(size):
+def _check_size(size, *, even: bool = False):
     if len(size) != 2 or not all(isinstance(s, (int, np.integer)) and 16 <= s <= 4096 for s in size):
         raise ValueError(f"render.size: need (width, height) integers in [16, 4096], got {size!r}")
+    if even and any(s % 2 for s in size):
+        raise ValueError(f"size: an MP4 (H.264, yuv420p) needs an even width and height, got {tuple(size)!r}")
 
 
 def _triton_before_mesa() -> None:
@@ -119,63 +135,125 @@ def _triton_before_mesa() -> None:
         import torch._dynamo  # noqa: F401  (imports triton)
 
 
-class _Scene:
-    """One off-screen plotter with a creature's boxes and joint axes, re-posable for animation."""
+_SHARED: dict[int, object] = {}  # process id -> the off-screen plotter every picture of that process reuses
 
-    def __init__(self, body: BodyTree, size, background, joint_axes, notebook: bool = False):
-        _triton_before_mesa()
+
+def _close_shared() -> None:
+    pl = _SHARED.pop(os.getpid(), None)
+    if pl is not None:
+        pl.close()
+
+
+def _shared_plotter(size, background):
+    """This process's one off-screen plotter (its EGL context made once), emptied and resized.
+
+    A forked child gets its own: a GL context is not shared across processes."""
+    _triton_before_mesa()
+    import pyvista as pv
+
+    pl = _SHARED.get(os.getpid())
+    if pl is None or getattr(pl, "_closed", False) or pl.render_window is None:
+        if not _SHARED:
+            atexit.register(_close_shared)
+        pl = _SHARED[os.getpid()] = pv.Plotter(off_screen=True, window_size=list(size))
+    else:
+        pl.clear_actors()
+        pl.window_size = list(size)
+    pl.set_background(background)
+    return pl
+
+
+def _line_width(size) -> int:
+    """Line widths in pixels that read at this picture size (3 at 360 pixels high)."""
+    return max(2, round(min(size) / 120))
+
+
+class _Scene:
+    """A creature's boxes, joint axes and sliders in a plotter, re-posable for animation.
+
+    Prismatic joints get a grey slider rod from the anchor on the parent to the anchor on the
+    child: a slid-out part is joined to its parent on screen as it is in the physics."""
+
+    def __init__(self, body: BodyTree, size, background, joint_axes, plotter=None, notebook: bool = False):
         import matplotlib
         import pyvista as pv
 
         self.body = body
-        self.pl = pv.Plotter(off_screen=True, notebook=notebook, window_size=list(size))
-        self.pl.set_background(background)
-        depth = body.depth
-        cmap = matplotlib.colormaps["viridis"]
-        top = max(int(depth.max()), 1)
-        self.unit = np.asarray(pv.Box(bounds=(-1, 1, -1, 1, -1, 1)).points)
-        self.boxes, self.axes = [], []
-        for b in range(body.n_bodies):
-            box = pv.Box(bounds=(-1, 1, -1, 1, -1, 1))
-            colour = cmap(0.15 + 0.75 * depth[b] / top)[:3]
-            self.pl.add_mesh(box, color=colour, show_edges=True, edge_color="black", line_width=1, smooth_shading=False)
-            self.boxes.append(box)
-        if joint_axes:
-            for b in range(1, body.n_bodies):
-                line = pv.Line((0, 0, 0), (1, 0, 0))
-                self.pl.add_mesh(line, color="blue" if body.joint_type[b] == PRISMATIC else "red", line_width=4)
-                self.axes.append((b, line))
+        if plotter is None and not notebook:
+            plotter = _shared_plotter(size, background)
+        elif plotter is None:
+            _triton_before_mesa()
+            plotter = pv.Plotter(off_screen=True, notebook=True, window_size=list(size))
+            plotter.set_background(background)
+        self.pl, self.shared = plotter, plotter is _SHARED.get(os.getpid())
+        cube = pv.Box(bounds=(-1, 1, -1, 1, -1, 1))  # 8 corners, 6 quads
+        self.unit = np.asarray(cube.points)
+        B, P = body.n_bodies, len(self.unit)
+        quads = np.asarray(cube.faces).reshape(-1, 5)
+        faces = np.concatenate([quads + np.array([0, 1, 1, 1, 1]) * b * P for b in range(B)])
+        # All parts are one mesh (one actor: the scene builds and draws in a fraction of the time
+        # of an actor per part), coloured per face by the part's depth.
+        self.boxes = pv.PolyData(np.zeros((B * P, 3)), faces=faces.ravel())
+        depth, top = body.depth, max(int(body.depth.max()), 1)
+        colours = matplotlib.colormaps["viridis"](0.15 + 0.75 * depth / top)[:, :3]
+        self.boxes.cell_data["colour"] = np.repeat((255 * colours).round().astype(np.uint8), len(quads), axis=0)
+        self.pl.add_mesh(self.boxes, scalars="colour", rgb=True, show_edges=True, edge_color="black", line_width=1,
+                         smooth_shading=False, render=False)
+        # Joint axes (red, prismatic blue) and slider rods (grey): one line mesh each.
+        width = _line_width(size)
+        self.sliders = [b for b in range(1, B) if body.joint_type[b] == PRISMATIC]
+        self.axes = list(range(1, B)) if joint_axes else []
+        self.lines = []
+        for joints, colours, w in ((self.sliders, lambda b: (110, 110, 110), width + 2),
+                                   (self.axes, lambda b: (0, 0, 255) if body.joint_type[b] == PRISMATIC else (255, 0, 0), width + 1)):
+            if joints:
+                mesh = pv.PolyData(np.zeros((2 * len(joints), 3)), lines=np.array([[2, 2 * k, 2 * k + 1] for k in range(len(joints))]).ravel())
+                mesh.cell_data["colour"] = np.array([colours(b) for b in joints], dtype=np.uint8)
+                self.pl.add_mesh(mesh, scalars="colour", rgb=True, line_width=w, render=False)
+            self.lines.append(mesh if joints else None)
 
     def pose(self, R, t) -> np.ndarray:
-        """Move every part to its pose; returns the (B * 8, 3) box corners for framing."""
+        """Move every part to its pose; returns the points to frame: box corners, lines' ends."""
         body = self.body
-        for b, box in enumerate(self.boxes):
-            box.points = (self.unit * body.half_extents[b]) @ R[b].T + t[b]
-        for b, line in self.axes:
-            L = 2.4 * float(body.half_extents[b].max())
-            anchor = R[b] @ body.joint_pos_child[b] + t[b]
-            a = R[b] @ body.joint_axis[b]
-            line.points = np.array([anchor - 0.5 * L * a, anchor + 0.5 * L * a])
-        local = _BOX_CORNERS[None, :, :] * body.half_extents[:, None, :]
-        return (np.einsum("bij,bkj->bki", R, local) + t[:, None, :]).reshape(-1, 3)
+        corners = (np.einsum("bij,bkj->bki", R, self.unit[None] * body.half_extents[:, None, :]) + t[:, None, :]).reshape(-1, 3)
+        self.boxes.points = corners
+        sliders, axes = self.lines
+        if sliders is not None:
+            b = np.array(self.sliders)
+            p = body.parent[b]
+            ends = np.stack([np.einsum("bij,bj->bi", R[p], body.joint_pos_parent[b]) + t[p],
+                             np.einsum("bij,bj->bi", R[b], body.joint_pos_child[b]) + t[b]], axis=1)
+            sliders.points = ends.reshape(-1, 3)
+        if axes is not None:
+            b = np.array(self.axes)
+            anchor = np.einsum("bij,bj->bi", R[b], body.joint_pos_child[b]) + t[b]
+            half = 1.2 * body.half_extents[b].max(axis=1, keepdims=True) * np.einsum("bij,bj->bi", R[b], body.joint_axis[b])
+            axes.points = np.stack([anchor - half, anchor + half], axis=1).reshape(-1, 3)
+        return np.concatenate([corners] + [np.asarray(m.points) for m in self.lines if m is not None])
 
-    def look(self, centre, radius, azimuth, elevation):
-        """Look at ``centre`` from ``radius`` away (animation: the same distance every frame)."""
-        az, el = np.radians(azimuth), np.radians(elevation)
-        eye = centre + radius * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
-        self.pl.camera_position = [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)]
+    def camera(self, eye, centre, up) -> None:
+        self.pl.camera_position = [tuple(eye), tuple(centre), tuple(up)]
+        self.pl.renderer.reset_camera_clipping_range()
+
+    def image(self) -> np.ndarray:
+        self.pl.render()  # (a screenshot alone renders only a plotter's first picture)
+        return np.asarray(self.pl.screenshot(return_img=True))[..., :3].copy()
+
+    def close(self) -> None:
+        """Empty the shared plotter (it stays for the next picture); close one of its own."""
+        if self.shared:
+            self.pl.clear_actors()
+        else:
+            self.pl.close()
 
 
-def _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation, notebook=False) -> _Scene:
+def _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation, notebook=False, plotter=None) -> _Scene:
     """A scene of ``obj`` in pose ``q``, the camera framing it (:func:`frame`)."""
     body = _body_of(obj)
     _check_size(size)
-    scene = _Scene(body, size, background, joint_axes and body.n_bodies > 1, notebook)
-    corners = scene.pose(*part_poses(body, q))
-    points = np.concatenate([corners] + [np.asarray(line.points) for _, line in scene.axes])
-    eye, centre, up = frame(points, azimuth, elevation, size[0] / size[1], view_angle=scene.pl.camera.view_angle)
-    scene.pl.camera_position = [tuple(eye), tuple(centre), tuple(up)]
-    scene.pl.renderer.reset_camera_clipping_range()
+    scene = _Scene(body, size, background, joint_axes and body.n_bodies > 1, plotter, notebook)
+    points = scene.pose(*part_poses(body, q))
+    scene.camera(*frame(points, azimuth, elevation, size[0] / size[1], view_angle=scene.pl.camera.view_angle))
     return scene
 
 
@@ -202,13 +280,24 @@ def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, 
     """
     scene = _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation)
     try:
-        if path is None:
-            return np.asarray(scene.pl.screenshot(return_img=True))[..., :3].copy()
-        with atomic_path(path, ".png") as tmp:
-            scene.pl.screenshot(str(tmp))
-        return Path(path)
+        img = scene.image()
     finally:
-        scene.pl.close()
+        scene.close()
+    if path is None:
+        return img
+    return write_png(img, path)
+
+
+def write_png(img: np.ndarray, path) -> Path:
+    """Write a ``(H, W, 3)`` uint8 image as a PNG, atomically, read back before it replaces an old file."""
+    from PIL import Image
+
+    with atomic_path(path, ".png") as tmp:
+        Image.fromarray(img).save(tmp, format="PNG")
+        with Image.open(tmp) as check:  # read back before it replaces an old file
+            if check.size != (img.shape[1], img.shape[0]):
+                raise OSError(f"{path}: the PNG read back is {check.size}, not {img.shape[1]}x{img.shape[0]}")
+    return Path(path)
 
 
 class View:
@@ -264,55 +353,286 @@ def view(obj, *, interactive: bool = False, size=(480, 360), q=None, joint_axes:
     return View(png, scene.pl.show(jupyter_backend="client", return_viewer=True))
 
 
-def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes: bool = False,
-            background: str = "white", azimuth: float = 30.0, elevation: float = 25.0) -> Path:
-    """Write a GIF of a creature swimming along a recorded trajectory.
+def centre_of_mass(body: BodyTree, qpos) -> np.ndarray:
+    """The ``(3,)`` world centre of mass of ``body`` in the MuJoCo-layout pose ``qpos``."""
+    _, t = world_poses(body, qpos)
+    m = body.mass
+    return (m @ t) / m.sum()
 
-    The camera keeps its direction and distance and follows the centre of the body, over a grid
-    that stays put in the water, so forward motion shows.
+
+def _nice_step(length: float) -> float:
+    """1, 2 or 5 times a power of ten, close to ``length`` (grid spacing that reads as a scale)."""
+    e = 10.0 ** np.floor(np.log10(max(length, 1e-6)))
+    return float(min((1.0, 2.0, 5.0, 10.0), key=lambda k: abs(np.log(k * e / length))) * e)
+
+
+class Clip:
+    """A recorded swim ready to film: the poses, a follow camera for the whole clip, the floor grid
+    and the centre-of-mass trail. :func:`frames`, :func:`animate` and :func:`keyframes` film it.
+
+    The camera keeps its direction and follows the centre of mass smoothed over time (a Gaussian
+    of ``follow`` seconds, centred, so it neither lags nor shakes with each stroke); its distance and
+    offset are fitted once (:func:`frame`) to the union over the clip of every part relative to the
+    followed point, so every part of every frame is inside the picture and the creature keeps
+    one size on screen. The strokes show against a grid that stays put in the water.
 
     Args:
         obj: the creature (or Phenotype / BodyTree) that was simulated.
         trajectory: (F, nq) MuJoCo-layout ``qpos`` frames, e.g. ``simulate(...,
             record_every=k).trajectory[i]``.
-        path: the GIF to write (atomically).
-        fps: frames per second of the GIF.
+        frame_times: (F,) simulated time of every frame in seconds (``SimulationResult.frame_times``);
+            default ``1 / fps`` apart.
+        fps: frames per second, for the default ``frame_times`` and for files.
         size, joint_axes, background, azimuth, elevation: as for :func:`render`.
+        follow: seconds the camera's path is smoothed over (0: it follows the centre of mass exactly).
+        trail: draw the path of the centre of mass so far.
+        floor: draw the grid below the creature (its spacing in metres is 1, 2 or 5 times a power of ten).
+        label: write the time (and the grid spacing) in a corner of every frame.
+        margin: fraction of the picture's height or width the creature may span.
+    """
+
+    def __init__(self, obj, trajectory, *, frame_times=None, fps: int = 20, size=(480, 360), joint_axes: bool = False,
+                 background: str = "white", azimuth: float = 30.0, elevation: float = 25.0, follow: float = 1.0,
+                 trail: bool = True, floor: bool = True, label: bool = True, margin: float = 0.8):
+        from scipy.ndimage import gaussian_filter1d
+
+        body = _body_of(obj)
+        _check_size(size)
+        qpos = np.asarray(trajectory, dtype=np.float64)
+        if qpos.ndim != 2 or len(qpos) < 1:
+            raise ValueError(f"trajectory: expected an (F, nq) array of qpos frames, got shape {qpos.shape}")
+        if not (isinstance(fps, (int, np.integer)) and 1 <= fps <= 60):
+            raise ValueError(f"fps: must be an integer in [1, 60], got {fps!r}")
+        times = np.arange(len(qpos)) / fps if frame_times is None else np.asarray(frame_times, dtype=np.float64)
+        if times.shape != (len(qpos),) or not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
+            raise ValueError(f"frame_times: expected {len(qpos)} increasing times (one per frame), got shape {times.shape}")
+        if not (np.isfinite(follow) and follow >= 0):
+            raise ValueError(f"follow: must be a number of seconds >= 0, got {follow!r}")
+        if not 0.1 <= margin <= 1.0:
+            raise ValueError(f"margin: must be in [0.1, 1], got {margin!r}")
+        self.body, self.times, self.fps, self.size = body, times, int(fps), tuple(size)
+        self.background, self.label = background, label
+        self.poses = [world_poses(body, f) for f in qpos]
+        m = body.mass
+        self.com = np.stack([(m @ t) / m.sum() for _, t in self.poses])
+        dt = float(np.median(np.diff(times))) if len(times) > 1 else 1.0
+        self.follow = gaussian_filter1d(self.com, follow / dt, axis=0, mode="nearest") if follow > 0 and len(times) > 1 else self.com.copy()
+        self._options = (size, background, joint_axes and body.n_bodies > 1)
+        scene = _Scene(body, *self._options)
+        try:
+            self.points = [scene.pose(R, t) for R, t in self.poses]  # what must stay in the picture, frame by frame
+            relative = np.concatenate([p - s for p, s in zip(self.points, self.follow)])
+            self.eye, self.centre, self.up = frame(relative, azimuth, elevation, size[0] / size[1],
+                                                   view_angle=scene.pl.camera.view_angle, margin=margin)
+        finally:
+            scene.close()
+        everything = np.concatenate(self.points)
+        lo, hi = everything.min(0), everything.max(0)
+        self.reach = float(max(np.ptp(np.concatenate(self.points[:1]), axis=0).max(), 0.05))
+        self.grid_step = _nice_step(self.reach / 3)
+        self.floor = (lo, hi) if floor else None
+        self.trail = trail
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    def _text(self, i: int) -> str:
+        text = f"t = {self.times[i]:.2f} s"
+        return text + (f"   grid {self.grid_step:g} m" if self.floor is not None else "")
+
+    def film(self, indices=None):
+        """Yield ``(i, image)`` for the frames ``indices`` (default all), one plotter for them all."""
+        import pyvista as pv
+
+        indices = range(len(self)) if indices is None else [int(i) for i in indices]
+        for i in indices:
+            if not 0 <= i < len(self):
+                raise ValueError(f"frame index {i} is outside the clip's {len(self)} frames")
+        scene = _Scene(self.body, *self._options)
+        try:
+            width = _line_width(self.size)
+            if self.floor is not None:
+                lo, hi = self.floor
+                step, pad = self.grid_step, 1.5 * self.reach
+                x0, y0 = (np.floor((lo[:2] - pad) / step) * step)
+                x1, y1 = (np.ceil((hi[:2] + pad) / step) * step)
+                nx, ny = max(int(round((x1 - x0) / step)), 1), max(int(round((y1 - y0) / step)), 1)
+                grid = pv.Plane(center=(0.5 * (x0 + x1), 0.5 * (y0 + y1), float(lo[2]) - 0.3 * self.reach),
+                                direction=(0, 0, 1), i_size=x1 - x0, j_size=y1 - y0, i_resolution=nx, j_resolution=ny)
+                scene.pl.add_mesh(grid, style="wireframe", color="#7fa7c9", line_width=1, render=False)
+            trail = None
+            if self.trail and len(self) > 1:
+                trail = pv.PolyData(self.com.copy())
+                trail.verts = np.empty(0, dtype=np.int64)  # the path so far only, not every point of it
+                trail.lines = np.array([2, 0, 0])
+                scene.pl.add_mesh(trail, color="#e6550d", line_width=width, render=False)
+            text = None
+            if self.label:
+                font = max(6, self.size[1] // 40)
+                text = scene.pl.add_text(self._text(0), position=(4, self.size[1] - 4 - 2 * font), font_size=font, color="black", render=False)
+            for i in indices:
+                scene.pose(*self.poses[i])
+                if trail is not None:
+                    trail.lines = np.concatenate([[i + 1], np.arange(i + 1)]) if i else np.array([2, 0, 0])
+                if text is not None:
+                    text.SetInput(self._text(i))
+                s = self.follow[i]
+                scene.camera(self.eye + s, self.centre + s, self.up)
+                yield i, scene.image()
+        finally:
+            scene.close()
+
+
+def frames(obj, trajectory, **options):
+    """The frames of a swim, one ``(height, width, 3)`` uint8 image per ``qpos`` frame (a generator).
+
+    Args:
+        obj, trajectory, options: as for :class:`Clip` (``size``, ``follow``, ``trail`` ...).
+    """
+    for _, img in Clip(obj, trajectory, **options).film():
+        yield img
+
+
+class _GifFile:
+    """Frames kept as palette images, written as one endlessly looping GIF at ``fps``."""
+
+    def __init__(self, tmp: Path, fps: int, size):
+        self.tmp, self.fps, self.frames = tmp, fps, []
+
+    def add(self, img: np.ndarray) -> None:
+        from PIL import Image
+
+        self.frames.append(Image.fromarray(img).quantize(colors=255, method=Image.Quantize.FASTOCTREE))
+
+    def finish(self) -> None:
+        self.frames[0].save(self.tmp, format="GIF", save_all=True, append_images=self.frames[1:],
+                            duration=round(1000 / self.fps), loop=0)
+
+    def abort(self) -> None:
+        self.frames.clear()
+
+    @staticmethod
+    def check(path: Path, n: int, size) -> None:
+        from PIL import Image
+
+        with Image.open(path) as g:
+            if g.n_frames != n or g.size != tuple(size):
+                raise OSError(f"{path}: the GIF read back has {g.n_frames} frames of {g.size}, not {n} of {tuple(size)}")
+
+
+class _Mp4File:
+    """Frames streamed to ffmpeg (imageio-ffmpeg's own binary): H.264 in yuv420p, which browsers play."""
+
+    def __init__(self, tmp: Path, fps: int, size):
+        import imageio_ffmpeg
+
+        self.out = imageio_ffmpeg.write_frames(str(tmp), tuple(size), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
+                                               quality=8, macro_block_size=2, output_params=["-preset", "veryfast", "-movflags", "+faststart"])
+        self.out.send(None)
+
+    def add(self, img: np.ndarray) -> None:
+        self.out.send(np.ascontiguousarray(img))
+
+    def finish(self) -> None:
+        self.out.close()  # waits for ffmpeg to write the file
+
+    abort = finish
+
+    @staticmethod
+    def check(path: Path, n: int, size) -> None:
+        import imageio_ffmpeg
+
+        reader = imageio_ffmpeg.read_frames(str(path))
+        try:
+            meta = next(reader)  # the stream's header (no frame decoded)
+        finally:
+            reader.close()
+        count = imageio_ffmpeg.count_frames_and_secs(str(path))[0]  # packets counted, not decoded
+        if count != n or tuple(meta["size"]) != tuple(size):
+            raise OSError(f"{path}: the MP4 read back has {count} frames of {meta['size']}, not {n} of {tuple(size)}")
+
+
+_WRITERS = {".gif": _GifFile, ".mp4": _Mp4File}
+
+
+def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes: bool = False,
+            background: str = "white", azimuth: float = 30.0, elevation: float = 25.0, **options):
+    """Film a creature swimming along a recorded trajectory: a GIF, an MP4, or both from one pass.
+
+    The camera follows the creature and keeps all of it in the picture for the whole clip, over
+    a grid that stays put in the water, with the path of its centre of mass drawn behind it
+    (:class:`Clip`). Every file is written atomically and read back (frame count and size)
+    before it replaces an old one.
+
+    Args:
+        obj: the creature (or Phenotype / BodyTree) that was simulated.
+        trajectory: (F, nq) MuJoCo-layout ``qpos`` frames, e.g. ``simulate(...,
+            record_every=k).trajectory[i]``.
+        path: the file to write, ``.gif`` or ``.mp4`` (H.264, even ``size`` only); or a list of them.
+        fps: frames per second of the files.
+        size, joint_axes, background, azimuth, elevation: as for :func:`render`.
+        **options: :class:`Clip`'s ``frame_times``, ``follow``, ``trail``, ``floor``, ``label``, ``margin``.
 
     Returns:
-        The written path.
+        The written path (a list of them when ``path`` was a list).
     """
-    import pyvista as pv
+    paths = [Path(p) for p in path] if isinstance(path, (list, tuple)) else [Path(path)]
+    for p in paths:
+        if p.suffix.lower() not in _WRITERS:
+            raise ValueError(f"path: {str(p)!r} must end in one of {', '.join(_WRITERS)}")
+    _check_size(size, even=any(p.suffix.lower() == ".mp4" for p in paths))
+    clip = Clip(obj, trajectory, fps=fps, size=size, joint_axes=joint_axes, background=background,
+                azimuth=azimuth, elevation=elevation, **options)
+    with contextlib.ExitStack() as stack:
+        tmps = [stack.enter_context(atomic_path(p, p.suffix.lower())) for p in paths]
+        writers = []
+        try:
+            for p, t in zip(paths, tmps):
+                writers.append(_WRITERS[p.suffix.lower()](t, fps, size))
+            for _, img in clip.film():
+                for w in writers:
+                    w.add(img)
+        except BaseException:
+            for w in writers:
+                w.abort()
+            raise
+        for w, p, t in zip(writers, paths, tmps):
+            w.finish()
+            w.check(t, len(clip), size)
+    return paths if isinstance(path, (list, tuple)) else paths[0]
 
-    body = _body_of(obj)
-    _check_size(size)
-    frames = np.asarray(trajectory, dtype=np.float64)
-    if frames.ndim != 2 or len(frames) < 1:
-        raise ValueError(f"trajectory: expected an (F, nq) array of qpos frames, got shape {frames.shape}")
-    if not (isinstance(fps, (int, np.integer)) and 1 <= fps <= 60):
-        raise ValueError(f"fps: must be an integer in [1, 60], got {fps!r}")
-    poses = [world_poses(body, f) for f in frames]
-    scene = _Scene(body, size, background, joint_axes and body.n_bodies > 1)
-    try:
-        extent = np.concatenate([scene.pose(*p) for p in (poses[0], poses[-1])])
-        lo, hi = extent.min(0), extent.max(0)
-        reach = float(np.ptp(np.concatenate([scene.pose(*p) for p in poses[:: max(1, len(poses) // 8)]]), axis=0).max())
-        floor_z = float(lo[2]) - 0.3 * reach
-        size_xy = 3.0 * max(reach, float(np.linalg.norm(hi - lo)), 0.5)
-        centre0 = 0.5 * (lo + hi)
-        grid = pv.Plane(center=(centre0[0], centre0[1], floor_z), direction=(0, 0, 1), i_size=size_xy, j_size=size_xy,
-                        i_resolution=12, j_resolution=12)
-        scene.pl.add_mesh(grid, style="wireframe", color="#7fa7c9", line_width=1)
-        radius = max(float(np.linalg.norm(np.ptp(scene.pose(*poses[0]), axis=0))), 0.1) * 1.6
 
-        with atomic_path(path, ".gif") as tmp:
-            scene.pl.open_gif(str(tmp), fps=fps)
-            for R, t in poses:
-                c = scene.pose(R, t)
-                scene.look(0.5 * (c.min(0) + c.max(0)), radius, azimuth, elevation)
-                scene.pl.write_frame()
-            scene.pl.mwriter.close()  # flush the GIF before it is moved into place
-            scene.pl.mwriter = None
-        return Path(path)
-    finally:
-        scene.pl.close()
+def keyframes(obj, trajectory, path=None, *, n: int = 4, size=(320, 240), gap: int = 4, gap_colour=(200, 200, 200),
+              **options):
+    """The paper's Figure 3: ``n`` key frames of a swim side by side, time increasing left to right.
+
+    The frames are evenly spaced from the first to the last, filmed with the clip's follow
+    camera (:class:`Clip`: the same size on screen, the centre-of-mass trail showing the way
+    come so far, the grid the motion against the water), each labelled with its time.
+
+    Args:
+        obj, trajectory: as for :func:`animate`.
+        path: where to write the PNG (atomically); ``None`` returns the image instead.
+        n: key frames (at most the trajectory's frames).
+        size: (width, height) of one key frame.
+        gap: pixels between key frames, in ``gap_colour``.
+        **options: :class:`Clip`'s options (``frame_times``, ``follow``, ``azimuth`` ...).
+
+    Returns:
+        The ``(height, n * width + (n - 1) * gap, 3)`` uint8 strip, or the written path.
+    """
+    F = len(np.asarray(trajectory))
+    if not (isinstance(n, (int, np.integer)) and 1 <= n <= max(F, 1)):
+        raise ValueError(f"n: must be an integer in [1, {F}] (the trajectory's frames), got {n!r}")
+    if not (isinstance(gap, (int, np.integer)) and gap >= 0):
+        raise ValueError(f"gap: must be an integer >= 0 (pixels), got {gap!r}")
+    clip = Clip(obj, trajectory, size=size, **options)
+    picks = np.unique(np.round(np.linspace(0, len(clip) - 1, n)).astype(int))
+    if len(picks) != n:
+        raise ValueError(f"n: {n} key frames do not fit in {len(clip)} frames")
+    w, h = size
+    strip = np.empty((h, n * w + (n - 1) * gap, 3), dtype=np.uint8)
+    strip[:] = np.asarray(gap_colour, dtype=np.uint8)
+    for k, (_, img) in enumerate(clip.film(picks)):
+        strip[:, k * (w + gap): k * (w + gap) + w] = img
+    return strip if path is None else write_png(strip, path)
