@@ -39,6 +39,7 @@ os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 from coursekit.atomic import atomic_path  # noqa: E402
 
 from .body import PRISMATIC, BodyTree  # noqa: E402
+from .film import WRITERS  # noqa: E402
 from .phenotype import Phenotype, part_poses  # noqa: E402
 
 _BOX_CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
@@ -493,68 +494,6 @@ def frames(obj, trajectory, **options):
         yield img
 
 
-class _GifFile:
-    """Frames kept as palette images, written as one endlessly looping GIF at ``fps``."""
-
-    def __init__(self, tmp: Path, fps: int, size):
-        self.tmp, self.fps, self.frames = tmp, fps, []
-
-    def add(self, img: np.ndarray) -> None:
-        from PIL import Image
-
-        self.frames.append(Image.fromarray(img).quantize(colors=255, method=Image.Quantize.FASTOCTREE))
-
-    def finish(self) -> None:
-        self.frames[0].save(self.tmp, format="GIF", save_all=True, append_images=self.frames[1:],
-                            duration=round(1000 / self.fps), loop=0)
-
-    def abort(self) -> None:
-        self.frames.clear()
-
-    @staticmethod
-    def check(path: Path, n: int, size) -> None:
-        from PIL import Image
-
-        with Image.open(path) as g:
-            if g.n_frames != n or g.size != tuple(size):
-                raise OSError(f"{path}: the GIF read back has {g.n_frames} frames of {g.size}, not {n} of {tuple(size)}")
-
-
-class _Mp4File:
-    """Frames streamed to ffmpeg (imageio-ffmpeg's own binary): H.264 in yuv420p, which browsers play."""
-
-    def __init__(self, tmp: Path, fps: int, size):
-        import imageio_ffmpeg
-
-        self.out = imageio_ffmpeg.write_frames(str(tmp), tuple(size), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
-                                               quality=8, macro_block_size=2, output_params=["-preset", "veryfast", "-movflags", "+faststart"])
-        self.out.send(None)
-
-    def add(self, img: np.ndarray) -> None:
-        self.out.send(np.ascontiguousarray(img))
-
-    def finish(self) -> None:
-        self.out.close()  # waits for ffmpeg to write the file
-
-    abort = finish
-
-    @staticmethod
-    def check(path: Path, n: int, size) -> None:
-        import imageio_ffmpeg
-
-        reader = imageio_ffmpeg.read_frames(str(path))
-        try:
-            meta = next(reader)  # the stream's header (no frame decoded)
-        finally:
-            reader.close()
-        count = imageio_ffmpeg.count_frames_and_secs(str(path))[0]  # packets counted, not decoded
-        if count != n or tuple(meta["size"]) != tuple(size):
-            raise OSError(f"{path}: the MP4 read back has {count} frames of {meta['size']}, not {n} of {tuple(size)}")
-
-
-_WRITERS = {".gif": _GifFile, ".mp4": _Mp4File}
-
-
 def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes: bool = False,
             background: str = "white", azimuth: float = 30.0, elevation: float = 25.0, **options):
     """Film a creature swimming along a recorded trajectory: a GIF, an MP4, or both from one pass.
@@ -578,8 +517,8 @@ def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes
     """
     paths = [Path(p) for p in path] if isinstance(path, (list, tuple)) else [Path(path)]
     for p in paths:
-        if p.suffix.lower() not in _WRITERS:
-            raise ValueError(f"path: {str(p)!r} must end in one of {', '.join(_WRITERS)}")
+        if p.suffix.lower() not in WRITERS:
+            raise ValueError(f"path: {str(p)!r} must end in one of {', '.join(WRITERS)}")
     _check_size(size, even=any(p.suffix.lower() == ".mp4" for p in paths))
     clip = Clip(obj, trajectory, fps=fps, size=size, joint_axes=joint_axes, background=background,
                 azimuth=azimuth, elevation=elevation, **options)
@@ -588,7 +527,7 @@ def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes
         writers = []
         try:
             for p, t in zip(paths, tmps):
-                writers.append(_WRITERS[p.suffix.lower()](t, fps, size))
+                writers.append(WRITERS[p.suffix.lower()](t, fps, size))
             for _, img in clip.film():
                 for w in writers:
                     w.add(img)
