@@ -110,6 +110,7 @@ class World:
         self._inertia_q = self._inertia = self._poses_q = self._poses = None
         self.contact_sensors = None
         self._joint_creature = bk.index(xp, m.joint_creature, device=m.device)
+        self._total_mass = f(m.total_mass[:, None])
 
     # ------------------------------------------------------------------ state in MuJoCo layout
     def set_state(self, qpos, qvel) -> None:
@@ -220,6 +221,9 @@ class World:
             dx0, dq = impulse(m, self._inertia, self._lock, at - s.q)
             q = xp.where(self._lock, at, self.limits.within(s.q, s.q + dq))
             pos, quat = s.pos + sp.mv(R, dx0[:, 3:]), sp.quat_mul(xp, s.quat, sp.quat_exp(xp, dx0[:, :3]))  # the next step normalises
+            # the impulse keeps the centre of mass to first order only; the second-order rest is a
+            # drift a creature could swim on in a vacuum (evolution found one), so the root takes it back
+            pos = pos - (self._com(sp.quat_to_mat(xp, quat), pos, q) - self._com(R, s.pos, s.q))
         self._inertia_q = q
         return State(pos, quat, q, s.lin + sp.mv(R, dv0[:, 3:]), s.omega + dv0[:, :3], xp.where(self._lock, rate, s.qd + dqd))
 
@@ -271,9 +275,14 @@ class World:
 
     def centre_of_mass(self) -> np.ndarray:
         """(C, 3) centre of mass of every creature (numpy)."""
-        _, p = self.body_poses()
+        s = self.state
+        return bk.to_numpy(self._com(sp.quat_to_mat(self.xp, s.quat), s.pos, s.q))
+
+    def _com(self, R0, p0, q):
+        """(C, 3) centre of mass of every creature at root pose ``(R0, p0)`` and joints ``q`` (backend array)."""
         m = self.model
-        return bk.to_numpy(m.segment_sum(p * m.mass[:, None])) / m.total_mass[:, None]
+        _, p = forward_kinematics(m, R0, p0, q)
+        return m.segment_sum(p * m.mass[:, None]) / self._total_mass
 
     def kinetic_energy(self) -> np.ndarray:
         """(C,) kinetic energy of every creature (numpy)."""
