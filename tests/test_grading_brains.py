@@ -5,9 +5,7 @@ that property (or, for a gate, scores 0 with nothing after it judged). The grade
 rule for relative ids is cross-checked against the library's expansion on random creatures.
 """
 
-from pathlib import Path
 
-import nbformat
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -19,21 +17,13 @@ from coursekit.creatures.neural import N_SENSORS
 from coursekit.grading import evaluate
 from coursekit.grading.checks import for_notebook, get
 from coursekit.grading.checks.ex06_wire_a_brain import expected_target
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def solution_functions():
-    nb = nbformat.read(ROOT / "solutions" / "06_wire_a_brain.ipynb", as_version=4)
-    ns = {}
-    exec("from coursekit.creatures import Creature, Input, Neuron\nfrom coursekit.creatures.neural import N_SENSORS", ns)
-    for cell in nb.cells:
-        if cell.cell_type == "code" and "# BEGIN SOLUTION" in cell.source:
-            exec(cell.source, ns)
-    return ns
+from solution_cells import solution_functions
 
 
-SOL = solution_functions()
+
+SOL = {}
+exec("from coursekit.creatures import Creature, Input, Neuron\nfrom coursekit.creatures.neural import N_SENSORS", SOL)
+solution_functions("06_wire_a_brain.ipynb", SOL)
 
 
 def verdicts(name, fn):

@@ -16,22 +16,13 @@ from coursekit.grading import checks, evaluate, runner, stats
 from coursekit.grading.formative import check as formative_check
 from coursekit.grading.channel import read_results, validate_call
 from coursekit.grading.grader import make_plan
+from solution_cells import solution_functions
 
 ROOT = Path(__file__).resolve().parent.parent
 NAMES = ["ga.truncation", "ga.tournament", "ga.roulette", "ga.one_point_crossover", "ga.point_mutation"]
 
 
-def solution_functions():
-    """The reference answers: the solution notebook's function cells, executed here."""
-    nb = nbformat.read(ROOT / "solutions" / "01_selection.ipynb", as_version=4)
-    ns = {"np": np, "math": math}
-    for cell in nb.cells:
-        if cell.cell_type == "code" and "# BEGIN SOLUTION" in cell.source:
-            exec(cell.source, ns)
-    return ns
-
-
-SOL = solution_functions()
+SOL = solution_functions("01_selection.ipynb", {"np": np, "math": math})
 
 
 # Independent second implementations (loops, different rng draws) -- checks must not depend on the draw order.

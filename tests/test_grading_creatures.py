@@ -9,9 +9,7 @@ with the paper's Figure 1.
 
 import copy
 from collections import Counter
-from pathlib import Path
 
-import nbformat
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -21,22 +19,12 @@ from coursekit.creatures import Creature, operators
 from coursekit.creatures.genotype import random_link, random_node, renumber
 from coursekit.grading import checks, evaluate
 from coursekit.grading.checks import creature_expansion as cc
+from solution_cells import solution_functions
 
-ROOT = Path(__file__).resolve().parent.parent
 NAMES = ["creatures.expand", "creatures.crossover", "creatures.mutate"]
 
 
-def solution_functions():
-    """The reference answers: the solution notebook's imports and function cells, executed here."""
-    nb = nbformat.read(ROOT / "solutions" / "05_creature_operators.ipynb", as_version=4)
-    ns = {}
-    for cell in nb.cells:
-        if cell.cell_type == "code" and (cell.source.startswith("import") or "def " in cell.source and "# BEGIN SOLUTION" in cell.source):
-            exec(cell.source, ns)
-    return ns
-
-
-SOL = solution_functions()
+SOL = solution_functions("05_creature_operators.ipynb", imports=True)
 
 
 def test_the_solution_cells_were_found():

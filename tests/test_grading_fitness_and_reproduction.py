@@ -8,9 +8,7 @@ alone) score 0. The paths the checks draw are cross-checked against what they cl
 
 import json
 import math
-from pathlib import Path
 
-import nbformat
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -24,21 +22,11 @@ from coursekit.grading.checks import for_notebook
 from coursekit.grading.runner import run_cases
 from coursekit.grading.checks.ex08_fitness_and_reproduction import (Paths, circling, in_place, one_push, quotas,
                                                                     sample_times, steady_swimmer, survivors_of)
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def solution_functions():
-    """The reference answers: the solution notebook's function cells, executed here."""
-    nb = nbformat.read(ROOT / "solutions" / "08_fitness_and_reproduction.ipynb", as_version=4)
-    ns = {"np": np, "math": math}
-    for cell in nb.cells:
-        if cell.cell_type == "code" and "# BEGIN SOLUTION" in cell.source:
-            exec(cell.source, ns)
-    return ns
+from solution_cells import solution_functions
 
 
-SOL = solution_functions()
+
+SOL = solution_functions("08_fitness_and_reproduction.ipynb", {"np": np, "math": math})
 fitness, reproduce = SOL["swimming_fitness"], SOL["reproduce"]
 
 

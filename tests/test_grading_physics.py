@@ -7,9 +7,7 @@ ODE solutions against their differential equations, and student functions plugge
 ``World`` against the library's own simulation.
 """
 
-from pathlib import Path
 
-import nbformat
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -20,21 +18,11 @@ from coursekit.creatures.physics.water import drag_diagonal
 from coursekit.grading import evaluate
 from coursekit.grading.checks import for_notebook
 from coursekit.grading.checks.ex07_swimming_physics import face_integral_drag
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def solution_functions():
-    """The reference answers: the solution notebook's function cells, executed here."""
-    nb = nbformat.read(ROOT / "solutions" / "07_swimming_physics.ipynb", as_version=4)
-    ns = {"np": np}
-    for cell in nb.cells:
-        if cell.cell_type == "code" and "# BEGIN SOLUTION" in cell.source:
-            exec(cell.source, ns)
-    return ns
+from solution_cells import solution_functions
 
 
-SOL = solution_functions()
+
+SOL = solution_functions("07_swimming_physics.ipynb", {"np": np})
 
 
 # -- independent second implementations ---------------------------------------------------------
