@@ -18,9 +18,9 @@ def test_evolution_is_deterministic_elitist_and_scores_what_the_simulator_scores
     best = a.history.best
     assert len(best) == 3 and all(x <= y + 1e-12 for x, y in zip(best, best[1:]))  # survivors are kept
     # the recorded fitness is exactly the simulator's score of the final population, except that
-    # the fittest are re-scored at half the step and keep the lower score
+    # the fittest are re-scored with the physics in two sub-steps and keep the lower score
     again = simulate(a.population, 0.5, settle=0.1).fitness
-    fine = simulate(a.population, 0.5, settle=0.1, dt=1 / 120).fitness
+    fine = simulate(a.population, 0.5, settle=0.1, substeps=2).fitness
     refined = a.fitness != again
     assert refined.sum() <= 3 * 3  # at most the top three of each of the 3 batches
     np.testing.assert_array_equal(a.fitness[refined], np.minimum(again, fine)[refined])
@@ -32,7 +32,7 @@ def test_a_speed_that_comes_from_the_time_step_does_not_survive_selection():
 
     snake = Creature.figure1_snake()
     coarse = simulate([snake], 2.0, dt=1 / 20).fitness[0]
-    fine = simulate([snake], 2.0, dt=1 / 40).fitness[0]
+    fine = simulate([snake], 2.0, dt=1 / 20, substeps=2).fitness[0]
     scored = SwimmerFitness(2.0, {"dt": 1 / 20}, refine=1)(None, [snake])[0]
     assert scored == min(coarse, fine) and coarse != fine
 

@@ -65,6 +65,22 @@ def test_fourth_order_convergence(method):
     assert 12.0 < ratio < 22.0, ratio  # 2^4 = 16
 
 
+def test_sub_steps_integrate_the_same_system_more_finely():
+    # the effectors change only every dt (a square wave, as a brain's output would), and the
+    # sub-steps converge on that one system at fourth order: what the audit relies on
+    finals = []
+    for k in (1, 2, 4, 8):
+        w, _, _ = _world(3, n=2, speed=1.0, dt=1 / 30, drag=True, substeps=k)
+        assert w.substeps == 2 * k  # the water alone needs 2 at this step
+        sign = np.where(np.random.default_rng(5).random(w.model.n_joints) < 0.5, -1.0, 1.0)
+        for i in range(15):
+            w.set_effectors(0.3 * sign * (-1) ** (i // 5))
+            w.step()
+        finals.append(_flat_state(w))
+    ratios = [np.abs(a - b).max() / np.abs(b - c).max() for a, b, c in zip(finals, finals[1:], finals[2:])]
+    assert all(12.0 < r < 22.0 for r in ratios), ratios  # 2^4 = 16
+
+
 def test_rkn_and_rk4_agree():
     out = {}
     for method in ("rkn", "rk4"):
@@ -132,6 +148,9 @@ def test_bad_options_are_refused():
         World([tree], dt=0.0)
     with pytest.raises(ValueError, match="integrator"):
         World([tree], integrator="euler")
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="substeps"):
+            World([tree], substeps=bad)
     w = World([tree])
     with pytest.raises(ValueError, match="effector"):
         w.set_effectors(np.zeros(5))

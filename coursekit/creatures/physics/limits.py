@@ -28,9 +28,13 @@ At the end of every (sub-)step, for the next one (:class:`Limits`,
      limit, ``(limit - q) / h``, if that is slower towards the limit than its own. An inelastic
      stop: it conserves momentum exactly and only takes energy.
    - a *projection*: a joint the step carried beyond its limit is put back on it, and the root and
-     the free joints move as that impulse would move them, so the centre of mass stays put to
-     first order (post-stabilisation, Cline & Pai 2003). A free joint the projection would push
-     past a limit stops at it. No state a step ends in is beyond a limit.
+     the free joints move as that impulse would move them (post-stabilisation, Cline & Pai 2003).
+     A free joint the projection would push past a limit stops at it. The creature keeps its
+     centre of mass and its momentum exactly: the root takes back what the impulse leaves to
+     second order, and a rigid motion of the whole body gives back the momentum that the same
+     joint rates carry differently at the new pose
+     (:meth:`~coursekit.creatures.physics.world.World._put_back`). No state a step ends in is
+     beyond a limit.
 3. *The next step.* Locked joints keep their rates (prescribed acceleration 0) while the rest of
    the body moves, so they end it at their limits; nothing stiff is left for the integrator.
 

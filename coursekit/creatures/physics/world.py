@@ -22,7 +22,7 @@ import numpy as np
 
 from . import backend as bk
 from . import spatial as sp
-from .aba import aba, articulated_inertias, body_velocities, forward_kinematics, impulse, joint_transforms, pose_stacks, poses_rows
+from .aba import aba, articulated_inertias, body_velocities, forward_kinematics, impulse, joint_transform_matrices, joint_transforms, pose_stacks, poses_rows
 from .contact import Contacts
 from .dynamics import _flatten, split_layout, join_velocity_layout
 from .integrate import INTEGRATORS, State, step
@@ -50,6 +50,10 @@ class World:
             drag_coefficient: ``k`` of :mod:`water`.
         limits: joint limits on/off (one-sided constraints, see :mod:`limits`).
         contacts: self-collision penalty forces on/off (see :mod:`contact`).
+        substeps: integrate in this many times the sub-steps the water needs (default 1). The
+            model stays the same -- effectors held over ``dt``, the contact springs of the
+            water's own sub-step -- so more sub-steps integrate the same system more finely: the
+            audit's test that a speed is not integration error (:mod:`~coursekit.creatures.audit`).
         max_speed, max_angular_speed, max_joint_speed: divergence caps.
     """
 
@@ -69,6 +73,7 @@ class World:
         max_speed: float = MAX_SPEED,
         max_angular_speed: float = MAX_ANGULAR_SPEED,
         max_joint_speed: float = MAX_JOINT_SPEED,
+        substeps: int = 1,
     ):
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt: must be a positive number of seconds, got {dt!r}")
@@ -76,6 +81,8 @@ class World:
             raise ValueError(f"integrator: got {integrator!r}; allowed: {', '.join(INTEGRATORS)} or a function rkn_step(f, t, y, v, h)")
         if not (isinstance(drag, (bool, np.bool_)) or callable(drag)):
             raise TypeError(f"drag: must be True, False or a function box_drag(half_extents, k), got {type(drag).__name__}")
+        if not (isinstance(substeps, (int, np.integer)) and not isinstance(substeps, bool) and substeps >= 1):
+            raise ValueError(f"substeps: must be an integer >= 1, got {substeps!r}")
         for name, cap in (("max_speed", max_speed), ("max_angular_speed", max_angular_speed), ("max_joint_speed", max_joint_speed)):
             if not (cap > 0):
                 raise ValueError(f"{name}: must be > 0, got {cap}")
@@ -86,7 +93,8 @@ class World:
         box_drag = drag if callable(drag) else None
         self.damping = drag_matrix(m, drag_coefficient, box_drag) if drag else None
         rate = max_drag_rate(m, drag_coefficient, box_drag) if drag else 0.0
-        self.substeps = max(1, math.ceil(self.dt * rate / STABLE_DRAG_STEP))
+        water_steps = max(1, math.ceil(self.dt * rate / STABLE_DRAG_STEP))  # what the water needs
+        self.substeps = water_steps * int(substeps)
         self.h = self.dt / self.substeps
         self.limits = Limits(m, self.h) if limits else None
         self._lock = None
@@ -96,7 +104,7 @@ class World:
         self.gain = f(m.gain_np)
         self.contacts = None
         if contacts:
-            self.contacts = Contacts(m, stiffness=contact_stiffness, dt=self.h)
+            self.contacts = Contacts(m, stiffness=contact_stiffness, dt=self.dt / water_steps)
         self.caps = (float(max_speed), float(max_angular_speed), float(max_joint_speed))
         self.diverged = np.zeros(m.n_creatures, dtype=bool)
         self.time = 0.0
@@ -207,8 +215,11 @@ class World:
         Both are impulses through the articulated inertia
         (:func:`~coursekit.creatures.physics.aba.impulse`): the locked joints change by the
         prescribed amounts and the root and the free joints respond. The stop is a velocity change
-        (exactly momentum-conserving), the projection a displacement (the centre of mass stays put
-        to first order). The inertias are those the next step's first stage reuses.
+        (exactly momentum-conserving at the pose it is computed at), the projection a
+        displacement. A displacement changes what the same joint rates mean, so a creature that
+        was put back gets its momentum back as a rigid motion of the whole body, and its centre
+        of mass is kept where it was (:meth:`_put_back`). The inertias are those the next step's
+        first stage reuses.
         """
         xp, m = self.xp, self.model
         self._lock, at = self.limits.begin(s.q, s.qd, self.tau)
@@ -216,20 +227,59 @@ class World:
         rate = self.limits.rate(at, s.qd)
         dv0, dqd = impulse(m, self._inertia, self._lock, rate - s.qd)
         R = sp.quat_to_mat(xp, s.quat)
-        pos, quat, q = s.pos, s.quat, s.q
+        new = State(s.pos, s.quat, s.q, s.lin + sp.mv(R, dv0[:, 3:]), s.omega + dv0[:, :3], xp.where(self._lock, rate, s.qd + dqd))
         if bool(xp.any(at != s.q)):  # a joint to put back; with none the sweep would move nothing, bit for bit
-            dx0, dq = impulse(m, self._inertia, self._lock, at - s.q)
-            q = xp.where(self._lock, at, self.limits.within(s.q, s.q + dq))
-            pos, quat = s.pos + sp.mv(R, dx0[:, 3:]), sp.quat_mul(xp, s.quat, sp.quat_exp(xp, dx0[:, :3]))  # the next step normalises
-            # the impulse keeps the centre of mass to first order only; the second-order rest is a
-            # drift a creature could swim on in a vacuum (evolution found one), so the root takes it back
-            pos = pos - (self._com(sp.quat_to_mat(xp, quat), pos, q) - self._com(R, s.pos, s.q))
-        self._inertia_q = q
-        return State(pos, quat, q, s.lin + sp.mv(R, dv0[:, 3:]), s.omega + dv0[:, :3], xp.where(self._lock, rate, s.qd + dqd))
+            new = self._put_back(s, R, at, new)
+        self._inertia_q = new.q
+        return new
+
+    def _put_back(self, s: State, R, at, stopped: State) -> State:
+        """The projection: the joints beyond their limits are put back ``at`` them, the root and
+        the free joints move as that impulse would move them, and the creatures that moved keep
+        their centre of mass and their momentum exactly.
+
+        The impulse keeps the centre of mass to first order only, and the rates of ``stopped``
+        (the stop's, computed at the pose before) carry another momentum at the pose after: both
+        rests are drifts a creature could swim on in a vacuum (evolution found them), so the root
+        takes them back -- a shift, and a rigid velocity of the whole body that restores the linear
+        and the angular momentum. Only the creatures that had a joint to put back change, so a
+        creature's motion does not depend on its batch.
+        """
+        xp, m = self.xp, self.model
+        dx0, dq = impulse(m, self._inertia, self._lock, at - s.q)
+        q = xp.where(self._lock, at, self.limits.within(s.q, s.q + dq))
+        pos, quat = s.pos + sp.mv(R, dx0[:, 3:]), sp.quat_mul(xp, s.quat, sp.quat_exp(xp, dx0[:, :3]))  # the next step normalises
+        R1 = sp.quat_to_mat(xp, quat)
+        before = poses_rows(m, R, s.pos, s.q)
+        after = poses_rows(m, R1, pos, q)
+        com = self._com_rows(before)
+        shift = com - self._com_rows(after)
+        pos = pos + shift
+        after = (after[0], after[1] + xp.take(shift, m.body_creature, axis=0).T)
+        h0 = self._momentum(before, self._inertia[0], R, s.lin, s.omega, s.qd)
+        h1 = self._momentum(after, joint_transform_matrices(m, q), R1, stopped.lin, stopped.omega, stopped.qd)
+        # a rigid velocity (w, u) about the centre of mass adds (M u, Ic w) to the momentum about it
+        dh = h0 - h1
+        dP = dh[:, :3]
+        dL = dh[:, 3:] - sp.cross3(xp, com, dP)  # about the centre of mass (com is the same before and after)
+        w = xp.linalg.solve(self._composite_inertia(after, com), dL[:, :, None])[:, :, 0]
+        lin = stopped.lin + dP / self._total_mass + sp.cross3(xp, w, pos - com)
+        omega = stopped.omega + sp.mv(R1.mT, w)
+        moved = self._per_creature_any(at != s.q)
+        keep = lambda a, b: xp.where(moved[:, None] if a.ndim > 1 else xp.take(moved, self._joint_creature, axis=0), a, b)  # noqa: E731
+        return State(keep(pos, s.pos), keep(quat, s.quat), keep(q, s.q), keep(lin, stopped.lin), keep(omega, stopped.omega), stopped.qd)
+
+    def _per_creature_any(self, joint_mask):
+        """(C,) bool: does any of a creature's joints have ``joint_mask`` set (backend array)."""
+        xp, m = self.xp, self.model
+        if bk.is_torch(xp):
+            n = xp.zeros((m.n_creatures,), dtype=xp.float64, device=m.device)
+            bk.scatter_add(xp, n, self._joint_creature, joint_mask.to(xp.float64))
+            return n > 0
+        return np.bincount(m.joint_creature, weights=joint_mask, minlength=m.n_creatures) > 0
 
     def _guard(self, prev: State, new: State) -> State:
         xp, m = self.xp, self.model
-        C = m.n_creatures
         vmax, wmax, qmax = self.caps
         # a NaN or infinite speed fails its cap (every comparison with NaN is false): only the
         # positions need their own finiteness test
@@ -237,12 +287,7 @@ class World:
         ok = ok & (xp.sum(new.lin * new.lin, axis=1) <= vmax**2) & (xp.sum(new.omega * new.omega, axis=1) <= wmax**2)
         jbad = ~(xp.isfinite(new.q) & (xp.abs(new.qd) <= qmax))
         if m.n_joints:
-            nbad = xp.zeros((C,), dtype=xp.float64, device=m.device)
-            if bk.is_torch(xp):
-                bk.scatter_add(xp, nbad, self._joint_creature, jbad.to(xp.float64))
-            else:
-                nbad = np.bincount(m.joint_creature, weights=jbad, minlength=C)
-            ok = ok & (nbad == 0)
+            ok = ok & ~self._per_creature_any(jbad)
         bad = bk.to_numpy(~ok)
         if not bad.any():
             return new
@@ -280,9 +325,34 @@ class World:
 
     def _com(self, R0, p0, q):
         """(C, 3) centre of mass of every creature at root pose ``(R0, p0)`` and joints ``q`` (backend array)."""
+        return self._com_rows(poses_rows(self.model, R0, p0, q))
+
+    def _com_rows(self, rows):
+        """(C, 3) centres of mass from the component-major poses of :func:`~.aba.poses_rows`."""
         m = self.model
-        _, p = forward_kinematics(m, R0, p0, q)
-        return m.segment_sum(p * m.mass[:, None]) / self._total_mass
+        return m.segment_sum((rows[1] * m.mass).T) / self._total_mass
+
+    def _momentum(self, rows, X, R0, lin, omega, qd):
+        """(C, 6) world linear momentum and angular momentum about the world origin, at the poses
+        ``rows`` (:func:`~.aba.poses_rows`) with joint transforms ``X`` and the given rates."""
+        xp, m = self.xp, self.model
+        v = body_velocities(m, X, xp.concat([omega, sp.mv(R0.mT, lin)], axis=1), qd)
+        vt, I = v.T, m.inertia_diag.T
+        R, p = rows
+        P = xp.sum(R * (I[3:] * vt[3:])[None], axis=1)  # (3, N) world: R (m u)
+        L = xp.sum(R * (I[:3] * vt[:3])[None], axis=1) + sp.cross3(xp, p, P, axis=0)
+        return m.segment_sum(xp.concat([P, L], axis=0).T)
+
+    def _composite_inertia(self, rows, com):
+        """(C, 3, 3) rotational inertia of every creature about its centre of mass ``com`` (world)."""
+        xp, m = self.xp, self.model
+        R, p = rows
+        d = p - xp.take(com, m.body_creature, axis=0).T  # (3, N)
+        RI = R * m.inertia_diag.T[:3][None]  # R diag(I)
+        Ib = xp.sum(RI[:, None] * R[None], axis=2)  # (3, 3, N): R diag(I) R'
+        eye = bk.asarray(xp, np.eye(3), device=m.device)[:, :, None]
+        Ib = Ib + m.mass * (xp.sum(d * d, axis=0) * eye - d[:, None] * d[None])  # parallel axes
+        return xp.reshape(m.segment_sum(xp.reshape(Ib, (9, -1)).T), (-1, 3, 3))
 
     def kinetic_energy(self) -> np.ndarray:
         """(C,) kinetic energy of every creature (numpy)."""
