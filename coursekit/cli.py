@@ -145,10 +145,6 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--population", type=int, help="population size (default by COURSEKIT_PROFILE)")
     s.add_argument("--generations", type=int, help="generations (default by COURSEKIT_PROFILE)")
     s.add_argument("--seconds", type=float, help="swimming seconds per evaluation")
-    s.add_argument("--max-processes", type=int, default=64, help="processes a notebook may run at once (default 64); "
-                   "past them all of its processes are stopped and it is reported as not graded")
-    s.add_argument("--disk-mb", type=int, default=1024, help="MiB of files a notebook may write in its folder (default 1024); "
-                   "past them all of its processes are stopped and it is reported as not graded")
     s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     s.add_argument("--workers", type=int, help="processes the swimmers swim in (default: one per core)")
     s.add_argument("--no-browser", action="store_true", help="pictures: do not open a browser window")
