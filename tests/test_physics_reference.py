@@ -6,11 +6,12 @@ coefficients, leaves at once) and the book's per-body loops; MuJoCo's ``mj_forwa
 
 import mujoco  # in the [test] extra: the cross-check must run, never skip
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from coursekit.creatures.mjcf import to_mjcf
-from coursekit.creatures.physics import random_body_tree, random_state, reference
+from coursekit.creatures.physics import forward_dynamics, random_body_tree, random_state, reference
 from coursekit.creatures.physics import spatial as sp
 from coursekit.creatures.physics.aba import aba, articulated_inertias
 from coursekit.creatures.physics.jcalc import jcalc
@@ -64,7 +65,7 @@ def test_textbook_aba_equals_the_batched_aba(seed, with_drag, with_lock):
     inputs = _inputs(rng, trees, with_lock)
     batched = _batched(trees, inputs, (lambda m: drag_matrix(m)) if with_drag else (lambda m: None))
     for c, (t, x, (a0, qdd, force, D)) in enumerate(zip(trees, inputs, batched)):
-        ra0, rqdd, rforce = reference.forward_dynamics(t, x["q"], x["qd"], x["v0"], x["tau"], f_ext=x["f_ext"], damping=D,
+        ra0, rqdd, rforce = reference.aba(t, x["q"], x["qd"], x["v0"], x["tau"], f_ext=x["f_ext"], damping=D,
                                                        lock=x["lock"], prescribed=x["prescribed"])
         _close(ra0, a0, f"creature {c} root acceleration")
         _close(rqdd, qdd, f"creature {c} joint accelerations")
@@ -81,18 +82,23 @@ def test_a_locked_joint_needs_the_force_that_makes_the_free_tree_move_as_prescri
     rng = np.random.default_rng(seed)
     t = random_body_tree(rng, (2, 12), prismatic_fraction=0.4)
     x = _inputs(rng, [t], with_lock=True)[0]
-    a0, qdd, force = reference.forward_dynamics(t, x["q"], x["qd"], x["v0"], x["tau"], f_ext=x["f_ext"], lock=x["lock"], prescribed=x["prescribed"])
-    b0, bqdd, same = reference.forward_dynamics(t, x["q"], x["qd"], x["v0"], force, f_ext=x["f_ext"])
+    a0, qdd, force = reference.aba(t, x["q"], x["qd"], x["v0"], x["tau"], f_ext=x["f_ext"], lock=x["lock"], prescribed=x["prescribed"])
+    b0, bqdd, same = reference.aba(t, x["q"], x["qd"], x["v0"], force, f_ext=x["f_ext"])
     _close(b0, a0, "root acceleration")
     _close(bqdd, qdd, "joint accelerations")
     np.testing.assert_array_equal(same, force)
 
 
-def test_textbook_aba_equals_mujoco():
-    rng = np.random.default_rng(7)
-    trees = [random_body_tree(rng, (2, 16), prismatic_fraction=0.4) for _ in range(20)]
+def _mujoco_population(seed, n):
+    rng = np.random.default_rng(seed)
+    trees = [random_body_tree(rng, (2, 16), prismatic_fraction=0.4) for _ in range(n)]
     states = [random_state(rng, t, speed=2.0) for t in trees]
     tau = [np.r_[rng.normal(size=6) * 5.0, rng.normal(size=t.n_joints) * 10.0] for t in trees]
+    return trees, states, tau
+
+
+def test_textbook_aba_equals_mujoco():
+    trees, states, tau = _mujoco_population(7, 20)
     model = mujoco.MjModel.from_xml_string(to_mjcf(trees))
     data = mujoco.MjData(model)
     data.qpos[:] = np.concatenate([s[0] for s in states])
@@ -100,19 +106,29 @@ def test_textbook_aba_equals_mujoco():
     data.qfrc_applied[:] = np.concatenate(tau)
     mujoco.mj_forward(model, data)
     assert data.nefc == 0, "states must be inside limits (no active constraints)"
+    ours = reference.forward_dynamics(trees, [s[0] for s in states], [s[1] for s in states], tau)
     offs = np.r_[0, np.cumsum([6 + t.n_joints for t in trees])]
-    for c, (t, (qpos, qvel), f) in enumerate(zip(trees, states, tau)):
-        # MuJoCo's free joint: world linear velocity, root-frame angular velocity; root force in
-        # world coordinates, torque in root coordinates
-        R0 = sp.quat_to_mat(np, qpos[3:7] / np.linalg.norm(qpos[3:7]))
-        omega, vb = qvel[3:6], R0.T @ qvel[:3]
-        f_ext = np.zeros((t.n_bodies, 6))
-        f_ext[0] = np.r_[f[3:6], R0.T @ f[:3]]
-        a0, qdd, _ = reference.forward_dynamics(t, qpos[7:], qvel[6:], np.r_[omega, vb], f[6:], f_ext=f_ext)
-        ours = np.r_[R0 @ (a0[3:] + np.cross(omega, vb)), a0[:3], qdd]  # spatial -> classical acceleration
+    for c, t in enumerate(trees):
         want = data.qacc[offs[c] : offs[c + 1]]
-        err = np.max(np.abs(ours - want)) / np.max(np.abs(want))
+        err = np.max(np.abs(ours[c] - want)) / np.max(np.abs(want))
         assert err < 1e-8, f"creature {c} ({t.n_bodies} bodies): relative error {err:.2e}"
+
+
+def test_textbook_forward_dynamics_has_the_batched_signature_and_layouts():
+    trees, states, tau = _mujoco_population(8, 6)
+    qpos, qvel = [s[0] for s in states], [s[1] for s in states]
+    for kwargs in ({}, {"drag": True}, {"drag": True, "drag_coefficient": 5.0}):
+        want = forward_dynamics(trees, qpos, qvel, tau, **kwargs)
+        got = reference.forward_dynamics(trees, qpos, qvel, tau, **kwargs)
+        for c in range(len(trees)):
+            _close(got[c], want[c], f"creature {c} with {kwargs}")
+    joint_tau = np.concatenate([t[6:] for t in tau])  # joint forces only, one flat vector
+    flat = reference.forward_dynamics(trees, np.concatenate(qpos), np.concatenate(qvel), joint_tau, drag=True)
+    _close(flat, forward_dynamics(trees, np.concatenate(qpos), np.concatenate(qvel), joint_tau, drag=True), "flat layout")
+    with pytest.raises(ValueError, match="backend"):
+        reference.forward_dynamics(trees, qpos, qvel, backend="torch")
+    with pytest.raises(ValueError, match="qvel"):
+        reference.forward_dynamics(trees, qpos, [v[:-1] for v in qvel])
 
 
 def test_crm_and_crf_are_the_cross_products_as_matrices():
@@ -125,7 +141,5 @@ def test_crm_and_crf_are_the_cross_products_as_matrices():
 
 
 def test_jcalc_refuses_an_unknown_joint_type():
-    import pytest
-
     with pytest.raises(ValueError, match="joint_type"):
         jcalc(7, np.array([1.0, 0.0, 0.0]), 0.3)

@@ -4,7 +4,9 @@ This is Featherstone's ABA (*Rigid Body Dynamics Algorithms*, 2008, table 7.1, w
 base of section 9.5; spatial_v2's ``FDab`` and ``FDfb``), one body at a time in plain loops, in
 the book's notation and without any of the batched simulator's tricks. It is the text to read
 beside :mod:`~coursekit.creatures.physics.aba` (which computes the same numbers for a whole
-population at once, and which the tests hold equal to this) and a second oracle next to MuJoCo.
+population at once, and which the tests hold equal to this) and a second oracle next to MuJoCo. :func:`aba` is the algorithm on one creature in its body
+coordinates; :func:`forward_dynamics` calls it creature by creature in MuJoCo's state layout, with
+the signature of :func:`coursekit.creatures.physics.forward_dynamics`.
 
 A creature is a tree of bodies in pre-order (``parent[i] < i``, body 0 the root). Every vector is
 a spatial vector in the coordinates of its own body, whose frame sits at the body's centre of
@@ -46,7 +48,10 @@ import numpy as np
 from coursekit.creatures.body import BodyTree
 
 from . import spatial as sp
+from .dynamics import flatten_layout, unflatten_layout
 from .jcalc import jcalc
+from .model import Model, as_trees
+from .water import DRAG_COEFFICIENT, drag_diagonal
 
 
 def spatial_inertia(mass: float, inertia: np.ndarray) -> np.ndarray:
@@ -68,8 +73,8 @@ def joint_model(tree: BodyTree, i: int, q: float):
     return Xc @ XJ @ Xtree, Xc @ S_J
 
 
-def forward_dynamics(tree: BodyTree, q, qd, v0, tau, f_ext=None, damping=None, lock=None, prescribed=None):
-    """Accelerations of one floating creature by the ABA (module docstring).
+def aba(tree: BodyTree, q, qd, v0, tau, f_ext=None, damping=None, lock=None, prescribed=None):
+    """Accelerations of one floating creature by the ABA, in body coordinates (module docstring).
 
     Args:
         tree: the creature's :class:`~coursekit.creatures.body.BodyTree`.
@@ -136,3 +141,50 @@ def forward_dynamics(tree: BodyTree, q, qd, v0, tau, f_ext=None, damping=None, l
         if locked[j]:
             force[j] = S[i] @ (IA[i] @ a[i] + pA[i])  # what the joint transmits along S
     return a[0], qdd, force
+
+
+def forward_dynamics(creatures, qpos, qvel, tau=None, *, drag=False, backend="numpy", drag_coefficient=None):
+    """Generalised accelerations ``qacc`` in MuJoCo's layout, by :func:`aba`, creature by creature.
+
+    The signature and layout of :func:`coursekit.creatures.physics.forward_dynamics`: per
+    creature ``qpos = (root position, root quaternion w,x,y,z, joint coordinates)``, ``qvel =
+    (root linear velocity in world coordinates, root angular velocity in root coordinates, joint
+    rates)``; ``tau`` in the qvel layout (root: world force, root-frame torque) or joint forces
+    only; ``drag`` adds the water of :mod:`~coursekit.creatures.physics.water`. Returns ``qacc``
+    in the qvel layout and the same container form as ``qvel``. numpy only: ``backend`` must be
+    ``"numpy"``.
+    """
+    if backend != "numpy":
+        raise ValueError(f"backend: the textbook ABA runs on numpy only, got {backend!r}")
+    trees = creatures.trees if isinstance(creatures, Model) else as_trees(creatures)
+    nj = np.array([t.n_joints for t in trees])
+    qp, _ = flatten_layout(qpos, 7 + nj, "qpos")
+    qv, form = flatten_layout(qvel, 6 + nj, "qvel")
+    if tau is None:
+        tau, joint_only = np.zeros(int(nj.sum())), True
+    else:
+        try:
+            tau, _ = flatten_layout(tau, 6 + nj, "tau")
+            joint_only = False
+        except ValueError:
+            tau, _ = flatten_layout(tau, nj, "tau")
+            joint_only = True
+    k = DRAG_COEFFICIENT if drag_coefficient is None else float(drag_coefficient)
+    oq, ov, ot = (np.r_[0, np.cumsum(n)] for n in (7 + nj, 6 + nj, nj if joint_only else 6 + nj))
+    qacc = []
+    for c, t in enumerate(trees):
+        x, v, f = qp[oq[c] : oq[c + 1]], qv[ov[c] : ov[c + 1]], tau[ot[c] : ot[c + 1]]
+        quat = x[3:7]
+        if abs(np.linalg.norm(quat) - 1) > 1e-6:
+            raise ValueError(f"qpos[{c}]: the root quaternion must be unit length, got norm {np.linalg.norm(quat)}")
+        R0 = sp.quat_to_mat(np, quat / np.linalg.norm(quat))  # root -> world
+        omega, vb = v[3:6], R0.T @ v[:3]  # the root's spatial velocity, in root coordinates
+        f_ext = np.zeros((t.n_bodies, 6))
+        if not joint_only:
+            f_ext[0] = np.r_[f[3:6], R0.T @ f[:3]]  # MuJoCo's root force is in world coordinates
+        joint_tau = f if joint_only else f[6:]
+        damping = drag_diagonal(t.half_extents, k) if drag else None
+        a0, qdd, _ = aba(t, x[7:], v[6:], np.r_[omega, vb], joint_tau, f_ext=f_ext, damping=damping)
+        # the root's spatial acceleration -> the acceleration of its centre in world coordinates
+        qacc.append(np.r_[R0 @ (a0[3:] + np.cross(omega, vb)), a0[:3], qdd])
+    return unflatten_layout(np.concatenate(qacc), 6 + nj, form)
