@@ -18,8 +18,8 @@ more joints locked at their limits (each locked leaf adds its inertia to its par
 from the first step would measure MuJoCo on that transient only (the best window is an early
 one); ``--warmup 0`` does so.
 
-Our numpy step is bound by memory traffic and per-call overhead (see the notes in
-``coursekit/creatures/physics/aba.py``); part of it is stacked 6x6 products, which a forced
+Our numpy step is bound by memory traffic and per-call overhead (see
+``benchmarks/NOTES.md``); part of it is stacked 6x6 products, which a forced
 ``OPENBLAS_CORETYPE`` (set on some machines to dodge bugs of old OpenBLAS builds) slows down in
 current numpy; the header prints it. To measure the library as users get it there, run
 ``env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE python benchmarks/swimmers.py``.

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from coursekit.creatures.body import REVOLUTE, rotation_about
 from coursekit.creatures.phenotype import part_poses
-from coursekit.creatures.physics import aba, random_body_tree
+from coursekit.creatures.physics import jcalc, random_body_tree
 from coursekit.creatures.physics import backend as bk
 from coursekit.creatures.physics import spatial as sp
 from coursekit.creatures.physics.model import Model
@@ -68,8 +68,8 @@ def test_joint_transforms_from_constant_coefficients_equal_rodrigues(seed, scale
     m = Model(trees)
     C = m.n_creatures
     q = rng.uniform(-1, 1, m.n_joints) * scale  # angles of several turns, slides of metres
-    E, r = aba.joint_transforms(m, q)
-    X = aba.joint_transform_matrices(m, q)
+    E, r = jcalc.joint_transforms(m, q)
+    X = jcalc.joint_transform_matrices(m, q)
     tree_of = np.repeat(np.arange(C), [t.n_bodies for t in trees])[m.order]
     local = m.order - np.r_[0, np.cumsum([t.n_bodies for t in trees])][tree_of]
     for j in range(m.n_joints):
@@ -87,12 +87,12 @@ def test_leaf_inertia_polynomial_equals_the_congruence(seed, scale):
     m = Model(trees)
     C, L = m.n_creatures, m.leaf_start
     q = rng.uniform(-1, 1, m.n_joints) * scale
-    X = aba.joint_transform_matrices(m, q)[L - C :]
+    X = jcalc.joint_transform_matrices(m, q)[L - C :]
     Il, Sl = m.inertia_diag_np[L:], m.S_np[L - C :]
     U = Il * Sl
     Ia = np.einsum("ni,ij->nij", Il, np.eye(6)) - U[:, :, None] * U[:, None, :] / np.sum(Sl * U, axis=1)[:, None, None]
     want = X.mT @ Ia @ X
-    got = (aba.joint_basis(np, m.revolute, q)[L - C :, None, :] @ m.leaf_P).reshape(-1, 6, 6)
+    got = (jcalc.joint_basis(np, m.revolute, q)[L - C :, None, :] @ m.leaf_P).reshape(-1, 6, 6)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * max(1.0, scale * scale) * np.abs(want).max())
 
 
@@ -100,7 +100,7 @@ def test_forward_kinematics_matches_the_phenotype_poses():
     rng, trees = _population(11, n=8)
     m = Model(trees)
     q = rng.uniform(-2, 2, m.n_joints)
-    R, p = aba.forward_kinematics(m, np.tile(np.eye(3), (m.n_creatures, 1, 1)), np.zeros((m.n_creatures, 3)), q)
+    R, p = jcalc.forward_kinematics(m, np.tile(np.eye(3), (m.n_creatures, 1, 1)), np.zeros((m.n_creatures, 3)), q)
     q_user = q[m.joint_order]
     offs = np.r_[0, np.cumsum(m.joints_per_creature)]
     first = np.r_[0, np.cumsum([t.n_bodies for t in trees])]
@@ -135,7 +135,7 @@ def test_vectorised_separating_axis_test_equals_a_per_pair_reference():
     w = World(trees, contacts=True)
     m = w.model
     q = rng.uniform(-1.5, 1.5, m.n_joints)
-    R, p = aba.forward_kinematics(m, np.tile(np.eye(3), (m.n_creatures, 1, 1)), np.zeros((m.n_creatures, 3)), q)
+    R, p = jcalc.forward_kinematics(m, np.tile(np.eye(3), (m.n_creatures, 1, 1)), np.zeros((m.n_creatures, 3)), q)
     c = w.contacts
     pair, a, b, n, depth, x = c.detect(R, p)
     assert 10 < len(pair) < c.n_pairs, "the population must have both touching and separate pairs"

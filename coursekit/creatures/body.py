@@ -50,6 +50,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .extents import MAX_HALF_EXTENT, MIN_HALF_EXTENT  # noqa: F401 (the contract's size limits, read from here too)
+
 FREE = 0
 REVOLUTE = 1
 PRISMATIC = 2
@@ -63,11 +65,6 @@ STRENGTH_PER_AREA = 2.0
 #: (Hill's maximum shortening speed of a muscle); see :func:`effector_strength`.
 SWEEPS_PER_SECOND = 8.0
 
-#: The thinnest a part may be (half extent, metres): paper-thin flippers are stiff for any
-#: explicit integrator and an exploit in the literature (see reference/creatures.md).
-MIN_HALF_EXTENT = 0.025
-#: The largest a part may be (half extent, metres); genotype sizes and expanded parts stay within both.
-MAX_HALF_EXTENT = 1.0
 
 
 @dataclass

@@ -32,7 +32,7 @@ import numpy as np
 
 from . import backend as bk
 from . import spatial as sp
-from .aba import forward_kinematics, pose_stacks, poses_rows
+from .jcalc import forward_kinematics, pose_stacks, poses_rows
 
 #: Default ``dt * w`` of the contact springs (see the module docstring).
 CONTACT_STIFFNESS_PER_STEP = 0.1
@@ -195,7 +195,7 @@ class Contacts:
 
         Args:
             state: the step's start.
-            rows: optional :func:`~coursekit.creatures.physics.aba.poses_rows` at ``state`` (reused).
+            rows: optional :func:`~coursekit.creatures.physics.jcalc.poses_rows` at ``state`` (reused).
 
         Returns:
             ``(active, sensors)``: the frozen contact set for :meth:`wrench` (``None`` when no pair

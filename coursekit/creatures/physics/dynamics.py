@@ -17,8 +17,10 @@ from .model import Model
 from .water import drag_matrix
 
 
-def _flatten(x, sizes: np.ndarray, name: str):
-    """Accept a list of per-creature vectors, a (C, n) array or a flat concatenation."""
+def flatten_layout(x, sizes: np.ndarray, name: str):
+    """``(flat, form)``: a list of per-creature vectors, a (C, n) array (equal sizes) or a flat
+    concatenation as one flat float64 vector, and which of the three it was (for
+    :func:`unflatten_layout`); ``sizes`` (C,) are the per-creature lengths."""
     C, total = len(sizes), int(sizes.sum())
     if isinstance(x, (list, tuple)):
         if len(x) != C:
@@ -36,13 +38,17 @@ def _flatten(x, sizes: np.ndarray, name: str):
     raise ValueError(f"{name}: expected a list of {C} vectors, a ({C}, n) array or a flat array of length {total}, got shape {a.shape}")
 
 
-def _unflatten(flat, sizes, form):
+def unflatten_layout(flat, sizes, form):
+    """``flat`` back in the container ``form`` :func:`flatten_layout` found."""
     if form == "flat":
         return flat
     if form == "2d":
         return flat.reshape(len(sizes), -1)
     offs = np.r_[0, np.cumsum(sizes)]
     return [flat[offs[i] : offs[i + 1]] for i in range(len(sizes))]
+
+
+_flatten = flatten_layout  # the name world.py imports
 
 
 def split_layout(model: Model, qpos: np.ndarray, qvel: np.ndarray):
@@ -88,8 +94,8 @@ def forward_dynamics(creatures, qpos, qvel, tau=None, *, drag=False, backend="nu
     """
     model = creatures if isinstance(creatures, Model) else Model(creatures, backend=backend)
     xp = model.xp
-    qp, _ = _flatten(qpos, model.nq, "qpos")
-    qv, form = _flatten(qvel, model.nv, "qvel")
+    qp, _ = flatten_layout(qpos, model.nq, "qpos")
+    qv, form = flatten_layout(qvel, model.nv, "qvel")
     pos, quat, q, lin, omega, qd = split_layout(model, qp, qv)
     nrm = np.linalg.norm(quat, axis=1)
     if np.any(np.abs(nrm - 1) > 1e-6):
@@ -101,12 +107,12 @@ def forward_dynamics(creatures, qpos, qvel, tau=None, *, drag=False, backend="nu
     if tau is not None:
         nj = model.joints_per_creature
         try:
-            t, _ = _flatten(tau, model.nv, "tau")
+            t, _ = flatten_layout(tau, model.nv, "tau")
             _, _, _, F, T, jt = split_layout(model, np.zeros(int(model.nq.sum())), t)
             R = sp.quat_to_mat(np, quat)
             f_root = np.concatenate([T, np.einsum("cji,cj->ci", R, F)], axis=1)
         except ValueError:
-            t, _ = _flatten(tau, nj, "tau")
+            t, _ = flatten_layout(tau, nj, "tau")
             jt = np.empty(M)
             jt[model.joint_order] = t
     R0 = sp.quat_to_mat(np, quat)
@@ -120,4 +126,4 @@ def forward_dynamics(creatures, qpos, qvel, tau=None, *, drag=False, backend="nu
     a0, qdd, _ = aba(model, f(q), f(qd), f(np.concatenate([omega, vb], axis=1)), f(jt), f_ext=f_ext, damping=damping)
     a0, qdd = bk.to_numpy(a0), bk.to_numpy(qdd)
     lin_acc = np.einsum("cij,cj->ci", R0, a0[:, 3:] + np.cross(omega, vb))
-    return _unflatten(join_velocity_layout(model, lin_acc, a0[:, :3], qdd), model.nv, form)
+    return unflatten_layout(join_velocity_layout(model, lin_acc, a0[:, :3], qdd), model.nv, form)

@@ -10,8 +10,8 @@ the joints, so per-joint arrays have ``M = N - C`` rows in the same order.
 
 Everything of a joint that depends on its coordinate ``q`` alone -- the transform ``Xup``, the
 pose ``(E, r)`` and, for leaves, what they pass to their parent -- is stored as constant
-coefficients of a small polynomial basis in ``q`` (``aba.joint_basis``), so evaluating it is one
-stacked product.
+coefficients of a small polynomial basis in ``q`` (the fast forms of
+:mod:`~coursekit.creatures.physics.jcalc`), so evaluating it is one stacked product.
 
 The user-facing layout (MuJoCo's, see :func:`coursekit.creatures.mjcf.to_mjcf`) lists each
 creature's joints in BodyTree order; :attr:`Model.joint_order` maps between the two.
@@ -23,11 +23,11 @@ import itertools
 
 import numpy as np
 
-from coursekit.creatures.body import PRISMATIC, REVOLUTE, BodyTree
+from coursekit.creatures.body import BodyTree
 
 from . import backend as bk
+from . import jcalc
 from . import spatial as sp
-from .aba import fit_joint_basis
 
 
 def validated(creature, i: int):
@@ -133,11 +133,8 @@ class Model:
         jt = cat("joint_type")[C:]
         axis = cat("joint_axis")[C:]
         jpc = cat("joint_pos_child")[C:]
-        S = np.zeros((N - C, 6))
-        rev = jt == REVOLUTE
-        S[rev, :3] = axis[rev]
-        S[rev, 3:] = np.cross(jpc[rev], axis[rev])
-        S[jt == PRISMATIC, 3:] = axis[jt == PRISMATIC]
+        S = jcalc.motion_subspaces(jt, axis, jpc)
+        rev = jcalc.rotational(jt)
         self.joint_type_np = jt
         self.limits_np = cat("limits")[C:]
         self.gain_np = cat("gain")[C:]
@@ -157,26 +154,15 @@ class Model:
         It = self.inertia_diag_np.T
         self.euler_factor = f(np.stack([It[[2, 0, 1]] - It[[1, 2, 0]], It[3:]]))  # (2, 3, N): I2 - I1, m
         self.revolute = bk.asarray(xp, rev, dtype=xp.bool, device=device)
-        # Rodrigues with constant factors: Rot(a, q) = 1 + sin q K + (1 - cos q) K^2, K = [a]x, so
-        # E(q) = Rot(a, -q) J' and r(q) = jpp + J (slide a - Rot(a, q) c) are sums of constants
-        K = np.cross(axis[:, None, :], -np.eye(3)[None])  # K @ x == cross(axis, x)
-        K2 = K @ K
-        JT = np.swapaxes(self.joint_rot_np, 1, 2)
-        J = self.joint_rot_np
-        Jc = np.einsum("mij,mj->mi", J, jpc)
-        consts = {
-            "E0": np.ascontiguousarray(JT), "E1": -K @ JT, "E2": K2 @ JT,
-            "r0": self.jpp_np - Jc, "r1": -np.einsum("mij,mj->mi", J @ K, jpc),
-            "r2": -np.einsum("mij,mj->mi", J @ K2, jpc), "r3": np.einsum("mij,mj->mi", J, axis),
-        }  # fmt: skip
-        # E, r and Xup are of degree one in aba.joint_basis(q): constant coefficients
-        pose = fit_joint_basis(rev, consts, lambda E, r: np.concatenate([E.mT.reshape(-1, 9), r], axis=1))
+        consts = jcalc.rodrigues_constants(axis, self.jpp_np, jpc, self.joint_rot_np)
+        # E, r and Xup are of degree one in jcalc.joint_basis(q): constant coefficients
+        pose = jcalc.fit_joint_basis(rev, consts, lambda E, r: np.concatenate([E.mT.reshape(-1, 9), r], axis=1))
         self.pose_rows_basis = f(np.transpose(pose, (1, 2, 0)))  # (3, 12, M): rows of E' and r
-        X_basis = fit_joint_basis(rev, consts, lambda E, r: sp.transform_matrix(np, E, r).reshape(-1, 36))
+        X_basis = jcalc.fit_joint_basis(rev, consts, lambda E, r: sp.transform_matrix(np, E, r).reshape(-1, 36))
         if xp is np:
             # Xup = [[E, 0], [-E rx, E]] has 18 distinct entries: numpy streams their coefficients
             # (M, 3, 19: E, -E rx and a zero column) and gathers the 36 entries from them after
-            # (see aba._transform_matrices); the full basis is twice the memory traffic
+            # (see jcalc.transform_matrices); the full basis is twice the memory traffic
             block = np.arange(36).reshape(6, 6)
             self.X_basis = np.ascontiguousarray(np.concatenate(
                 [X_basis[:, :, block[:3, :3].reshape(-1)], X_basis[:, :, block[3:, :3].reshape(-1)], np.zeros_like(X_basis[:, :, :1])], axis=2))
@@ -184,11 +170,11 @@ class Model:
             expand[:3, :3] = expand[3:, 3:] = np.arange(9).reshape(3, 3)
             expand[3:, :3] = 9 + np.arange(9).reshape(3, 3)
             self.X_expand = expand.reshape(-1)
-        else:  # torch: (3, M, 36), rows for addcmul (see aba._transform_matrices)
+        else:  # torch: (3, M, 36), rows for addcmul (see jcalc.transform_matrices)
             self.X_basis = f(np.ascontiguousarray(X_basis.transpose(1, 0, 2)))
         # leaves never change their articulated inertia: U = I S, d = S'U and Ia = I - U U'/d are
         # constants, and what a leaf passes to its parent, Xup' Ia Xup, is a fixed combination of
-        # five constant matrices (degree two in aba.joint_basis)
+        # five constant matrices (degree two in jcalc.joint_basis)
         Il, Sl = self.inertia_diag_np[L:], S[L - C :]
         Ul = Il * Sl
         dl = np.sum(Sl * Ul, axis=1)
@@ -202,7 +188,7 @@ class Model:
             X = sp.transform_matrix(np, E, r)
             return (X.mT @ Ia @ X).reshape(-1, 36)
 
-        leaf_P = fit_joint_basis(rev[L - C :], leaf, congruence, k=5)
+        leaf_P = jcalc.fit_joint_basis(rev[L - C :], leaf, congruence, k=5)
         self.leaf_P = f(leaf_P)
         # symmetric matrices are summed as their 21 upper entries (less memory to stream) and
         # expanded to 6x6 after
@@ -216,7 +202,7 @@ class Model:
         np.add.at(inner, par[L:], leaf_P[:, 0].reshape(-1, 6, 6))
         self.inner_inertia = f(inner.reshape(-1, 36)[:, upper])  # (L, 21)
         # and a leaf's W = Xup' U / d, of degree one
-        leaf_W = fit_joint_basis(rev[L - C :], leaf, lambda E, r: sp.mtv(sp.transform_matrix(np, E, r), Ul) / dl[:, None])
+        leaf_W = jcalc.fit_joint_basis(rev[L - C :], leaf, lambda E, r: sp.mtv(sp.transform_matrix(np, E, r), Ul) / dl[:, None])
         self.leaf_W = f(np.ascontiguousarray(leaf_W.transpose(1, 0, 2)))  # (3, leaves, 6)
         self.half_extents = f(self.half_extents_np)
         self.mass = f(mass)

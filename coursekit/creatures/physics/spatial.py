@@ -29,12 +29,9 @@ def _halves(v, axis):
     return (v[:3], v[3:]) if axis == 0 else (v[..., :3], v[..., 3:])
 
 
-# numpy's stacked ``matvec`` hands every small matrix to BLAS (``gemv``) when its rows are
-# contiguous; views with the summed axis reversed (``A[..., ::-1]``, ``x[..., ::-1]``: the same
-# sum, in the opposite order) are not "blasable", and numpy's own inner loop then does 6x6 and
-# 3x3 products 1.5-2.5 times faster than BLAS (measured, numpy 2.4 on x86: a stack of 2,232 6x6
-# ``A x`` 73 -> 39 us, ``A' x`` by ``vecmat`` 58 -> 39 us; 2,000 3x3 78 -> 30 us), with and
-# without a forced ``OPENBLAS_CORETYPE``. No copy is made; ``A'`` is the view ``A.mT``.
+# numpy's stacked ``matvec`` hands small matrices with contiguous rows to BLAS one at a time;
+# on views with the summed axis reversed (the same sum, in the opposite order, no copy) numpy's
+# own loop runs instead, 1.5-2.5 times faster for 6x6 and 3x3 (benchmarks/NOTES.md).
 
 
 def mv(A, x, out=None):
@@ -85,6 +82,29 @@ def cross_force(xp, v, f, axis=-1):
     """Spatial force cross product ``v x* f`` (Featherstone's crf(v) @ f); 6-vectors along ``axis``."""
     (w, u), (n, fl) = _halves(v, axis), _halves(f, axis)
     return xp.concat([cross3(xp, w, n, axis) + cross3(xp, u, fl, axis), cross3(xp, w, fl, axis)], axis=axis)
+
+
+def skew(a) -> np.ndarray:
+    """The 3x3 matrix ``[a]x`` with ``[a]x b = a x b`` (one 3-vector, numpy)."""
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+def crm(v) -> np.ndarray:
+    """Featherstone's ``crm(v)`` (6, 6) for one motion vector ``v``: ``crm(v) @ m = v x m``
+    (:func:`cross_motion` as a matrix; numpy).
+
+    >>> spin = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])  # turning about z at 1 rad/s
+    >>> (crm(spin) @ np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0])).tolist()  # a velocity along x turns towards y
+    [0.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+    """
+    w, u = skew(v[:3]), skew(v[3:])
+    return np.block([[w, np.zeros((3, 3))], [u, w]])
+
+
+def crf(v) -> np.ndarray:
+    """Featherstone's ``crf(v) = -crm(v)'`` (6, 6): ``crf(v) @ f = v x* f`` for a force ``f``
+    (:func:`cross_force` as a matrix; numpy)."""
+    return -crm(v).T
 
 
 def transform_motion(xp, E, r, m):

@@ -20,7 +20,7 @@ whole articulated system's rates are bounded by ``max_b lambda_b`` (a Rayleigh-q
 ``v'Dv <= max_b lambda_b v'Mv``). For a box that is ``k / h_min`` at most (``h_min`` the smallest
 half extent). The simulator bounds the step rather than treating drag implicitly: it sub-steps so
 that ``dt * lambda_max <= STABLE_DRAG_STEP``, well inside the RK4/RKN stability interval
-(``2.785``). With :data:`~coursekit.creatures.body.MIN_HALF_EXTENT` = 0.025 m and the default
+(``2.785``). With :data:`~coursekit.creatures.extents.MIN_HALF_EXTENT` = 0.025 m and the default
 ``k = 2`` this is ``lambda <= 80 /s``, so ``dt = 1/60 s`` needs no sub-steps.
 
 Plug-in point: every function here takes an optional ``box_drag(half_extents, k) -> (6,)``, a
@@ -31,6 +31,8 @@ uses it for every box instead of the library's closed form (``World(..., drag=bo
 from __future__ import annotations
 
 import numpy as np
+
+from coursekit.creatures.extents import MIN_HALF_EXTENT
 
 from . import backend as bk
 
@@ -90,14 +92,12 @@ def max_drag_rate(model, k: float | None = None, box_drag=None) -> float:
     """Upper bound on the drag relaxation rate of the batch (1/s), which sets the sub-steps.
 
     With the library's drag it is the bound for *any* valid box, ``k / (density h_min)`` with
-    ``h_min`` = :data:`~coursekit.creatures.body.MIN_HALF_EXTENT` (the boxes' own rates are at
+    ``h_min`` = :data:`~coursekit.creatures.extents.MIN_HALF_EXTENT` (the boxes' own rates are at
     most that), not the stiffest box present: a creature's step, and so its trajectory and
     fitness to the last bit, must not depend on which creatures share its batch. (Creatures of
     other densities than water's still share the batch's smallest density.) A student's
     ``box_drag`` that is stiffer than the law allows raises it to the rates of the boxes present.
     """
-    from coursekit.creatures.body import MIN_HALF_EXTENT
-
     k = DRAG_COEFFICIENT if k is None else float(k)
     bound = k / (min(float(t.density) for t in model.trees) * MIN_HALF_EXTENT)
     if box_drag is None:
