@@ -24,11 +24,25 @@ Our numpy step is bound by memory traffic and per-call overhead (see the notes i
 current numpy; the header prints it. To measure the library as users get it there, run
 ``env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE python benchmarks/swimmers.py``.
 
+A second table times what evolution pays for: the population of ``benchmarks/data/evolved_swimmers.json``
+(the last generation of a real run, 60 creatures of 3-30 parts, written by
+``python benchmarks/evolved_population.py``: ``coursekit demo swimmers`` settings, seed 0),
+repeated to ``--evolved-batches`` creatures (default 300), and at batch 1 its champion alone,
+the size a lesson swims. Self-collisions are on in both engines: ours as in evolution (every pair
+but parent and child and those fused at rest), MuJoCo's own (``to_mjcf(contacts=True)``: every
+pair of boxes but parent and child, its default, so it also pushes apart the parts that overlap at
+rest; its default solver). All engines start from one mid-swim state (our simulator settles 0.5 s
+and swims ``--warmup`` s with the brains first). Rows with ``+brains`` tick the creatures' brains
+twice per step on the sensors and drive the joints with them, as ``simulate`` does (MuJoCo's with
+the contact sensors off); the rows without hold the joint forces of that state. The brains'
+share is also timed alone (two ticks and the sensors, on a fixed state).
+
 It also counts the computing tensor operations of one step: on a GPU each is a kernel launch,
 which bounds the speed there, so the count tells on any machine what a GPU will pay. On a GPU,
 ``--cuda-batches`` (default 4096 and 16384) are timed on CUDA alone.
 
-    python benchmarks/swimmers.py [--batches 1 30 300] [--seconds 2] [--warmup 2] [--cuda-batches 4096 16384]
+    python benchmarks/swimmers.py [--batches 1 30 300] [--evolved-batches 1 300] [--seconds 2] [--warmup 2]
+                                  [--cuda-batches 4096 16384]
 """
 
 from __future__ import annotations
