@@ -26,7 +26,7 @@ current numpy; the header prints it. To measure the library as users get it ther
 
 A second table times what evolution pays for: the population of ``benchmarks/data/evolved_swimmers.json``
 (the last generation of a real run, 60 creatures of 3-30 parts, written by
-``python benchmarks/evolved_population.py``: ``coursekit demo swimmers`` settings, seed 0),
+``python benchmarks/data/evolved_swimmers.py``: ``coursekit demo swimmers`` settings, seed 0),
 repeated to ``--evolved-batches`` creatures (default 300), and at batch 1 its champion alone,
 the size a lesson swims. Self-collisions are on in both engines: ours as in evolution (every pair
 but parent and child and those fused at rest), MuJoCo's own (``to_mjcf(contacts=True)``: every
@@ -67,7 +67,7 @@ from coursekit.creatures.physics import random_body_tree, random_state  # noqa: 
 from coursekit.creatures.physics.world import World  # noqa: E402
 
 DT = 1.0 / 60.0
-#: The evolved population (``python benchmarks/evolved_population.py`` writes it).
+#: The evolved population (``python benchmarks/data/evolved_swimmers.py`` writes it).
 EVOLVED = Path(__file__).parent / "data" / "evolved_swimmers.json"
 
 
@@ -197,6 +197,8 @@ def evolved_population(batch: int, path=EVOLVED) -> list:
     import json
 
     doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    if doc.get("format") != "coursekit.population/1":
+        raise ValueError(f"{path}: format must be 'coursekit.population/1', got {doc.get('format')!r}")
     creatures = [Creature.from_dict(c) for c in doc["creatures"]]
     if batch == 1:
         return [creatures[int(np.argmax(doc["fitness"]))]]
@@ -294,6 +296,10 @@ def main(argv=None) -> None:
         rows.append((batch, sum(t.n_bodies for t in trees), "ours torch/cuda RKN",
                      _on_cuda(trees, states, warm, args.seconds), None))
     evolved = []
+    if args.evolved_batches and not EVOLVED.exists():  # an installed wheel carries the scripts only
+        print(f"no {EVOLVED}: the evolved-population table needs the checkout's benchmarks/data/ "
+              f"(python benchmarks/data/evolved_swimmers.py writes it)")
+        args.evolved_batches = []
     for batch in args.evolved_batches:
         steps, bodies = evolved_engines(evolved_population(batch), args.warmup)
         times = _timed(steps, args.seconds)

@@ -1,4 +1,4 @@
-"""Regenerate ``benchmarks/data/evolved_swimmers.json``: the last generation of a real run.
+"""Regenerate ``evolved_swimmers.json`` (next to this script): the last generation of a real run.
 
 The realistic workload of ``benchmarks/swimmers.py`` is a population that evolution actually
 produced, not random bodies: this runs :func:`coursekit.creatures.evolve_swimmers` at the settings
@@ -7,7 +7,9 @@ random creatures of at most 16 parts, seed 0) and saves its final population, el
 each creature's fitness, the settings and the command. The run is bit for bit the same on any
 number of worker processes.
 
-    python benchmarks/evolved_population.py [--out benchmarks/data/evolved_swimmers.json] [--workers N]
+    python benchmarks/data/evolved_swimmers.py [--out benchmarks/data/evolved_swimmers.json] [--workers N]
+
+(It lives here, not beside the benchmarks, so that ``coursekit bench`` does not run it.)
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from coursekit.atomic import atomic_write
 from coursekit.creatures import Creature, evolve_swimmers
 
 #: Where the benchmark reads the population, and its file format.
-DATA = Path(__file__).parent / "data" / "evolved_swimmers.json"
+DATA = Path(__file__).with_suffix(".json")
 FORMAT = "coursekit.population/1"
 #: The run: ``coursekit demo swimmers`` (classroom profile), seed 0.
 SETTINGS = dict(population_size=60, generations=10, seconds=5.0, seed=0, random_options=dict(max_parts=16))
@@ -58,7 +60,7 @@ def main(argv=None) -> int:
     parts = [c.expand().body.n_bodies for c in result.population]
     doc = {
         "format": FORMAT,
-        "command": "python benchmarks/evolved_population.py",
+        "command": "python benchmarks/data/evolved_swimmers.py",
         "description": "the last generation (elites first) of evolve_swimmers at the settings of `coursekit demo swimmers` "
                        "(classroom profile)",
         "settings": s,
