@@ -24,11 +24,25 @@ Our numpy step is bound by memory traffic and per-call overhead (see
 current numpy; the header prints it. To measure the library as users get it there, run
 ``env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE python benchmarks/swimmers.py``.
 
+A second table times what evolution pays for: the population of ``benchmarks/data/evolved_swimmers.json``
+(the last generation of a real run, 60 creatures of 3-30 parts, written by
+``python benchmarks/data/evolved_swimmers.py``: ``coursekit demo swimmers`` settings, seed 0),
+repeated to ``--evolved-batches`` creatures (default 300), and at batch 1 its champion alone,
+the size a lesson swims. Self-collisions are on in both engines: ours as in evolution (every pair
+but parent and child and those fused at rest), MuJoCo's own (``to_mjcf(contacts=True)``: every
+pair of boxes but parent and child, its default, so it also pushes apart the parts that overlap at
+rest; its default solver). All engines start from one mid-swim state (our simulator settles 0.5 s
+and swims ``--warmup`` s with the brains first). Rows with ``+brains`` tick the creatures' brains
+twice per step on the sensors and drive the joints with them, as ``simulate`` does (MuJoCo's with
+the contact sensors off); the rows without hold the joint forces of that state. The brains'
+share is also timed alone (two ticks and the sensors, on a fixed state).
+
 It also counts the computing tensor operations of one step: on a GPU each is a kernel launch,
 which bounds the speed there, so the count tells on any machine what a GPU will pay. On a GPU,
 ``--cuda-batches`` (default 4096 and 16384) are timed on CUDA alone.
 
-    python benchmarks/swimmers.py [--batches 1 30 300] [--seconds 2] [--warmup 2] [--cuda-batches 4096 16384]
+    python benchmarks/swimmers.py [--batches 1 30 300] [--evolved-batches 1 300] [--seconds 2] [--warmup 2]
+                                  [--cuda-batches 4096 16384]
 """
 
 from __future__ import annotations
@@ -40,15 +54,21 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import copy  # noqa: E402
 import time  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from coursekit.creatures import BrainBatch, Creature  # noqa: E402
+from coursekit.creatures.body import REVOLUTE  # noqa: E402
 from coursekit.creatures.mjcf import to_mjcf  # noqa: E402
 from coursekit.creatures.physics import random_body_tree, random_state  # noqa: E402
 from coursekit.creatures.physics.world import World  # noqa: E402
 
 DT = 1.0 / 60.0
+#: The evolved population (``python benchmarks/data/evolved_swimmers.py`` writes it).
+EVOLVED = Path(__file__).parent / "data" / "evolved_swimmers.json"
 
 
 def _population(n: int, seed: int = 0):
@@ -98,15 +118,126 @@ def ours(trees, states, backend, device=None, contacts=False, limits=True):
     return w.step
 
 
-def mujoco_step(trees, states):
-    """One RK4 step of MuJoCo on the same creatures, exported into one model (a function to time)."""
+def mujoco_step(trees, states, contacts=False, ctrl=None, brain=None):
+    """One RK4 step of MuJoCo on the same creatures, exported into one model (a function to time).
+
+    With ``contacts`` the boxes collide (MuJoCo's default filter: all pairs but parent and child)
+    and every creature is moved by its root's place in the model (``to_mjcf`` spaces them apart).
+    ``ctrl`` (one per joint) is held; a ``brain`` (:class:`BrainBatch`) instead drives the motors,
+    ticking twice per step on MuJoCo's joint angles and rates (contact sensors all off, -1).
+    """
     import mujoco
 
-    model = mujoco.MjModel.from_xml_string(to_mjcf(trees, timestep=DT, integrator="RK4"))
+    model = mujoco.MjModel.from_xml_string(to_mjcf(trees, timestep=DT, integrator="RK4", contacts=contacts))
     data = mujoco.MjData(model)
     data.qpos[:] = np.concatenate([s[0] for s in states])
     data.qvel[:] = np.concatenate([s[1] for s in states])
-    return lambda: mujoco.mj_step(model, data)
+    if contacts:
+        free = model.jnt_qposadr[model.jnt_type == mujoco.mjtJoint.mjJNT_FREE]
+        for k in range(3):
+            data.qpos[free + k] += model.qpos0[free + k]
+    if ctrl is not None:
+        data.ctrl[:] = ctrl
+    if brain is None:
+        return lambda: mujoco.mj_step(model, data)
+    joint = model.jnt_type != mujoco.mjtJoint.mjJNT_FREE
+    qadr, vadr = model.jnt_qposadr[joint], model.jnt_dofadr[joint]
+    revolute = model.jnt_type[joint] == mujoco.mjtJoint.mjJNT_HINGE
+    contact = -np.ones((brain.total_bodies, 6))
+
+    def step():
+        q = data.qpos[qadr]
+        q = np.where(revolute, np.mod(q + np.pi, 2 * np.pi) - np.pi, q)
+        for _ in range(2):
+            e = brain.step(q, data.qvel[vadr], contact, DT / 2)
+        data.ctrl[:] = e
+        mujoco.mj_step(model, data)
+
+    return step
+
+
+class Swim:
+    """Our simulator swimming creatures with their brains in the loop, as ``simulate`` does it.
+
+    Each physics step, the brains tick twice on the sensors (joint angles wrapped to (-pi, pi],
+    joint rates, per-face contact sensors) and their outputs drive the joints.
+    """
+
+    def __init__(self, creatures, contacts=True):
+        phenotypes = [c.expand() for c in creatures]
+        self.brain = BrainBatch(phenotypes)
+        self.world = World([p.body for p in phenotypes], dt=DT, contacts=contacts)
+        m = self.world.model
+        self.revolute = m.joint_type_np[m.joint_order] == REVOLUTE
+        self.effector = np.zeros(m.n_joints)
+
+    def think(self) -> np.ndarray:
+        """Two brain ticks on the current sensors; the effector outputs (user joint order)."""
+        w, m = self.world, self.world.model
+        s = w.state
+        q = s.q[m.joint_order]
+        q = np.where(self.revolute, np.mod(q + np.pi, 2 * np.pi) - np.pi, q)
+        contact = -np.ones((m.n_bodies, 6))
+        if w.contact_sensors is not None:
+            contact[m.order] = w.contact_sensors
+        for _ in range(2):
+            e = self.brain.step(q, s.qd[m.joint_order], contact, DT / 2)
+        return e
+
+    def swim(self) -> None:
+        """One physics step with the brains in the loop."""
+        self.effector = self.think()
+        self.world.set_effectors(self.effector)
+        self.world.step()
+
+
+def evolved_population(batch: int, path=EVOLVED) -> list:
+    """``batch`` creatures of the saved evolved population: its champion alone at batch 1 (what a
+    lesson swims), else the population repeated (elites first) to ``batch`` creatures."""
+    import json
+
+    doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    if doc.get("format") != "coursekit.population/1":
+        raise ValueError(f"{path}: format must be 'coursekit.population/1', got {doc.get('format')!r}")
+    creatures = [Creature.from_dict(c) for c in doc["creatures"]]
+    if batch == 1:
+        return [creatures[int(np.argmax(doc["fitness"]))]]
+    return [creatures[i % len(creatures)] for i in range(batch)]
+
+
+def evolved_engines(creatures, warmup: float) -> tuple[dict, int]:
+    """The functions to time on an evolved population, all from one mid-swim state: our
+    simulator settles 0.5 s (as ``simulate`` does) and swims ``warmup`` s with brains first.
+    Without brains, both engines hold the joint forces of that state's last brain output."""
+    start = Swim(creatures)
+    w = start.world
+    for _ in range(round(0.5 / DT)):
+        w.step()
+    start.brain.reset()
+    for _ in range(round(warmup / DT)):
+        start.swim()
+    qpos, qvel = w.get_state()
+    states = list(zip(qpos, qvel))
+    trees = [t for t in w.model.trees]
+    # the same joint forces in MuJoCo: its motor gives gear * ctrl (gear = our gain), capped at the strength
+    tau, gain = w.tau[w.model.joint_order], w.gain[w.model.joint_order]
+    ctrl = np.clip(np.divide(tau, gain, out=np.zeros_like(tau), where=gain != 0), -1.0, 1.0)
+
+    def ours():
+        s = Swim(creatures)
+        s.world.set_state(qpos, qvel)
+        s.brain = copy.deepcopy(start.brain)
+        s.world.set_effectors(start.effector)
+        return s
+
+    held, swim, alone = ours(), ours(), ours()
+    return {
+        "mujoco RK4 +collisions (1 thread)": mujoco_step(trees, states, contacts=True, ctrl=ctrl),
+        "mujoco RK4 +collisions +brains": mujoco_step(trees, states, contacts=True, brain=copy.deepcopy(start.brain)),
+        "ours numpy RKN +collisions": held.world.step,
+        "ours numpy RKN +collisions +brains": swim.swim,
+        "our brains alone (2 ticks + sensors)": alone.think,
+    }, sum(t.n_bodies for t in trees)
 
 
 def _on_cuda(trees, states, warm: int, seconds: float) -> float:
@@ -130,7 +261,9 @@ def operations_per_step(trees, states, contacts: bool) -> int:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--batches", type=int, nargs="+", default=[1, 30, 300])
+    ap.add_argument("--batches", type=int, nargs="*", default=[1, 30, 300], help="batches of random creatures")
+    ap.add_argument("--evolved-batches", type=int, nargs="*", default=[1, 300],
+                    help="batches of the evolved population (1: its champion alone)")
     ap.add_argument("--seconds", type=float, default=2.0, help="CPU time per engine and batch")
     ap.add_argument("--warmup", type=float, default=2.0, help="simulated seconds every engine runs untimed first")
     ap.add_argument("--cuda-batches", type=int, nargs="*", default=[4096, 16384],
@@ -162,16 +295,37 @@ def main(argv=None) -> None:
         trees, states = _population(batch)
         rows.append((batch, sum(t.n_bodies for t in trees), "ours torch/cuda RKN",
                      _on_cuda(trees, states, warm, args.seconds), None))
-    print(f"step dt = {DT:.5f} s, random creatures of 10-20 boxes; ratio = our body-steps/s over MuJoCo's")
+    evolved = []
+    if args.evolved_batches and not EVOLVED.exists():  # an installed wheel carries the scripts only
+        print(f"no {EVOLVED}: the evolved-population table needs the checkout's benchmarks/data/ "
+              f"(python benchmarks/data/evolved_swimmers.py writes it)")
+        args.evolved_batches = []
+    for batch in args.evolved_batches:
+        steps, bodies = evolved_engines(evolved_population(batch), args.warmup)
+        times = _timed(steps, args.seconds)
+        mj, mj_brains = times["mujoco RK4 +collisions (1 thread)"], times["mujoco RK4 +collisions +brains"]
+        evolved += [(batch, bodies, name, t, None if "alone" in name else mj_brains if "brains" in name else mj)
+                    for name, t in times.items()]
     print(f"numpy {np.__version__}, OPENBLAS_CORETYPE={os.environ.get('OPENBLAS_CORETYPE', '(unset)')}; best-window CPU time per step "
           f"after {args.warmup:g} s simulated untimed")
-    trees, states = _population(max(args.batches))
-    print(f"computing tensor operations per step at batch {max(args.batches)} (kernel launches on a GPU; they grow with the depth of the trees, not with the batch): "
-          f"{operations_per_step(trees, states, False)}, with collisions {operations_per_step(trees, states, True)}\n")
-    print(f"{'batch':>5} {'bodies':>6}  {'engine':<34} {'ms/step':>9} {'body-steps/s':>13} {'creature-steps/s':>17} {'ratio':>6}")
+    if rows:
+        print(f"step dt = {DT:.5f} s, random creatures of 10-20 boxes; ratio = our body-steps/s over MuJoCo's")
+        trees, states = _population(max(args.batches))
+        print(f"computing tensor operations per step at batch {max(args.batches)} (kernel launches on a GPU; they grow with the depth of the trees, not with the batch): "
+              f"{operations_per_step(trees, states, False)}, with collisions {operations_per_step(trees, states, True)}\n")
+        _table(rows)
+    if evolved:
+        print(f"\nstep dt = {DT:.5f} s, the evolved population ({EVOLVED.name}; batch 1: its champion), self-collisions on, "
+              f"from a mid-swim state; ratio = ours over MuJoCo with collisions, with brains over MuJoCo with the same brains\n")
+        _table(evolved)
+
+
+def _table(rows) -> None:
+    width = max(34, *(len(r[2]) for r in rows))
+    print(f"{'batch':>5} {'bodies':>6}  {'engine':<{width}} {'ms/step':>9} {'body-steps/s':>13} {'creature-steps/s':>17} {'ratio':>6}")
     for batch, bodies, name, t, ref in rows:
         ratio = f"{ref / t:>6.2f}" if ref else f"{'-':>6}"
-        print(f"{batch:>5} {bodies:>6}  {name:<34} {t * 1e3:>9.3f} {bodies / t:>13,.0f} {batch / t:>17,.0f} {ratio}")
+        print(f"{batch:>5} {bodies:>6}  {name:<{width}} {t * 1e3:>9.3f} {bodies / t:>13,.0f} {batch / t:>17,.0f} {ratio}")
 
 
 if __name__ == "__main__":

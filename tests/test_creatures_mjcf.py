@@ -53,3 +53,40 @@ def test_figure1_snake_exports():
     assert len(snake.nodes) == 2  # the paper's "only two real object instantiations"
     model = mujoco.MjModel.from_xml_string(to_mjcf(snake))
     assert model.nbody - 1 == snake.expand().body.n_bodies == 6  # 4 segments + 2 mirrored legs
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_exported_collisions_stay_within_each_creature(seed):
+    """With ``contacts=True`` MuJoCo collides the boxes of one creature (never a parent with its
+    child, its default filter) and the creatures are spaced so that two never touch, in any pose;
+    by default the geoms do not collide at all."""
+    from coursekit.creatures.mjcf import reach
+
+    rng = np.random.default_rng(seed)
+    creatures = [evolved(seed + k) for k in range(3)]
+    bodies = [c.expand().body for c in creatures]
+    model = mujoco.MjModel.from_xml_string(to_mjcf(creatures, contacts=True))
+    plain = mujoco.MjModel.from_xml_string(to_mjcf(creatures))
+    creature_of = np.concatenate([[-1], *[np.full(b.n_bodies, c) for c, b in enumerate(bodies)]])
+    for trial in range(5):
+        data, data_plain = mujoco.MjData(model), mujoco.MjData(plain)
+        quats = rng.normal(size=(3, 4))
+        joints = [b.limits[1:, 0] + (b.limits[1:, 1] - b.limits[1:, 0]) * rng.random(b.n_bodies - 1) for b in bodies]
+        for d, m in ((data, model), (data_plain, plain)):
+            roots = m.jnt_qposadr[m.jnt_type == mujoco.mjtJoint.mjJNT_FREE]  # each at its qpos0 place
+            d.qpos[:] = np.concatenate([np.concatenate([m.qpos0[r:r + 3], q / np.linalg.norm(q), j])
+                                        for r, q, j in zip(roots, quats, joints)])
+            mujoco.mj_forward(m, d)
+        assert data_plain.ncon == 0
+        for k in range(data.ncon):
+            b1, b2 = model.geom_bodyid[data.contact[k].geom1], model.geom_bodyid[data.contact[k].geom2]
+            assert creature_of[b1] == creature_of[b2]
+            assert model.body_parentid[b1] != b2 and model.body_parentid[b2] != b1
+        # every box corner lies within the creature's reach of its root
+        start = 1
+        for b in bodies:
+            ids = np.arange(start, start + b.n_bodies)
+            gap = np.linalg.norm(data.xpos[ids] - data.xpos[start], axis=1) + np.linalg.norm(b.half_extents, axis=1)
+            assert np.all(gap <= reach(b) + 1e-9)
+            start += b.n_bodies

@@ -4,8 +4,9 @@
 MuJoCo loads with ``mujoco.MjModel.from_xml_string``: one ``<body>`` per box with an explicit
 ``<inertial>`` (exact box mass and principal inertia at the centre), a free root joint, ``hinge``
 and ``slide`` joints with their limits, one ``<motor>`` per joint (``gear`` = the joint's signed
-gain, force range = its strength), gravity off. Box geoms are visual only (no MuJoCo contacts);
-water and our self-collisions are not exported. Its ``qpos``/``qvel`` layout is the one of
+gain, force range = its strength), gravity off. Box geoms are visual only (no MuJoCo contacts) unless ``contacts=True``, where
+they collide under MuJoCo's own rules (every pair of boxes but parent and child; creatures are
+then spaced apart so that they never touch one another); water is not exported. Its ``qpos``/``qvel`` layout is the one of
 :func:`coursekit.creatures.physics.forward_dynamics`.
 """
 
@@ -37,7 +38,7 @@ def is_depth_first(parent: np.ndarray) -> bool:
     return True
 
 
-def _creature_xml(tree, prefix: str, pos) -> tuple[list[str], list[str]]:
+def _creature_xml(tree, prefix: str, pos, contacts: bool = False) -> tuple[list[str], list[str]]:
     if not is_depth_first(tree.parent):
         raise ValueError(
             f"BodyTree.parent: MJCF lists joints depth-first, so the tree must be in depth-first pre-order; got {tree.parent.tolist()}"
@@ -70,7 +71,8 @@ def _creature_xml(tree, prefix: str, pos) -> tuple[list[str], list[str]]:
         lines.append(
             f'{indent}  <inertial pos="0 0 0" mass="{_f([tree.mass[i]])}" diaginertia="{_f(tree.inertia[i])}"/>'
         )
-        lines.append(f'{indent}  <geom type="box" size="{_f(tree.half_extents[i])}" contype="0" conaffinity="0"/>')
+        collide = "" if contacts else ' contype="0" conaffinity="0"'
+        lines.append(f'{indent}  <geom type="box" size="{_f(tree.half_extents[i])}"{collide}/>')
         for k in children[i]:
             body(k, indent + "  ")
         lines.append(f"{indent}</body>")
@@ -79,7 +81,13 @@ def _creature_xml(tree, prefix: str, pos) -> tuple[list[str], list[str]]:
     return lines, motors
 
 
-def to_mjcf(creatures, *, timestep: float = 1.0 / 60.0, integrator: str = "RK4", name: str = "coursekit") -> str:
+def reach(tree) -> float:
+    """An upper bound of how far any point of ``tree`` lies from its root's centre (m)."""
+    return float(2.0 * np.linalg.norm(tree.half_extents, axis=1).sum())
+
+
+def to_mjcf(creatures, *, timestep: float = 1.0 / 60.0, integrator: str = "RK4", name: str = "coursekit",
+            contacts: bool = False) -> str:
     """MJCF text of one creature or a list of creatures (each its own free-floating tree).
 
     Args:
@@ -87,6 +95,9 @@ def to_mjcf(creatures, *, timestep: float = 1.0 / 60.0, integrator: str = "RK4",
         timestep: MuJoCo ``<option timestep>``.
         integrator: MuJoCo integrator name ("RK4", "Euler", "implicit", "implicitfast").
         name: model name.
+        contacts: the boxes collide (MuJoCo's default filter: every pair but parent and child);
+            the creatures' roots are then spaced along x by their :func:`reach` plus 1 m, so that
+            two creatures never touch (the roots' ``qpos0``), instead of 2 m apart.
 
     Returns:
         The MJCF document. Bodies of creature ``c`` are named ``c{c}_b{i}``, joints ``c{c}_j{i}``.
@@ -97,8 +108,11 @@ def to_mjcf(creatures, *, timestep: float = 1.0 / 60.0, integrator: str = "RK4",
         raise ValueError(f"integrator: got {integrator!r}; allowed: RK4, Euler, implicit, implicitfast")
     trees = as_trees(creatures)
     body_lines, motor_lines = [], []
+    x = 0.0
     for c, tree in enumerate(trees):
-        b, m = _creature_xml(tree, f"c{c}_", [2.0 * c, 0.0, 0.0])
+        if contacts and c:
+            x += reach(trees[c - 1]) + reach(tree) + 1.0
+        b, m = _creature_xml(tree, f"c{c}_", [x if contacts else 2.0 * c, 0.0, 0.0], contacts)
         body_lines += b
         motor_lines += m
     out = [

@@ -145,6 +145,14 @@ class Contacts:
         Am = xp.abs(Rm)
         t = xp.sum(A * d[:, None], axis=0)
         hA, hB = xp.take(self.half_t, a, axis=1), xp.take(self.half_t, b, axis=1)
+        A3, R3 = xp.reshape(Am, (3, 3, n)), xp.reshape(Rm, (3, 3, n))
+        faces = xp.concat([hA + xp.sum(A3 * hB[None], axis=1) - xp.abs(t),
+                           xp.sum(A3 * hA[:, None], axis=0) + hB - xp.abs(xp.sum(R3 * t[:, None], axis=0))], axis=0)
+        # a face axis separates most pairs whose spheres overlap (about 3 in 4 in an evolved
+        # population): the 9 edge axes, the dearer part, are tested on the others only
+        near = xp.nonzero(xp.min(faces, axis=0) > 0)[0]
+        a, b, sel = a[near], b[near], sel[near]
+        d, A, B, Rm, Am, t, hA, hB, faces = (xp.take(x, near, axis=-1) for x in (d, A, B, Rm, Am, t, hA, hB, faces))
         i1j, i2j, ij1, ij2, I1, I2, J1, J2 = self._edge_rows
         len_e = xp.sqrt(xp.clip(1.0 - Rm * Rm, 0.0, None))  # |A_i x B_j|
         valid = len_e > 1e-6  # parallel edges: the face axes already decide
@@ -152,15 +160,7 @@ class Contacts:
             hA[I1] * Am[i2j] + hA[I2] * Am[i1j] + hB[J1] * Am[ij2] + hB[J2] * Am[ij1]
             - xp.abs(t[I2] * Rm[i1j] - t[I1] * Rm[i2j])
         ) / xp.where(valid, len_e, xp.ones_like(len_e))
-        A3, R3 = xp.reshape(Am, (3, 3, n)), xp.reshape(Rm, (3, 3, n))
-        overlap = xp.concat(
-            [
-                hA + xp.sum(A3 * hB[None], axis=1) - xp.abs(t),
-                xp.sum(A3 * hA[:, None], axis=0) + hB - xp.abs(xp.sum(R3 * t[:, None], axis=0)),
-                xp.where(valid, over_e, xp.full_like(over_e, float("inf"))),
-            ],
-            axis=0,
-        )
+        overlap = xp.concat([faces, xp.where(valid, over_e, xp.full_like(over_e, float("inf")))], axis=0)
         depth = xp.min(overlap, axis=0)
         hit = xp.nonzero(depth > 0)[0]
         best = xp.argmin(xp.take(overlap, hit, axis=1), axis=0)
