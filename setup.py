@@ -12,7 +12,7 @@ from setuptools import setup
 from setuptools.command.build_py import build_py
 
 HERE = Path(__file__).resolve().parent
-PACKAGED = {"lessons": "*.ipynb", "exercises": "*.ipynb", "demos": "*.ipynb", "benchmarks": "*.py"}  # = coursekit.course.PACKAGED
+PACKAGED = {"lessons": "*.ipynb", "exercises": "*.ipynb", "demos": "*.ipynb", "benchmarks": "*.py", "benchmarks/data": "*.json"}  # = coursekit.course.PACKAGED
 
 
 class build_py_with_course(build_py):

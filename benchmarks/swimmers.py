@@ -296,7 +296,7 @@ def main(argv=None) -> None:
         rows.append((batch, sum(t.n_bodies for t in trees), "ours torch/cuda RKN",
                      _on_cuda(trees, states, warm, args.seconds), None))
     evolved = []
-    if args.evolved_batches and not EVOLVED.exists():  # an installed wheel carries the scripts only
+    if args.evolved_batches and not EVOLVED.exists():  # a copy of the scripts without their data folder
         print(f"no {EVOLVED}: the evolved-population table needs the checkout's benchmarks/data/ "
               f"(python benchmarks/data/evolved_swimmers.py writes it)")
         args.evolved_batches = []

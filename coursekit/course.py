@@ -21,7 +21,7 @@ from coursekit.atomic import atomic_path, atomic_write
 #: The folders a student's working copy holds (lessons link to ``../exercises``).
 STUDENT_FOLDERS = ("lessons", "exercises", "demos")
 #: What the wheel carries: the student folders and the benchmark scripts, by pattern.
-PACKAGED = {"lessons": "*.ipynb", "exercises": "*.ipynb", "demos": "*.ipynb", "benchmarks": "*.py"}
+PACKAGED = {"lessons": "*.ipynb", "exercises": "*.ipynb", "demos": "*.ipynb", "benchmarks": "*.py", "benchmarks/data": "*.json"}
 
 _PACKAGE = Path(__file__).resolve().parent
 _CHECKOUT = _PACKAGE.parent

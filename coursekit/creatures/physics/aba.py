@@ -37,7 +37,6 @@ import numpy as np
 from . import backend as bk
 from . import spatial as sp
 from .jcalc import joint_basis, transform_matrices
-from .jcalc import forward_kinematics, joint_transforms, pose_stacks, poses_rows  # noqa: F401 (world.py's imports)
 
 
 def _outward(model, X, a):

@@ -48,9 +48,6 @@ def unflatten_layout(flat, sizes, form):
     return [flat[offs[i] : offs[i + 1]] for i in range(len(sizes))]
 
 
-_flatten = flatten_layout  # the name world.py imports
-
-
 def split_layout(model: Model, qpos: np.ndarray, qvel: np.ndarray):
     """Flat MuJoCo-layout qpos/qvel (numpy) -> internal arrays (numpy)."""
     oq = np.r_[0, np.cumsum(model.nq)[:-1]]

@@ -22,9 +22,10 @@ import numpy as np
 
 from . import backend as bk
 from . import spatial as sp
-from .aba import aba, articulated_inertias, body_velocities, forward_kinematics, impulse, joint_transform_matrices, joint_transforms, pose_stacks, poses_rows
+from .aba import aba, articulated_inertias, body_velocities, impulse
+from .jcalc import forward_kinematics, joint_transform_matrices, joint_transforms, pose_stacks, poses_rows
 from .contact import Contacts
-from .dynamics import _flatten, split_layout, join_velocity_layout
+from .dynamics import flatten_layout, split_layout, join_velocity_layout
 from .integrate import INTEGRATORS, State, step
 from .limits import Limits
 from .model import Model
@@ -124,8 +125,8 @@ class World:
     def set_state(self, qpos, qvel) -> None:
         """Set every creature's state from MuJoCo-layout ``qpos``/``qvel`` (see ``forward_dynamics``)."""
         m, xp = self.model, self.xp
-        qp, _ = _flatten(qpos, m.nq, "qpos")
-        qv, _ = _flatten(qvel, m.nv, "qvel")
+        qp, _ = flatten_layout(qpos, m.nq, "qpos")
+        qv, _ = flatten_layout(qvel, m.nv, "qvel")
         pos, quat, q, lin, omega, qd = split_layout(m, qp, qv)
         f = lambda a: bk.asarray(xp, a, device=m.device)  # noqa: E731
         self.state = State(f(pos), sp.quat_canonical(xp, f(quat)), f(q), f(lin), f(omega), f(qd))
@@ -328,13 +329,13 @@ class World:
         return self._com_rows(poses_rows(self.model, R0, p0, q))
 
     def _com_rows(self, rows):
-        """(C, 3) centres of mass from the component-major poses of :func:`~.aba.poses_rows`."""
+        """(C, 3) centres of mass from the component-major poses of :func:`~.jcalc.poses_rows`."""
         m = self.model
         return m.segment_sum((rows[1] * m.mass).T) / self._total_mass
 
     def _momentum(self, rows, X, R0, lin, omega, qd):
         """(C, 6) world linear momentum and angular momentum about the world origin, at the poses
-        ``rows`` (:func:`~.aba.poses_rows`) with joint transforms ``X`` and the given rates."""
+        ``rows`` (:func:`~.jcalc.poses_rows`) with joint transforms ``X`` and the given rates."""
         xp, m = self.xp, self.model
         v = body_velocities(m, X, xp.concat([omega, sp.mv(R0.mT, lin)], axis=1), qd)
         vt, I = v.T, m.inertia_diag.T
