@@ -33,18 +33,6 @@ FILM_SIZE, FILM_FPS = (480, 360), 20
 KEY_FRAMES, KEY_FRAME_SIZE = 4, (320, 240)
 
 
-def shipped_champions() -> list:
-    """The pre-evolved swimmers that ship with the kit: ``coursekit.creatures.champions()``.
-
-    In a version of coursekit that ships none (no ``champions`` function yet), an empty list:
-    the demos then say so instead of showing anything in their place.
-    """
-    from coursekit import creatures
-
-    champions = getattr(creatures, "champions", None)
-    return list(champions()) if callable(champions) else []
-
-
 def _film(creature, trajectory, frame_times, folder: Path, stem: str) -> dict:
     """Write ``stem.mp4``, ``stem.gif`` (one pass) and ``stem-keyframes.png`` of a recorded swim."""
     from coursekit.creatures.render import animate, keyframes
@@ -62,10 +50,12 @@ def swimmers(out="swimmers-demo", *, population: int | None = None, generations:
 
     Files: ``best.json``, ``best.png``, ``best.mp4`` and ``best.gif`` (the champion swimming, the
     camera following it), ``best-keyframes.png`` (Figure 3), ``fitness.png``, ``summary.json``,
-    and for every shipped champion (:func:`shipped_champions`) ``champion-K.*`` films and key frames.
+    and for every shipped champion (:func:`coursekit.creatures.champions.hall_of_fame`) ``champion-K.*``
+    films and key frames.
 
-    Sizes default by profile (classroom: 60 creatures, 10 generations, 5 s swims -- at 40 x 8 x 4 s
-    the champion barely moved; ci: tiny).
+    Sizes default by profile (classroom: 40 creatures, 8 generations, 10 s swims, Sims' own
+    evaluation time -- in 5 s swims evolution bred creatures that unfold once and stop after the
+    5 s; ci: tiny).
 
     Args:
         workers: processes the population swims in (default: one per core; 1: this process).
@@ -81,11 +71,12 @@ def swimmers(out="swimmers-demo", *, population: int | None = None, generations:
 
     from coursekit.creatures import evolve_swimmers, simulate
     from coursekit.creatures.audit import audit
+    from coursekit.creatures.champions import hall_of_fame
     from coursekit.creatures.render import render
 
-    population = population or sized(classroom=60, ci=6)
-    generations = sized(classroom=10, ci=1) if generations is None else generations
-    seconds = seconds or sized(classroom=5.0, ci=0.5)
+    population = population or sized(classroom=40, ci=6)
+    generations = sized(classroom=8, ci=1) if generations is None else generations
+    seconds = seconds or sized(classroom=10.0, ci=0.5)
     workers = workers or os.cpu_count() or 1
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -96,7 +87,8 @@ def swimmers(out="swimmers-demo", *, population: int | None = None, generations:
         result = evolve_swimmers(generations=generations, rng=rng, population_size=population, seconds=seconds,
                                  progress=progress, random_options=dict(max_parts=16), executor=pool)
         wall["evolution"] = time.perf_counter() - t0
-        best, champions = result.best, shipped_champions()
+        best, fame = result.best, hall_of_fame()
+        champions = [c.creature for c in fame]
         t = time.perf_counter()
         # The audit (is it swimming, or exploiting the simulator?) runs in a worker while this
         # process films the champion and the shipped champions (one batch: the same swims as alone).
@@ -105,9 +97,10 @@ def swimmers(out="swimmers-demo", *, population: int | None = None, generations:
         render(best, out / "best.png")
         replay = simulate([best, *champions], seconds, record_every=3)  # 20 frames per simulated second at dt = 1/60
         films = _film(best, replay.trajectory[0], replay.frame_times, out, "best")
-        shown = [{"parts": int(c.expand().body.n_bodies),
-                  **_film(c, replay.trajectory[k + 1], replay.frame_times, out, f"champion-{k}")}
-                 for k, c in enumerate(champions)]
+        shown = [{"name": c.name, "parts": int(c.creature.expand().body.n_bodies), "speed": c.speed,
+                  "body_lengths_per_second": c.body_lengths_per_second, "command": c.command,
+                  **_film(c.creature, replay.trajectory[k + 1], replay.frame_times, out, f"champion-{k}")}
+                 for k, c in enumerate(fame)]
         wall["films"] = time.perf_counter() - t
         report = (audited.result() if audited is not None else audit([best], seconds))[0]
         wall["films and audit"] = time.perf_counter() - t
@@ -263,16 +256,13 @@ def both(out="coursekit-demo", *, population: int | None = None, generations: in
     pi = pictures(out / "pictures", seed=seed)
     total = time.perf_counter() - t0
     esc = html.escape
-    if sw["champions"]:
-        champions = "\n".join(
-            f'<figure><video src="swimmers/{c["mp4"]}" autoplay loop muted controls playsinline width="{FILM_SIZE[0]}" '
-            f'height="{FILM_SIZE[1]}"></video><img src="swimmers/{c["keyframes"]}" alt="key frames">'
-            f'<figcaption>Champion {k} ({c["parts"]} parts); <a href="swimmers/{c["gif"]}">GIF</a>.</figcaption></figure>'
-            for k, c in enumerate(sw["champions"]))
-        champions = f'<div class="row">{champions}</div>'
-    else:
-        champions = ("<p>This version of coursekit ships no pre-evolved champions "
-                     "(<code>coursekit.creatures.champions()</code> is not there yet).</p>")
+    champions = "\n".join(
+        f'<figure><video src="swimmers/{c["mp4"]}" autoplay loop muted controls playsinline width="{FILM_SIZE[0]}" '
+        f'height="{FILM_SIZE[1]}"></video><img src="swimmers/{c["keyframes"]}" alt="key frames">'
+        f'<figcaption>{esc(c["name"])} ({c["parts"]} parts): {c["speed"]:.3f} m/s = {c["body_lengths_per_second"]:.2f} '
+        f'body lengths/s over 10 s; evolved by <code>{esc(c["command"])}</code>; <a href="swimmers/{c["gif"]}">GIF</a>.'
+        f'</figcaption></figure>' for c in sw["champions"])
+    champions = f'<div class="row">{champions}</div>'
     sheets = "\n".join(f'<figure><img src="pictures/{s}" alt="generation {g}"><figcaption>Generation {g}'
                        f'{" (random)" if g == 0 else ""}.</figcaption></figure>' for g, s in enumerate(pi["sheets"]))
     favourites = "\n".join(f'<figure><img src="pictures/{f}" alt="favourite {k}" width="256"><figcaption><code>'

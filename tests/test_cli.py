@@ -154,12 +154,11 @@ def test_demo_without_a_name_writes_both_demos_and_a_page_that_opens_them(tmp_pa
     assert frames == Image.open(out / "swimmers" / "best.gif").n_frames > 1
     strip = Image.open(out / "swimmers" / "best-keyframes.png")
     assert strip.size[0] > 3 * strip.size[1]  # key frames side by side
-    from coursekit.demos import shipped_champions
+    from coursekit.creatures.champions import hall_of_fame
 
-    champions = shipped_champions()
-    assert len(summary["champions"]) == len(champions)
-    if not champions:  # the page says so rather than show something else in their place
-        assert "ships no pre-evolved champions" in (out / "index.html").read_text()
+    fame = hall_of_fame()
+    assert [c["name"] for c in summary["champions"]] == [c.name for c in fame] and fame  # every one shown, with its film
+    assert all(f"swimmers/champion-{k}.mp4" in targets for k in range(len(fame)))
     pictures = json.loads((out / "pictures" / "summary.json").read_text())
     sheet = Image.open(out / "pictures" / "gallery-0.png")
     assert len(pictures["sheets"]) == pictures["generations"] + 1 and sheet.size[0] > sheet.size[1]  # 4 x 5 gallery

@@ -9,7 +9,8 @@
 - :mod:`.render` — pyvista pictures of creatures;
 - :mod:`.mjcf`, :mod:`.physics`, :mod:`.simulate`, :mod:`.fitness` — MuJoCo export and the
   swimming simulation (2.4);
-- :mod:`.evolution` — :func:`evolve_swimmers`, the GA of 2.2 driven by swimming speed.
+- :mod:`.evolution` — :func:`evolve_swimmers`, the GA of 2.2 driven by swimming speed;
+- :mod:`.champions` — :func:`champions`, the pre-evolved swimmers that ship with the kit.
 """
 
 from . import operators
@@ -21,6 +22,7 @@ from .phenotype import MAX_PARTS, Phenotype, expand, part_poses
 from .simulate import SimulationResult, simulate
 from .render import animate, render  # noqa: E402  (the function shadows the submodule's name on purpose)
 from .evolution import evolve_swimmers, resume_swimmers
+from .champions import champions
 
 
 def to_mjcf(creature, **options) -> str:
@@ -31,7 +33,7 @@ def to_mjcf(creature, **options) -> str:
 
 
 __all__ = [
-    "BodyTree", "animate", "Brain", "BrainBatch", "ChildLink", "Creature", "FORMAT", "FUNCTION_NAMES", "Input", "MAX_PARTS",
+    "BodyTree", "animate", "Brain", "BrainBatch", "ChildLink", "champions", "Creature", "FORMAT", "FUNCTION_NAMES", "Input", "MAX_PARTS",
     "Neuron", "Node", "Phenotype", "Recursion", "SENSORS", "SimulationResult", "Symmetry", "evolve_swimmers", "expand", "resume_swimmers",
     "operators", "part_poses", "render", "simulate", "to_mjcf",
 ]

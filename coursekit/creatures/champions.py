@@ -1,0 +1,67 @@
+"""Pre-evolved swimmers that ship with the kit: the hall of fame of real runs.
+
+Students should see a good swimmer without waiting for evolution. ``coursekit/data/champions.json``
+holds each champion's genotype with the command and seed that evolved it, the code it was evolved
+with, and what it measured then: its speed over 10 s (m/s) and its body length (m), hence body
+lengths per second. A run is deterministic for its seed and code, but evolution is chaotic: any
+change to the physics sends it down another path, so a champion is not re-derived on every
+change. What the tests check is what a student sees now: every champion still swims at its
+recorded pace, steadily, and passes the audit (:mod:`~coursekit.creatures.audit`).
+
+>>> [round(c.body_lengths_per_second, 2) for c in hall_of_fame()]
+[0.12]
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+from .genotype import Creature
+
+#: The format tag of ``champions.json``.
+FORMAT = "coursekit.champions/1"
+_FIELDS = {"name": str, "command": str, "seed": int, "evolved_with": str, "speed": float, "body_length": float, "creature": dict}
+
+
+@dataclass(frozen=True)
+class Champion:
+    """One entry of the hall of fame: the creature, how it was evolved, what it measured."""
+
+    name: str
+    command: str
+    seed: int
+    evolved_with: str
+    speed: float  #: m/s over 10 s, when it was evolved
+    body_length: float  #: m (:func:`~coursekit.creatures.audit.body_length`)
+    creature: Creature
+
+    @property
+    def body_lengths_per_second(self) -> float:
+        return self.speed / self.body_length
+
+
+def hall_of_fame() -> list[Champion]:
+    """Every shipped champion, with its provenance (module docstring).
+
+    Raises:
+        ValueError: the data file is not a champions file, naming the entry and field at fault.
+    """
+    from coursekit import data
+
+    doc = json.loads(data.path("champions.json").read_text())
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise ValueError(f"champions.json: format must be {FORMAT!r}")
+    out = []
+    for i, entry in enumerate(doc.get("champions", [])):
+        for name, kind in _FIELDS.items():
+            value = entry.get(name) if isinstance(entry, dict) else None
+            if not isinstance(value, kind) or isinstance(value, bool) or (kind is float and not value > 0):
+                raise ValueError(f"champions.json: champion {i}: field {name!r} must be {'a positive number' if kind is float else kind.__name__}, got {value!r}")
+        out.append(Champion(**{**entry, "creature": Creature.from_json(json.dumps(entry["creature"]))}))
+    return out
+
+
+def champions() -> list[Creature]:
+    """The shipped champions' creatures, fittest first (see :func:`hall_of_fame`)."""
+    return [c.creature for c in sorted(hall_of_fame(), key=lambda c: -c.speed)]
