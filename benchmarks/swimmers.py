@@ -44,7 +44,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from coursekit.creatures.mjcf import to_mjcf  # noqa: E402
+from coursekit.creatures.mjcf import mujoco_model  # noqa: E402
 from coursekit.creatures.physics import random_body_tree, random_state  # noqa: E402
 from coursekit.creatures.physics.world import World  # noqa: E402
 
@@ -102,7 +102,7 @@ def mujoco_step(trees, states):
     """One RK4 step of MuJoCo on the same creatures, exported into one model (a function to time)."""
     import mujoco
 
-    model = mujoco.MjModel.from_xml_string(to_mjcf(trees, timestep=DT, integrator="RK4"))
+    model = mujoco_model(trees, timestep=DT, integrator="RK4")
     data = mujoco.MjData(model)
     data.qpos[:] = np.concatenate([s[0] for s in states])
     data.qvel[:] = np.concatenate([s[1] for s in states])
