@@ -12,6 +12,8 @@
 - :mod:`.evolution` — :func:`evolve_swimmers`, the GA of 2.2 driven by swimming speed.
 """
 
+from typing import Any
+
 from . import operators
 from .body import BodyTree
 from .brain import Brain, BrainBatch
@@ -23,7 +25,7 @@ from .render import animate, render  # noqa: E402  (the function shadows the sub
 from .evolution import evolve_swimmers, resume_swimmers
 
 
-def to_mjcf(creature, **options) -> str:
+def to_mjcf(creature: Any, **options: Any) -> str:
     """MuJoCo MJCF of ``creature``'s expanded body (see :mod:`coursekit.creatures.mjcf`)."""
     from .mjcf import to_mjcf as _to_mjcf
 

@@ -17,7 +17,7 @@ and appending them to a ``MUJOCO_LOG.TXT`` in whatever folder the process runs i
 from __future__ import annotations
 
 import logging
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -91,7 +91,7 @@ def _creature_xml(tree, prefix: str, pos) -> tuple[list[str], list[str]]:
     return lines, motors
 
 
-def to_mjcf(creatures, *, timestep: float = 1.0 / 60.0, integrator: str = "RK4", name: str = "coursekit") -> str:
+def to_mjcf(creatures: Any, *, timestep: float = 1.0 / 60.0, integrator: str = "RK4", name: str = "coursekit") -> str:
     """MJCF text of one creature or a list of creatures (each its own free-floating tree).
 
     Args:
@@ -141,7 +141,7 @@ def log_mujoco_warnings() -> None:
         mujoco.set_mju_user_warning(_warn)
 
 
-def mujoco_model(creatures, **options) -> mujoco.MjModel:
+def mujoco_model(creatures: Any, **options: Any) -> mujoco.MjModel:
     """A ``mujoco.MjModel`` of :func:`to_mjcf` ``(creatures, **options)``, with MuJoCo's warnings
     sent to the ``coursekit.mujoco`` logger (:func:`log_mujoco_warnings`).
 
