@@ -22,7 +22,8 @@ the CPU keeps its wall time; one that used several cores at once is counted at i
 
 ``--sections`` adds the run time of every ``## `` section. ``--estimates write`` puts a time
 estimate under each section heading of the lessons (measured computing time plus reading time,
-see :func:`estimate_minutes`; computing is counted as on an idle machine) and refreshes the "Run All takes about N s" line of their header;
+see :func:`estimate_minutes`; computing is counted as on an idle machine) and refreshes the
+"about N minutes to read, run and try; Run All takes about N s" line of their header;
 ``--estimates check`` reports the notes that no longer match the measurement. Only cell sources
 change: the notebooks stay without outputs. ``--cores N`` pins this process and the kernels it
 starts to N CPU cores (Linux), to measure a 2-core laptop on a bigger machine. A notebook that
@@ -54,6 +55,7 @@ CODE_LINES_PER_MINUTE = 15  # reading a code cell before running it
 TRY_MINUTES = 3  # a "Try this" prompt or a self-check: a few minutes of the student's own work
 NOTE = re.compile(r"^\*About \d+ min: (?:under 1 s|(\d+) s) of computing, plus (?:reading|reading and trying)\.\*$")
 RUN_ALL = re.compile(r"Run All takes about \d+ s")
+TOTAL = re.compile(r"about \d+ minutes to read, run and try")
 
 
 def _seconds(cell) -> float:
@@ -116,6 +118,7 @@ def run_notebook(path: Path, timeout: float, long: float) -> dict:
         if meter.process is None:
             provisioner = getattr(client.km, "provisioner", None)
             meter.attach(getattr(provisioner, "pid", None))
+            cpu_at["start"] = [0.0, meter.read()]  # the kernel's own start-up
         cpu_at[cell_index] = [meter.read(), None]
 
     def after(cell, cell_index, **_):
@@ -132,6 +135,7 @@ def run_notebook(path: Path, timeout: float, long: float) -> dict:
     except Exception as exc:  # a kernel that died or timed out: report it, go on with the next notebook
         error = f"{type(exc).__name__}: {exc}"[:120]
     wall = time.perf_counter() - start
+    startup = cpu_at.pop("start", [0.0, 0.0])[1]
     cpu = {i: (b - a) if b is not None else 0.0 for i, (a, b) in cpu_at.items()}
     walls = {i: _seconds(c) for i, c in enumerate(nb.cells) if c.cell_type == "code"}
     # what a cell would take on an idle machine: its wall time, unless it spent less time on the CPU
@@ -141,7 +145,8 @@ def run_notebook(path: Path, timeout: float, long: float) -> dict:
     slow_i, slow_s, _ = max(cells, key=lambda c: c[1]) if cells else (0, 0.0, True)
     longer = [(i, s, bar) for i, s, bar in cells if s > long]
     return {"notebook": path.relative_to(ROOT).as_posix(), "path": path, "seconds": wall,
-            "cpu_seconds": sum(cpu.values()), "load": os.getloadavg()[0], "slowest_cell": slow_i,
+            "cpu_seconds": startup + sum(cpu.values()), "startup": startup, "load": os.getloadavg()[0],
+            "slowest_cell": slow_i,
             "slowest_seconds": slow_s, "long_cells": len(longer),
             "long_without_bar": [i for i, _, bar in longer if not bar], "error": error,
             "computing": computing, "sections": sections(nb, computing)}
@@ -253,9 +258,22 @@ def write_estimates(nb, cell_seconds: dict[int, float], run_all: float | None = 
     if run_all is not None and nb.cells:
         head = nb.cells[0]
         text = RUN_ALL.sub(f"Run All takes about {round(run_all)} s", head.source)
+        text = TOTAL.sub(f"about {total_minutes(nb, cell_seconds)} minutes to read, run and try", text)
         if text != head.source:
             head.source = text
     return changed
+
+
+def total_minutes(nb, cell_seconds: dict[int, float]) -> int:
+    """A whole lesson's estimate: its sections' (:func:`estimate_minutes`) plus reading what comes
+    before the first section (its goals, the imports and their run time)."""
+    found = sections(nb, cell_seconds)
+    first = found[0]["cell"] if found else len(nb.cells)
+    intro = {"heading": "", "seconds": sum(cell_seconds.get(i, 0.0) for i in range(first)),
+             "words": sum(_words(c.source.splitlines()) for c in nb.cells[:first] if c.cell_type == "markdown"),
+             "code_lines": sum(1 for c in nb.cells[:first] if c.cell_type == "code" for line in c.source.splitlines()
+                               if line.strip())}
+    return estimate_minutes(intro) + sum(estimate_minutes(s) for s in found)
 
 
 def _drop_double_blank(lines: list[str]) -> list[str]:
@@ -282,13 +300,21 @@ def estimates(rows, mode: str) -> tuple[str, int]:
         count += len(bad)
         for s, old in bad:
             report.append(f"{r['notebook']} / {s['heading']}: noted {old or '(nothing)'}; measured {note(s)}")
-        if mode == "write" and bad:
-            write_estimates(nb, r["computing"], run_all=sum(r["computing"].values()))
-            atomic_write(r["path"], nbformat.writes(nb) + "\n")
+        if mode == "write":
+            text = nbformat.writes(nb)
+            write_estimates(nb, r["computing"], run_all=_idle(r))
+            if nbformat.writes(nb) != text:
+                atomic_write(r["path"], nbformat.writes(nb) + "\n")
     return "\n".join(report) or "every section's estimate matches the measurement", count
 
 
 # --- the table --------------------------------------------------------------------------------------
+
+def _idle(r) -> float:
+    """Seconds a Run All would take on an idle machine: the kernel's start-up plus every cell's
+    smaller of wall and CPU time."""
+    return r["startup"] + sum(r["computing"].values())
+
 
 def table(rows, budget: float, long: float) -> str:
     head = (f"| notebook | run time (s) | CPU time (s) | cells on an idle machine (s) | slowest cell (s) "
@@ -298,11 +324,11 @@ def table(rows, budget: float, long: float) -> str:
     for r in rows:
         ok = "FAILED: " + r["error"] if r["error"] else ("yes" if r["seconds"] <= budget else "NO")
         bare = ", ".join(f"cell {i}" for i in r["long_without_bar"]) or "-"
-        lines.append(f"| {r['notebook']} | {r['seconds']:.1f} | {r['cpu_seconds']:.1f} | {sum(r['computing'].values()):.1f} "
+        lines.append(f"| {r['notebook']} | {r['seconds']:.1f} | {r['cpu_seconds']:.1f} | {_idle(r):.1f} "
                      f"| {r['slowest_seconds']:.1f} (cell {r['slowest_cell']}) | {r['long_cells']} | {bare} "
                      f"| {r['load']:.1f} | {ok} |")
     total, cpu = sum(r["seconds"] for r in rows), sum(r["cpu_seconds"] for r in rows)
-    idle = sum(sum(r["computing"].values()) for r in rows)
+    idle = sum(_idle(r) for r in rows)
     kept = sum(r["seconds"] <= budget and not r["error"] for r in rows)
     lines.append(f"| **all {len(rows)}** | {total:.1f} | {cpu:.1f} | {idle:.1f} | | | | | {kept} of {len(rows)} |")
     return "\n".join(lines)
