@@ -13,12 +13,13 @@ would. Cells are numbered from 0, as nbformat counts them (markdown cells includ
 table gives the wall time (kernel start included), the CPU time of the kernel and the processes it
 started, the slowest cell, the cells longer than ``--long`` seconds and which of those showed no
 progress bar (a tqdm bar or widget in their output), the 1-minute load average when it ended, and
-whether the notebook stayed within the course's budget of ``--budget`` seconds. On a machine
-shared with other work the wall time grows with the load while the CPU time does not: a CPU time
+whether the notebook stays within the course's budget of ``--budget`` seconds on an idle machine.
+On a machine shared with other work the wall time grows with the load while the CPU time does not: a CPU time
 well under the wall time with a load above the core count means the notebook waited for the CPU.
 "Cells on an idle machine" adds up, cell by cell, the smaller of the cell's wall and CPU time:
 what the cells would take with the cores to themselves (a cell waiting for something else than
-the CPU keeps its wall time; one that used several cores at once is counted at its wall time).
+the CPU keeps its wall time; one that kept several cores busy is counted at no more than the CPU
+time of all its processes, an upper bound on a busy machine).
 
 ``--sections`` adds the run time of every ``## `` section. ``--estimates write`` puts a time
 estimate under each section heading of the lessons (measured computing time plus reading time,
@@ -253,7 +254,7 @@ def write_estimates(nb, cell_seconds: dict[int, float], run_all: float | None = 
         else:
             lines[k + 1:k + 1] = ["", new] + ([""] if k + 1 < len(lines) else [])
             lines[k + 1:] = _drop_double_blank(lines[k + 1:])
-        cell.source = "\n".join(lines)
+        cell.source = "\n".join(lines) + ("\n" if cell.source.endswith("\n") else "")
         changed += 1
     if run_all is not None and nb.cells:
         head = nb.cells[0]
@@ -318,18 +319,19 @@ def _idle(r) -> float:
 
 def table(rows, budget: float, long: float) -> str:
     head = (f"| notebook | run time (s) | CPU time (s) | cells on an idle machine (s) | slowest cell (s) "
-            f"| cells > {long:g} s | of them without a progress bar | load at end | within {budget:g} s |\n"
+            f"| cells > {long:g} s | of them without a progress bar | load at end "
+            f"| within {budget:g} s on an idle machine |\n"
             "|---|---:|---:|---:|---:|---:|---|---:|---|")
     lines = [head]
     for r in rows:
-        ok = "FAILED: " + r["error"] if r["error"] else ("yes" if r["seconds"] <= budget else "NO")
+        ok = "FAILED: " + r["error"] if r["error"] else ("yes" if _idle(r) <= budget else "NO")
         bare = ", ".join(f"cell {i}" for i in r["long_without_bar"]) or "-"
         lines.append(f"| {r['notebook']} | {r['seconds']:.1f} | {r['cpu_seconds']:.1f} | {_idle(r):.1f} "
                      f"| {r['slowest_seconds']:.1f} (cell {r['slowest_cell']}) | {r['long_cells']} | {bare} "
                      f"| {r['load']:.1f} | {ok} |")
     total, cpu = sum(r["seconds"] for r in rows), sum(r["cpu_seconds"] for r in rows)
     idle = sum(_idle(r) for r in rows)
-    kept = sum(r["seconds"] <= budget and not r["error"] for r in rows)
+    kept = sum(_idle(r) <= budget and not r["error"] for r in rows)
     lines.append(f"| **all {len(rows)}** | {total:.1f} | {cpu:.1f} | {idle:.1f} | | | | | {kept} of {len(rows)} |")
     return "\n".join(lines)
 
