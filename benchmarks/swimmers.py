@@ -62,7 +62,7 @@ import numpy as np  # noqa: E402
 
 from coursekit.creatures import BrainBatch, Creature  # noqa: E402
 from coursekit.creatures.body import REVOLUTE  # noqa: E402
-from coursekit.creatures.mjcf import to_mjcf  # noqa: E402
+from coursekit.creatures.mjcf import mujoco_model  # noqa: E402
 from coursekit.creatures.physics import random_body_tree, random_state  # noqa: E402
 from coursekit.creatures.physics.world import World  # noqa: E402
 
@@ -128,7 +128,7 @@ def mujoco_step(trees, states, contacts=False, ctrl=None, brain=None):
     """
     import mujoco
 
-    model = mujoco.MjModel.from_xml_string(to_mjcf(trees, timestep=DT, integrator="RK4", contacts=contacts))
+    model = mujoco_model(trees, timestep=DT, integrator="RK4", contacts=contacts)
     data = mujoco.MjData(model)
     data.qpos[:] = np.concatenate([s[0] for s in states])
     data.qvel[:] = np.concatenate([s[1] for s in states])

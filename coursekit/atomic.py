@@ -14,12 +14,13 @@ from __future__ import annotations
 import os
 import tempfile
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 
 @contextmanager
-def atomic_path(path, suffix: str = ".tmp"):
+def atomic_path(path: str | os.PathLike[str], suffix: str = ".tmp") -> Iterator[Path]:
     """A temporary sibling of ``path`` for writers that take a file name (OpenImageIO, VTK).
 
     Yields the temporary path; when the block succeeds the file is moved onto ``path``, when it
@@ -51,7 +52,7 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def sweep(path, max_age: float = 3600.0) -> list[Path]:
+def sweep(path: str | os.PathLike[str], max_age: float = 3600.0) -> list[Path]:
     """Remove the temporary siblings of ``path`` left by writers that died; returns them.
 
     A temporary whose process id (in its name) is not running is removed; one without a
@@ -79,7 +80,7 @@ def sweep(path, max_age: float = 3600.0) -> list[Path]:
     return gone
 
 
-def atomic_write(path, data: bytes | str) -> Path:
+def atomic_write(path: str | os.PathLike[str], data: bytes | str) -> Path:
     """Write ``data`` (text is UTF-8) to ``path`` atomically, flushed to disk before the move."""
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:

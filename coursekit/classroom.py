@@ -17,6 +17,8 @@ import contextlib
 import importlib
 import sys
 import traceback
+from collections.abc import Iterator
+from typing import TextIO
 
 __all__ = ["demo", "setup_check"]
 
@@ -28,7 +30,7 @@ def _unwritten(exc: BaseException) -> str | None:
 
 
 @contextlib.contextmanager
-def demo(uses: str | None = None):
+def demo(uses: str | None = None) -> Iterator[None]:
     """Run a demo cell; if a function it needs is not written yet, say so instead of failing.
 
     Use it around the code of a demo cell of an exercise (``with demo():``). A
@@ -106,7 +108,7 @@ def _check_torch():
 CHECKS = {"3D rendering": _check_rendering, "widgets": _check_widgets, "torch": _check_torch}
 
 
-def setup_check(file=None) -> dict:
+def setup_check(file: TextIO | None = None) -> dict:
     """Check 3D rendering, widgets and torch; print one line each (with the fix when one fails).
 
     Returns:

@@ -13,7 +13,9 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import os
 import shutil
+from collections.abc import Sequence
 from pathlib import Path
 
 from coursekit.atomic import atomic_path, atomic_write
@@ -46,7 +48,7 @@ def source() -> Path:
                             "reinstall coursekit (pip install coursekit) or run from a checkout")
 
 
-def files(root: Path | None = None, folders=STUDENT_FOLDERS) -> list[str]:
+def files(root: Path | None = None, folders: Sequence[str] = STUDENT_FOLDERS) -> list[str]:
     """The course files under ``root`` (default :func:`source`), as sorted POSIX paths relative to it."""
     root = source() if root is None else Path(root)
     out = []
@@ -77,7 +79,7 @@ class CopyReport:
         return text
 
 
-def copy_course(dest, *, src: Path | None = None) -> CopyReport:
+def copy_course(dest: str | os.PathLike[str], *, src: Path | None = None) -> CopyReport:
     """Copy the student folders into ``dest`` without ever overwriting a student's changes.
 
     A file not yet in ``dest`` is copied. A file already there is left alone, unless it is

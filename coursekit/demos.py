@@ -44,8 +44,9 @@ def _film(creature, trajectory, frame_times, folder: Path, stem: str) -> dict:
     return names
 
 
-def swimmers(out="swimmers-demo", *, population: int | None = None, generations: int | None = None,
-             seconds: float | None = None, seed: int = 0, workers: int | None = None, progress: bool = True) -> dict:
+def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int | None = None,
+             generations: int | None = None, seconds: float | None = None, seed: int = 0, workers: int | None = None,
+             progress: bool = True) -> dict:
     """Evolve swimmers and write the champion's files and the run's fitness plot to ``out``.
 
     Files: ``best.json``, ``best.png``, ``best.mp4`` and ``best.gif`` (the champion swimming, the
@@ -154,8 +155,8 @@ def _sheet(images: np.ndarray, columns: int, picked, gap: int = 6) -> np.ndarray
     return sheet
 
 
-def pictures(out="pictures-demo", *, generations: int | None = None, size: int | None = None, picks: int = 2,
-             seed: int = 0) -> dict:
+def pictures(out: str | os.PathLike[str] = "pictures-demo", *, generations: int | None = None, size: int | None = None,
+             picks: int = 2, seed: int = 0) -> dict:
     """A breeding session (paper section 3) with the script as the audience, written to ``out``.
 
     Sims' 4 x 5 gallery of random pictures; in every generation the script picks the ``picks``
@@ -241,8 +242,9 @@ def _links(page: str) -> list[str]:
     return re.findall(r'(?:src|href)="([^"]+)"', page)
 
 
-def both(out="coursekit-demo", *, population: int | None = None, generations: int | None = None,
-         seconds: float | None = None, seed: int = 0, workers: int | None = None, progress: bool = True) -> dict:
+def both(out: str | os.PathLike[str] = "coursekit-demo", *, population: int | None = None,
+         generations: int | None = None, seconds: float | None = None, seed: int = 0, workers: int | None = None,
+         progress: bool = True) -> dict:
     """Both demos into ``out`` (``swimmers/``, ``pictures/``) and an ``index.html`` that opens them.
 
     Returns:

@@ -8,8 +8,10 @@ top to bottom in CI. The same code runs in both; only the sizes change.
 from __future__ import annotations
 
 import os
+from typing import TypeVar
 
 PROFILES = ("classroom", "ci")
+T = TypeVar("T")
 
 
 def current() -> str:
@@ -20,6 +22,6 @@ def current() -> str:
     return name
 
 
-def sized(classroom, ci):
+def sized(classroom: T, ci: T) -> T:
     """Pick a size by profile: ``generations = sized(classroom=40, ci=5)``."""
     return ci if current() == "ci" else classroom

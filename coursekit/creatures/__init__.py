@@ -13,6 +13,8 @@
 - :mod:`.champions` — :func:`champions`, the pre-evolved swimmers that ship with the kit.
 """
 
+from typing import Any
+
 from . import operators
 from .body import BodyTree
 from .brain import Brain, BrainBatch
@@ -25,7 +27,7 @@ from .evolution import evolve_swimmers, resume_swimmers
 from .champions import champions
 
 
-def to_mjcf(creature, **options) -> str:
+def to_mjcf(creature: Any, **options: Any) -> str:
     """MuJoCo MJCF of ``creature``'s expanded body (see :mod:`coursekit.creatures.mjcf`)."""
     from .mjcf import to_mjcf as _to_mjcf
 

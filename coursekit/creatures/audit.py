@@ -33,10 +33,14 @@ with the effectors off is over :data:`VACUUM_TOLERANCE` of the distance swum, wh
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .physics.limits import MAX_EXCESS
+
+if TYPE_CHECKING:
+    from .body import BodyTree
 
 #: Largest vacuum drift in the fine run, as a share of the distance swum in water.
 VACUUM_TOLERANCE = 0.05
@@ -82,7 +86,7 @@ class AuditReport:
                 f"worst limit excess {100 * self.limit_excess:.1f} % of range; energy {self.energy:.3g} J; {verdict}")
 
 
-def body_length(body) -> float:
+def body_length(body: BodyTree) -> float:
     """The creature's largest extent at rest (m): its length, the unit of "body lengths per second"."""
     from .render import box_corners
 
@@ -100,7 +104,7 @@ class _Silent:
         return np.zeros(self.n)
 
 
-def audit(creatures, seconds: float = 10.0, *, dt: float = 1.0 / 60.0, **options) -> list[AuditReport]:
+def audit(creatures: Any, seconds: float = 10.0, *, dt: float = 1.0 / 60.0, **options: Any) -> list[AuditReport]:
     """Audit creatures for exploits (module docstring); one :class:`AuditReport` each.
 
     Args:

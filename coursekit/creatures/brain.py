@@ -17,11 +17,17 @@ sensors), then every effector reads its source's new value times its weight. Phy
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .neural import FUNCTION_CODE, FUNCTION_NAMES, MAX_INPUTS, N_SENSORS, SENSORS, evaluate, function_groups
+
+if TYPE_CHECKING:
+    from .phenotype import Phenotype
 
 ZERO, ONE = 0, 1
 N_CONST = 2
@@ -147,7 +153,7 @@ class BrainBatch:
     outputs per joint, before gain and strength clamping.
     """
 
-    def __init__(self, brains) -> None:
+    def __init__(self, brains: Sequence[Brain | Phenotype]) -> None:
         brains = [getattr(b, "brain", b) for b in brains]
         if not brains or not all(isinstance(b, Brain) for b in brains):
             raise TypeError("BrainBatch.brains: expected a non-empty list of Brain (or Phenotype) objects")
@@ -194,7 +200,7 @@ class BrainBatch:
         self._first = True
         self.time = 0.0
 
-    def step(self, joint_angle, joint_velocity, contact, dt: float) -> np.ndarray:
+    def step(self, joint_angle: ArrayLike, joint_velocity: ArrayLike, contact: ArrayLike, dt: float) -> np.ndarray:
         """One brain tick.
 
         Args:

@@ -14,7 +14,10 @@ from __future__ import annotations
 
 import inspect
 import math
+import os
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -110,24 +113,24 @@ def _unbatched(creature):  # pragma: no cover - never called: SwimmerFitness eva
 
 
 def evolve_swimmers(
-    population=None,
+    population: Sequence[Creature] | None = None,
     *,
     generations: int,
     rng: np.random.Generator,
     population_size: int = 300,
     seconds: float = 10.0,
-    mutate=operators.mutate,
-    crossover=operators.crossover,
-    graft=operators.graft,
-    ratios=(0.4, 0.3, 0.3),
-    select=ga.sims_select,
+    mutate: Callable = operators.mutate,
+    crossover: Callable = operators.crossover,
+    graft: Callable = operators.graft,
+    ratios: tuple[float, float, float] = (0.4, 0.3, 0.3),
+    select: Callable = ga.sims_select,
     elite: int | None = None,
-    checkpoint=None,
+    checkpoint: str | os.PathLike[str] | None = None,
     progress: bool = True,
-    callback=None,
+    callback: Callable | None = None,
     random_options: dict | None = None,
-    executor=None,
-    **simulate_options,
+    executor: Any | None = None,
+    **simulate_options: Any,
 ) -> ga.EvolutionResult:
     """Evolve swimmers for speed.
 
@@ -170,18 +173,18 @@ def evolve_swimmers(
 
 
 def resume_swimmers(
-    checkpoint,
+    checkpoint: str | os.PathLike[str],
     *,
     generations: int,
     seconds: float = 10.0,
-    mutate=operators.mutate,
-    crossover=operators.crossover,
-    graft=operators.graft,
-    ratios=(0.4, 0.3, 0.3),
+    mutate: Callable = operators.mutate,
+    crossover: Callable = operators.crossover,
+    graft: Callable = operators.graft,
+    ratios: tuple[float, float, float] = (0.4, 0.3, 0.3),
     progress: bool = True,
-    callback=None,
-    executor=None,
-    **simulate_options,
+    callback: Callable | None = None,
+    executor: Any | None = None,
+    **simulate_options: Any,
 ) -> ga.EvolutionResult:
     """Continue a run of :func:`evolve_swimmers` from its checkpoint (:func:`coursekit.ga.resume`).
 

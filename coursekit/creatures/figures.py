@@ -19,11 +19,23 @@ visit; links outside it are drawn curved), so no Graphviz is needed.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 import numpy as np
+from numpy.typing import ArrayLike
 import matplotlib.pyplot as plt
 from matplotlib.patches import FancyArrowPatch, Polygon
 
 from coursekit.pictures.figures import tree_layout
+
+if TYPE_CHECKING:
+    import matplotlib.axes
+    import matplotlib.figure
+    from matplotlib.animation import FuncAnimation
+
+    from .body import BodyTree
+    from .genotype import Creature
 
 #: colour of genotype node i: NODE_COLOURS(i % 10)
 NODE_COLOURS = plt.get_cmap("tab10")
@@ -65,7 +77,8 @@ def _genotype_positions(nodes):
     return {i: (x * 1.3, -y * 1.2) for i, (x, y) in pos.items()}, kids
 
 
-def draw_genotype(creature, ax=None, *, colours=None, labels=None, title="genotype graph"):
+def draw_genotype(creature: Creature, ax: matplotlib.axes.Axes | None = None, *, colours: Sequence | None = None,
+                  labels: Sequence[str] | None = None, title: str | None = "genotype graph") -> matplotlib.axes.Axes:
     """Draw a creature's morphology graph (paper Fig. 1, left).
 
     Args:
@@ -113,7 +126,8 @@ def draw_genotype(creature, ax=None, *, colours=None, labels=None, title="genoty
     return ax
 
 
-def draw_body_tree(creature, ax=None, *, title=None):
+def draw_body_tree(creature: Creature, ax: matplotlib.axes.Axes | None = None, *,
+                   title: str | None = None) -> matplotlib.axes.Axes:
     """Draw the part tree that ``creature.expand()`` grows, each part coloured by its genotype node."""
     pheno = creature.expand()
     body = pheno.body
@@ -132,7 +146,8 @@ def draw_body_tree(creature, ax=None, *, title=None):
     return ax
 
 
-def genotype_and_body(creature, *, render_body=True, figsize=None):
+def genotype_and_body(creature: Creature, *, render_body: bool = True,
+                      figsize: tuple[float, float] | None = None) -> matplotlib.figure.Figure:
     """Fig. 1 from a live creature: its genotype graph, the part tree it expands into and (optionally) the body.
 
     Returns:
@@ -157,7 +172,7 @@ def _signature(node):
             tuple(node.limits), node.force)
 
 
-def origins(child, a, b) -> list[str]:
+def origins(child: Creature, a: Creature, b: Creature) -> list[str]:
     """Per node of ``child``: ``"a"``, ``"b"``, ``"both"`` (identical in both parents) or ``"new"`` (from repair)."""
     sa = {_signature(n) for n in a.nodes}
     sb = {_signature(n) for n in b.nodes}
@@ -172,7 +187,8 @@ def _nodes(n):
     return f"{n} node" if n == 1 else f"{n} nodes"
 
 
-def draw_recombination(a, b, child, *, figsize=(13, 4)):
+def draw_recombination(a: Creature, b: Creature, child: Creature, *,
+                       figsize: tuple[float, float] = (13, 4)) -> matplotlib.figure.Figure:
     """Fig. 2 from live creatures: parents ``a`` and ``b`` and their ``child``, nodes coloured by parent.
 
     Nodes are numbered by their LR (pre-order) position, the numbering the recombination uses.
@@ -196,7 +212,7 @@ def draw_recombination(a, b, child, *, figsize=(13, 4)):
 # ------------------------------------------------------------------------- the ABA's sweeps
 
 
-def aba_schedule(parent) -> list[tuple[int, int, list[int]]]:
+def aba_schedule(parent: ArrayLike) -> list[tuple[int, int, list[int]]]:
     """The articulated-body algorithm's visiting order over a tree, as the batched simulator runs it.
 
     Returns:
@@ -222,7 +238,8 @@ SWEEPS = {1: ("sweep 1, outward: velocities", r"$v_i = X_i\,v_{\lambda(i)} + S_i
           3: ("sweep 3, outward: accelerations", r"$\ddot q_i = (u_i - U_i^T a'_i)/d_i$,  $a_i = a'_i + S_i \ddot q_i$")}
 
 
-def aba_sweeps(tree, qpos, qvel, tau, *, interval=700):
+def aba_sweeps(tree: BodyTree, qpos: ArrayLike, qvel: ArrayLike, tau: ArrayLike, *,
+               interval: int = 700) -> FuncAnimation:
     """Animate the ABA's three sweeps on ``tree`` (a BodyTree) at state ``(qpos, qvel)`` with joint forces ``tau``.
 
     Each frame lights the depth level the sweep is working on; sweep 3 writes the joint
@@ -280,7 +297,7 @@ def aba_sweeps(tree, qpos, qvel, tau, *, interval=700):
 # ------------------------------------------------------------------------------ collisions
 
 
-def draw_contacts(tree, qpos, ax=None):
+def draw_contacts(tree: BodyTree, qpos: ArrayLike, ax: matplotlib.axes.Axes | None = None) -> matplotlib.axes.Axes:
     """The posed body's boxes seen along their thinnest direction, touching pairs and contact normals marked.
 
     Args:

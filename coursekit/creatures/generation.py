@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from typing import NamedTuple
+from collections.abc import Sequence
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 
@@ -32,6 +33,8 @@ from .morphology import (
 )
 from .neural import MAX_BRAIN_NEURONS, MAX_NEURONS, N_SENSORS, Input, Neuron, is_int, random_input, random_neuron
 from .phenotype import MAX_PARTS, expand
+
+T = TypeVar("T")
 
 __all__ = ["SIZES", "COORDS", "FORCES", "REVOLUTE_LIMITS", "PRISMATIC_LIMITS", "SCALES", "AXES", "ROTATIONS", "FACES",
            "choice", "random_face_point", "facing_rotation", "mirror_axis", "random_node", "random_link",
@@ -71,12 +74,12 @@ FACES = tuple(tuple(float(v) for v in f) for f in [(-1, 0, 0), (1, 0, 0), (0, -1
 
 # ----------------------------------------------------------------------- random elements
 
-def choice(rng, seq):
+def choice(rng: np.random.Generator, seq: Sequence[T]) -> T:
     """One element of ``seq``, uniformly (one ``rng.integers`` draw)."""
     return seq[int(rng.integers(len(seq)))]
 
 
-def random_face_point(rng) -> tuple:
+def random_face_point(rng: np.random.Generator) -> tuple:
     """A point on the unit box surface from the predefined coordinates (one component ±1)."""
     k = int(rng.integers(3))
     p = [choice(rng, COORDS) for _ in range(3)]
@@ -95,7 +98,7 @@ def facing_rotation(rng, parent_pos, child_joint_pos) -> tuple:
     return ROTATIONS[int(choice(rng, good))] if good.size else choice(rng, ROTATIONS)
 
 
-def mirror_axis(rng, node: Node, child: int) -> int | None:
+def mirror_axis(rng: np.random.Generator, node: Node, child: int) -> int | None:
     """A random axis that moves every link to ``child`` when mirrored (so copies don't
     coincide), or None when there is none."""
     links = [c.pos for c in node.children if c.child == child]
@@ -103,7 +106,7 @@ def mirror_axis(rng, node: Node, child: int) -> int | None:
     return choice(rng, axes) if links and axes else None
 
 
-def random_node(rng) -> Node:
+def random_node(rng: np.random.Generator) -> Node:
     """A random node with no links and no neurons (effector: constant 0 until wired)."""
     jt = choice(rng, ("revolute", "revolute", "revolute", "prismatic"))
     lim = choice(rng, REVOLUTE_LIMITS if jt == "revolute" else PRISMATIC_LIMITS)
@@ -116,14 +119,14 @@ def random_node(rng) -> Node:
     return node
 
 
-def random_link(rng, child: int, parent_node: Node, child_node: Node) -> ChildLink:
+def random_link(rng: np.random.Generator, child: int, parent_node: Node, child_node: Node) -> ChildLink:
     """A random link to ``child`` whose orientation faces the child's joint to the parent."""
     pos = random_face_point(rng)
     return ChildLink(child, pos, facing_rotation(rng, pos, child_node.joint_pos), choice(rng, SCALES),
                      bool(rng.random() < 0.2), -1)
 
 
-def random_recursion(rng, node: Node) -> Recursion:
+def random_recursion(rng: np.random.Generator, node: Node) -> Recursion:
     """A recursion entry; usually on the face opposite the node's joint, so that the copies form
     a chain (a snake, a tail) rather than folding back onto themselves."""
     jp = np.asarray(node.joint_pos, dtype=float)

@@ -18,8 +18,10 @@ import base64
 import copy
 import html
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -66,7 +68,7 @@ from .morphology import (
     validate_node,
 )
 from .neural import MAX_BRAIN_NEURONS, Neuron, need_keys, validate_neuron
-from .phenotype import MAX_PARTS, expand
+from .phenotype import MAX_PARTS, Phenotype, expand
 from . import render as rendering  # the module (the package's name `render` is the function)
 
 __all__ = ["FORMAT", "Creature", "ChildLink", "Node", "Recursion", "Symmetry", "JOINT_DOF", "MAX_HALF_EXTENT",
@@ -177,7 +179,7 @@ class Creature:
         return json.dumps(self.to_dict(), indent=1)
 
     @classmethod
-    def from_dict(cls, d) -> "Creature":
+    def from_dict(cls, d: dict) -> "Creature":
         if not isinstance(d, dict):
             raise TypeError(f"creature: expected a JSON object, got {type(d).__name__}")
         if d.get("format") != FORMAT:
@@ -200,12 +202,12 @@ class Creature:
             raise ValueError(f"Creature.from_json: not valid JSON (truncated file?): {e}") from None
         return cls.from_dict(d)
 
-    def save(self, path) -> None:
+    def save(self, path: str | os.PathLike[str]) -> None:
         """Write the JSON atomically (temporary file in the same folder, then ``os.replace``)."""
         atomic_write(path, self.to_json())
 
     @classmethod
-    def load(cls, path) -> "Creature":
+    def load(cls, path: str | os.PathLike[str]) -> "Creature":
         """Read a file written by :meth:`save`."""
         try:
             text = Path(path).read_text(encoding="utf-8")
@@ -214,13 +216,13 @@ class Creature:
         return cls.from_json(text)
 
     # ---------------------------------------------------------------------- phenotype
-    def expand(self, max_parts: int | None = None):
+    def expand(self, max_parts: int | None = None) -> Phenotype:
         """The phenotype (body tree + flat brain); see :func:`coursekit.creatures.phenotype.expand`."""
         return expand(self, MAX_PARTS if max_parts is None else max_parts)
 
     # ------------------------------------------------------------------------- makers
     @classmethod
-    def random(cls, rng: np.random.Generator, **params) -> "Creature":
+    def random(cls, rng: np.random.Generator, **params: Any) -> "Creature":
         """A random valid creature: see :func:`.generation.random_genotype` for ``params``
         (``n_nodes``, ``max_children``, ``neurons``, ``brain_neurons``, ``p_recursion``,
         ``p_symmetry``, ``max_parts``). Nodes are numbered in LR pre-order, all reachable, acyclic."""

@@ -8,10 +8,17 @@ gain, force range = its strength), gravity off. Box geoms are visual only (no Mu
 they collide under MuJoCo's own rules (every pair of boxes but parent and child; creatures are
 then spaced apart so that they never touch one another); water is not exported. Its ``qpos``/``qvel`` layout is the one of
 :func:`coursekit.creatures.physics.forward_dynamics`.
+
+``mujoco_model`` loads the export into MuJoCo (the optional ``mujoco`` extra) and sends MuJoCo's
+warnings ("Nan, Inf or huge value in QACC ...") to the Python logger ``coursekit.mujoco``, where
+a notebook shows them and a test can catch them, instead of MuJoCo's default of printing them
+and appending them to a ``MUJOCO_LOG.TXT`` in whatever folder the process runs in.
 """
 
 from __future__ import annotations
 
+import logging
+from typing import TYPE_CHECKING, Any
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -19,6 +26,11 @@ import numpy as np
 from coursekit.creatures.body import REVOLUTE
 from coursekit.creatures.physics.model import as_trees
 from coursekit.creatures.physics.spatial import mat_to_quat
+
+if TYPE_CHECKING:
+    import mujoco
+
+LOG = logging.getLogger("coursekit.mujoco")
 
 
 def _f(values) -> str:
@@ -81,12 +93,12 @@ def _creature_xml(tree, prefix: str, pos, contacts: bool = False) -> tuple[list[
     return lines, motors
 
 
-def reach(tree) -> float:
+def reach(tree: Any) -> float:
     """An upper bound of how far any point of ``tree`` lies from its root's centre (m)."""
     return float(2.0 * np.linalg.norm(tree.half_extents, axis=1).sum())
 
 
-def to_mjcf(creatures, *, timestep: float = 1.0 / 60.0, integrator: str = "RK4", name: str = "coursekit",
+def to_mjcf(creatures: Any, *, timestep: float = 1.0 / 60.0, integrator: str = "RK4", name: str = "coursekit",
             contacts: bool = False) -> str:
     """MJCF text of one creature or a list of creatures (each its own free-floating tree).
 
@@ -127,3 +139,32 @@ def to_mjcf(creatures, *, timestep: float = 1.0 / 60.0, integrator: str = "RK4",
         out += ["  <actuator>", *motor_lines, "  </actuator>"]
     out.append("</mujoco>")
     return "\n".join(out) + "\n"
+
+
+def _warn(message: str) -> None:
+    LOG.warning("MuJoCo: %s", message.strip())
+
+
+def log_mujoco_warnings() -> None:
+    """Send MuJoCo's warnings to the logger ``coursekit.mujoco`` from now on (for the whole
+    process: MuJoCo's warning handler is global), instead of printing them and writing them to
+    ``MUJOCO_LOG.TXT`` in the current folder. Idempotent; needs ``mujoco``."""
+    import mujoco
+
+    if mujoco.get_mju_user_warning() is not _warn:
+        mujoco.set_mju_user_warning(_warn)
+
+
+def mujoco_model(creatures: Any, **options: Any) -> mujoco.MjModel:
+    """A ``mujoco.MjModel`` of :func:`to_mjcf` ``(creatures, **options)``, with MuJoCo's warnings
+    sent to the ``coursekit.mujoco`` logger (:func:`log_mujoco_warnings`).
+
+    Raises:
+        ModuleNotFoundError: when MuJoCo is not installed, naming the extra that brings it.
+    """
+    try:
+        import mujoco
+    except ModuleNotFoundError as exc:
+        raise ModuleNotFoundError("mujoco_model needs MuJoCo: pip install 'coursekit[mujoco]'") from exc
+    log_mujoco_warnings()
+    return mujoco.MjModel.from_xml_string(to_mjcf(creatures, **options))

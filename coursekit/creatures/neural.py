@@ -113,7 +113,7 @@ class Input:
         return {"morph": self.morph, "ctrl": self.ctrl, "weight": self.weight}
 
     @classmethod
-    def from_dict(cls, d, where: str) -> "Input":
+    def from_dict(cls, d: dict, where: str) -> "Input":
         need_keys(d, ("morph", "ctrl", "weight"), where)
         return cls(d["morph"], d["ctrl"], d["weight"])
 
@@ -130,7 +130,7 @@ class Neuron:
         return {"func": self.func, "param": self.param, "inputs": [i.to_dict() for i in self.inputs]}
 
     @classmethod
-    def from_dict(cls, d, where: str) -> "Neuron":
+    def from_dict(cls, d: dict, where: str) -> "Neuron":
         need_keys(d, ("func", "param", "inputs"), where)
         if not isinstance(d["inputs"], list):
             raise TypeError(f"{where}.inputs: expected a list, got {type(d['inputs']).__name__}")

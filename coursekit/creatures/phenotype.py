@@ -35,11 +35,15 @@ are dropped in pre-order and ``body.meta["truncated"]`` is set; :func:`~courseki
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .body import MAX_HALF_EXTENT, MIN_HALF_EXTENT, PRISMATIC, REVOLUTE, BodyTree, effector_strength, rotation_about
 from .brain import Brain, build_brain
+
+if TYPE_CHECKING:
+    from .genotype import Creature
 
 MAX_PARTS = 64
 
@@ -89,7 +93,7 @@ def _place(inst_parent: _Instance, half_parent: np.ndarray, pos, rot, mirror: np
     return anchor, (G[:, None] * R) * Fc[None, :], Fc
 
 
-def expand(creature, max_parts: int = MAX_PARTS) -> Phenotype:
+def expand(creature: Creature, max_parts: int = MAX_PARTS) -> Phenotype:
     """Instantiate every virtual node of ``creature`` (see the module docstring).
 
     Args:

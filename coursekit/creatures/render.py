@@ -30,9 +30,12 @@ import contextlib
 import importlib.util
 import os
 import warnings
+from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 
@@ -55,14 +58,14 @@ def _body_of(obj) -> BodyTree:
     raise TypeError(f"render: expected a Creature, Phenotype or BodyTree, got {type(obj).__name__}")
 
 
-def box_corners(body: BodyTree, q=None) -> np.ndarray:
+def box_corners(body: BodyTree, q: ArrayLike | None = None) -> np.ndarray:
     """(B, 8, 3) world corners of every part's box (root at the origin)."""
     R, t = part_poses(body, q)
     local = _BOX_CORNERS[None, :, :] * body.half_extents[:, None, :]
     return np.einsum("bij,bkj->bki", R, local) + t[:, None, :]
 
 
-def world_poses(body: BodyTree, qpos) -> tuple[np.ndarray, np.ndarray]:
+def world_poses(body: BodyTree, qpos: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """World rotations ``(B, 3, 3)`` and centres ``(B, 3)`` from a MuJoCo-layout ``qpos``
     (root position, root quaternion w, x, y, z, then the joint coordinates)."""
     qpos = np.asarray(qpos, dtype=np.float64)
@@ -78,7 +81,7 @@ def world_poses(body: BodyTree, qpos) -> tuple[np.ndarray, np.ndarray]:
     return R0 @ R, t @ R0.T + qpos[:3]
 
 
-def frame(points, azimuth: float, elevation: float, aspect: float, *, view_angle: float = 30.0,
+def frame(points: ArrayLike, azimuth: float, elevation: float, aspect: float, *, view_angle: float = 30.0,
           margin: float = 0.9) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A perspective camera looking from ``azimuth``/``elevation`` (degrees) at ``points`` that
     they fill: their projection spans ``margin`` of the frame's width or height, whichever binds.
@@ -258,8 +261,9 @@ def _framed_scene(obj, size, q, joint_axes, background, azimuth, elevation, note
     return scene
 
 
-def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, background: str = "white",
-           azimuth: float = 30.0, elevation: float = 25.0):
+def render(obj: Any, path: str | os.PathLike[str] | None = None, *, size: tuple[int, int] = (480, 360),
+           q: ArrayLike | None = None, joint_axes: bool = True, background: str = "white", azimuth: float = 30.0,
+           elevation: float = 25.0) -> np.ndarray | Path:
     """Render a creature off-screen.
 
     Args:
@@ -289,7 +293,7 @@ def render(obj, path=None, *, size=(480, 360), q=None, joint_axes: bool = True, 
     return write_png(img, path)
 
 
-def write_png(img: np.ndarray, path) -> Path:
+def write_png(img: np.ndarray, path: str | os.PathLike[str]) -> Path:
     """Write a ``(H, W, 3)`` uint8 image as a PNG, atomically, read back before it replaces an old file."""
     from PIL import Image
 
@@ -312,7 +316,7 @@ class View:
         widget: pyvista's notebook widget, or ``None`` for the static picture alone.
     """
 
-    def __init__(self, png: bytes, widget=None):
+    def __init__(self, png: bytes, widget: Any | None = None) -> None:
         self.png, self.widget = png, widget
 
     def _repr_mimebundle_(self, include=None, exclude=None) -> dict:
@@ -323,8 +327,8 @@ class View:
         return bundle
 
 
-def view(obj, *, interactive: bool = False, size=(480, 360), q=None, joint_axes: bool = True,
-         background: str = "white", azimuth: float = 30.0, elevation: float = 25.0) -> View:
+def view(obj: Any, *, interactive: bool = False, size: tuple[int, int] = (480, 360), q: ArrayLike | None = None,
+         joint_axes: bool = True, background: str = "white", azimuth: float = 30.0, elevation: float = 25.0) -> View:
     """A creature for a notebook to display: its picture, or (opt-in) a 3D view the mouse rotates.
 
     The interactive view is pyvista's notebook backend (``client``: the geometry is sent to the
@@ -354,7 +358,7 @@ def view(obj, *, interactive: bool = False, size=(480, 360), q=None, joint_axes:
     return View(png, scene.pl.show(jupyter_backend="client", return_viewer=True))
 
 
-def centre_of_mass(body: BodyTree, qpos) -> np.ndarray:
+def centre_of_mass(body: BodyTree, qpos: ArrayLike) -> np.ndarray:
     """The ``(3,)`` world centre of mass of ``body`` in the MuJoCo-layout pose ``qpos``."""
     _, t = world_poses(body, qpos)
     m = body.mass
@@ -392,9 +396,10 @@ class Clip:
         margin: fraction of the picture's height or width the creature may span.
     """
 
-    def __init__(self, obj, trajectory, *, frame_times=None, fps: int = 20, size=(480, 360), joint_axes: bool = False,
-                 background: str = "white", azimuth: float = 30.0, elevation: float = 25.0, follow: float = 1.0,
-                 trail: bool = True, floor: bool = True, label: bool = True, margin: float = 0.8):
+    def __init__(self, obj: Any, trajectory: ArrayLike, *, frame_times: ArrayLike | None = None, fps: int = 20,
+                 size: tuple[int, int] = (480, 360), joint_axes: bool = False, background: str = "white",
+                 azimuth: float = 30.0, elevation: float = 25.0, follow: float = 1.0, trail: bool = True,
+                 floor: bool = True, label: bool = True, margin: float = 0.8) -> None:
         from scipy.ndimage import gaussian_filter1d
 
         body = _body_of(obj)
@@ -441,7 +446,7 @@ class Clip:
         text = f"t = {self.times[i]:.2f} s"
         return text + (f"   grid {self.grid_step:g} m" if self.floor is not None else "")
 
-    def film(self, indices=None):
+    def film(self, indices: Sequence[int] | None = None) -> Iterator[np.ndarray]:
         """Yield ``(i, image)`` for the frames ``indices`` (default all), one plotter for them all."""
         import pyvista as pv
 
@@ -484,7 +489,7 @@ class Clip:
             scene.close()
 
 
-def frames(obj, trajectory, **options):
+def frames(obj: Any, trajectory: ArrayLike, **options: Any) -> Iterator[np.ndarray]:
     """The frames of a swim, one ``(height, width, 3)`` uint8 image per ``qpos`` frame (a generator).
 
     Args:
@@ -494,8 +499,9 @@ def frames(obj, trajectory, **options):
         yield img
 
 
-def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes: bool = False,
-            background: str = "white", azimuth: float = 30.0, elevation: float = 25.0, **options):
+def animate(obj: Any, trajectory: ArrayLike, path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], *,
+            fps: int = 20, size: tuple[int, int] = (480, 360), joint_axes: bool = False, background: str = "white",
+            azimuth: float = 30.0, elevation: float = 25.0, **options: Any) -> Path | list[Path]:
     """Film a creature swimming along a recorded trajectory: a GIF, an MP4, or both from one pass.
 
     The camera follows the creature and keeps all of it in the picture for the whole clip, over
@@ -541,8 +547,9 @@ def animate(obj, trajectory, path, *, fps: int = 20, size=(480, 360), joint_axes
     return paths if isinstance(path, (list, tuple)) else paths[0]
 
 
-def keyframes(obj, trajectory, path=None, *, n: int = 4, size=(320, 240), gap: int = 4, gap_colour=(200, 200, 200),
-              **options):
+def keyframes(obj: Any, trajectory: ArrayLike, path: str | os.PathLike[str] | None = None, *, n: int = 4,
+              size: tuple[int, int] = (320, 240), gap: int = 4, gap_colour: tuple[int, int, int] = (200, 200, 200),
+              **options: Any) -> np.ndarray | Path:
     """The paper's Figure 3: ``n`` key frames of a swim side by side, time increasing left to right.
 
     The frames are evenly spaced from the first to the last, filmed with the clip's follow

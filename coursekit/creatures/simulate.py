@@ -15,7 +15,9 @@ quarter of the range before it was put back), scores 0.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -85,17 +87,17 @@ def _scores(fitness, com, times) -> np.ndarray:
 
 
 def simulate(
-    creatures,
+    creatures: Any,
     seconds: float = 10.0,
     *,
     dt: float = DT,
     settle: float = 0.5,
-    controller=None,
-    initial_state=None,
+    controller: Any | None = None,
+    initial_state: Any | None = None,
     progress: bool = False,
     record_every: int = 0,
-    fitness=None,
-    **options,
+    fitness: Callable | None = None,
+    **options: Any,
 ) -> SimulationResult:
     """Simulate and score a population of swimmers together.
 

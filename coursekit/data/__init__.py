@@ -8,6 +8,10 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from coursekit.creatures import Creature
 
 
 def path(name: str) -> Path:
@@ -24,7 +28,7 @@ def path(name: str) -> Path:
     return Path(str(found))
 
 
-def creature(name: str):
+def creature(name: str) -> Creature:
     """The :class:`~coursekit.creatures.Creature` stored in ``<name>.json`` (e.g. ``"limit_exploit_creature"``).
 
     >>> creature("limit_exploit_creature").expand().body.n_bodies

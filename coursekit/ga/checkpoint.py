@@ -94,7 +94,7 @@ def _mac(key: bytes, payload: bytes) -> bytes:
     return hmac.new(key, payload, hashlib.sha256).digest()
 
 
-def save_checkpoint(path, state: dict) -> None:
+def save_checkpoint(path: str | os.PathLike[str], state: dict) -> None:
     """Write a checkpoint atomically, signed with this user's key (created on first use).
 
     Args:
@@ -110,7 +110,7 @@ def save_checkpoint(path, state: dict) -> None:
     atomic_write(path, _MAGIC + _HEADER.pack(len(payload), _mac(_key(create=True), payload)) + payload)
 
 
-def load_checkpoint(path, *, trust_foreign: bool = False) -> dict:
+def load_checkpoint(path: str | os.PathLike[str], *, trust_foreign: bool = False) -> dict:
     """Read a checkpoint written by :func:`save_checkpoint`.
 
     Args:

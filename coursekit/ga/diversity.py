@@ -13,13 +13,15 @@ import hashlib
 import itertools
 import pickle
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["genome_digest", "distinct_fraction", "mean_pairwise", "hamming"]
 
 
-def genome_digest(genome) -> str:
+def genome_digest(genome: Any) -> str:
     """A stable hex digest of a genome: equal genomes give equal digests, in any process.
 
     numpy arrays hash their dtype, shape and bytes; anything else hashes its pickle.
@@ -65,7 +67,7 @@ def mean_pairwise(distance: Callable) -> Callable[[Sequence], float]:
     return diversity
 
 
-def hamming(a, b) -> float:
+def hamming(a: ArrayLike, b: ArrayLike) -> float:
     """Fraction of positions where two equal-length 1-D arrays differ."""
     a, b = np.asarray(a), np.asarray(b)
     if a.shape != b.shape:

@@ -22,13 +22,14 @@ import math
 import numbers
 import os
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
 __all__ = ["evaluate", "is_dask_client", "parallel_map", "workers"]
 
 
-def is_dask_client(obj) -> bool:
+def is_dask_client(obj: object) -> bool:
     """True if ``obj`` is a ``distributed.Client`` (checked without importing Dask otherwise)."""
     if type(obj).__module__.split(".")[0] != "distributed":
         return False
@@ -37,7 +38,7 @@ def is_dask_client(obj) -> bool:
     return isinstance(obj, Client)
 
 
-def parallel_map(func: Callable, items: Sequence, executor, *, chunksize: int = 1) -> list:
+def parallel_map(func: Callable, items: Sequence, executor: Any, *, chunksize: int = 1) -> list:
     """``[func(x) for x in items]`` on ``executor`` (a ``concurrent.futures.Executor`` or a Dask
     ``distributed.Client``), in order; ``chunksize`` items travel together to a process."""
     if is_dask_client(executor):
@@ -47,14 +48,15 @@ def parallel_map(func: Callable, items: Sequence, executor, *, chunksize: int = 
     raise TypeError(f"executor: expected a concurrent.futures.Executor or a dask distributed.Client, got {type(executor).__name__}")
 
 
-def workers(executor) -> int:
+def workers(executor: Any) -> int:
     """How many tasks ``executor`` runs at once (its processes or Dask threads)."""
     if is_dask_client(executor):
         return max(1, sum(executor.nthreads().values()))
     return max(1, int(getattr(executor, "_max_workers", None) or os.cpu_count() or 1))
 
 
-def evaluate(fitness: Callable, genomes: Sequence, *, map: Callable | None = None, executor=None) -> np.ndarray:
+def evaluate(fitness: Callable, genomes: Sequence, *, map: Callable | None = None,
+             executor: Any | None = None) -> np.ndarray:
     """Fitness of each genome, in order.
 
     Args:

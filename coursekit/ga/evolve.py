@@ -20,6 +20,7 @@ and :func:`resume` continues a checkpoint bit for bit.
 from __future__ import annotations
 
 import numbers
+import os
 import pickle
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -192,8 +193,8 @@ def evolve(
     select: Callable = tournament,
     elite: int = 1,
     map: Callable | None = None,
-    executor=None,
-    checkpoint=None,
+    executor: Any | None = None,
+    checkpoint: str | os.PathLike[str] | None = None,
     progress: bool = True,
     callback: Callable | None = None,
     diversity: Callable = distinct_fraction,
@@ -240,13 +241,13 @@ def evolve(
 
 
 def resume(
-    checkpoint,
+    checkpoint: str | os.PathLike[str],
     fitness: Callable,
     vary: Callable,
     *,
     generations: int,
     map: Callable | None = None,
-    executor=None,
+    executor: Any | None = None,
     select: Callable | None = None,
     elite: int | None = None,
     diversity: Callable | None = None,

@@ -10,8 +10,13 @@ from __future__ import annotations
 
 import json
 from dataclasses import asdict, dataclass, field, fields
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:
+    import matplotlib.axes
 
 __all__ = ["History"]
 
@@ -37,7 +42,7 @@ class History:
     diversity: list = field(default_factory=list)
     evaluations: list = field(default_factory=list)
 
-    def record(self, generation: int, fitness, diversity: float, evaluations: int) -> None:
+    def record(self, generation: int, fitness: ArrayLike, diversity: float, evaluations: int) -> None:
         """Append the statistics of one generation.
 
         Args:
@@ -119,7 +124,8 @@ class History:
         fig.savefig(buf, format="png")
         return buf.getvalue()
 
-    def plot(self, ax=None, *, label: str | None = None, diversity: bool = True):
+    def plot(self, ax: matplotlib.axes.Axes | None = None, *, label: str | None = None,
+             diversity: bool = True) -> matplotlib.axes.Axes:
         """Plot best / mean / median fitness (mean +- std shaded) and diversity per generation.
 
         Args:

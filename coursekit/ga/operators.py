@@ -12,6 +12,7 @@ from __future__ import annotations
 import numbers
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["point_mutation", "one_point_crossover"]
 
@@ -26,7 +27,7 @@ def _check_genome(name: str, genome) -> np.ndarray:
     return genome
 
 
-def point_mutation(genome, rng, rate=None):
+def point_mutation(genome: ArrayLike, rng: np.random.Generator, rate: float | None = None) -> np.ndarray:
     """Flip each bit independently with probability ``rate``.
 
     Args:
@@ -55,7 +56,7 @@ def point_mutation(genome, rng, rate=None):
     return child
 
 
-def one_point_crossover(a, b, rng):
+def one_point_crossover(a: ArrayLike, b: ArrayLike, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Cut both parents at one random point and swap the tails.
 
     The cut ``c`` is drawn uniformly from ``1 .. len - 1`` (so both children mix both parents);

@@ -8,11 +8,12 @@ to a target. Everything here is defined at module top level so it pickles into w
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["onemax", "TargetMatch", "random_bits", "smiley"]
 
 
-def onemax(genome) -> float:
+def onemax(genome: ArrayLike) -> float:
     """OneMax: the fraction of ones in a bit string (optimum 1.0 at all ones)."""
     g = np.asarray(genome)
     return float(g.mean()) if g.size else 0.0
@@ -25,7 +26,7 @@ class TargetMatch:
         target: array of 0/1 values; genomes are compared with ``target.ravel()``.
     """
 
-    def __init__(self, target):
+    def __init__(self, target: ArrayLike) -> None:
         self.target = np.asarray(target).astype(np.int8).ravel()
 
     def __call__(self, genome) -> float:

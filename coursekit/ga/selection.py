@@ -21,6 +21,7 @@ import math
 import numbers
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["truncation", "tournament", "roulette", "sims_offspring", "sims_select", "ranking"]
 
@@ -61,7 +62,7 @@ def _check_survival(survival) -> float:
     return float(survival)
 
 
-def ranking(fitness) -> np.ndarray:
+def ranking(fitness: ArrayLike) -> np.ndarray:
     """Indices of the population from best to worst (ties: lower index first).
 
     Args:
@@ -82,7 +83,7 @@ def n_survivors(n: int, survival: float) -> int:
     return max(1, math.ceil(round(survival * n, 9)))
 
 
-def truncation(fitness, k, rng, survival=0.2) -> np.ndarray:
+def truncation(fitness: ArrayLike, k: int, rng: np.random.Generator, survival: float = 0.2) -> np.ndarray:
     """Truncation selection: parents drawn uniformly, with replacement, from the best survivors.
 
     Args:
@@ -105,7 +106,7 @@ def truncation(fitness, k, rng, survival=0.2) -> np.ndarray:
     return survivors[rng.integers(0, survivors.size, size=k)]
 
 
-def tournament(fitness, k, rng, size=3) -> np.ndarray:
+def tournament(fitness: ArrayLike, k: int, rng: np.random.Generator, size: int = 3) -> np.ndarray:
     """Tournament selection: ``k`` independent tournaments of ``size`` contestants each.
 
     Contestants are drawn uniformly with replacement; the fittest contestant wins (ties: the
@@ -131,7 +132,7 @@ def tournament(fitness, k, rng, size=3) -> np.ndarray:
     return np.where(is_best, contestants, f.size).min(axis=1).astype(np.int64)
 
 
-def roulette(fitness, k, rng) -> np.ndarray:
+def roulette(fitness: ArrayLike, k: int, rng: np.random.Generator) -> np.ndarray:
     """Fitness-proportional ("roulette wheel") selection.
 
     Each of the ``k`` draws picks individual ``i`` with probability ``f_i / sum(f)``. If every
@@ -163,7 +164,7 @@ def roulette(fitness, k, rng) -> np.ndarray:
     return np.minimum(np.searchsorted(cumulative, draws, side="right"), f.size - 1).astype(np.int64)
 
 
-def sims_offspring(fitness, n_offspring, survival=0.2) -> np.ndarray:
+def sims_offspring(fitness: ArrayLike, n_offspring: int, survival: float = 0.2) -> np.ndarray:
     """Sims 1994 reproduction counts: survivors get offspring in proportion to their fitness.
 
     The best ``ceil(survival * n)`` individuals survive (Sims: the top fifth). Survivor ``i``
@@ -204,7 +205,7 @@ def sims_offspring(fitness, n_offspring, survival=0.2) -> np.ndarray:
     return out
 
 
-def sims_select(fitness, k, rng, survival=0.2) -> np.ndarray:
+def sims_select(fitness: ArrayLike, k: int, rng: np.random.Generator, survival: float = 0.2) -> np.ndarray:
     """Selector built on :func:`sims_offspring`: survivor ``i`` appears ``counts[i]`` times.
 
     Usable as ``evolve(..., select=sims_select)``; with ``elite=ceil(survival * n)`` this is

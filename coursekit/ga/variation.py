@@ -19,11 +19,12 @@ import numbers
 from collections.abc import Callable, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["Variation", "infer_arity", "largest_remainder"]
 
 
-def largest_remainder(weights, total: int) -> np.ndarray:
+def largest_remainder(weights: ArrayLike, total: int) -> np.ndarray:
     """Share ``total`` items out in proportion to ``weights`` (Hamilton's method).
 
     Floors of the exact quotas first, then one more each for the largest remainders (ties: the

@@ -16,6 +16,7 @@ nudge, then where to look, then a concrete pointer -- never the solution.
 from __future__ import annotations
 
 import numpy as np
+from collections.abc import Callable
 
 from coursekit.grading import checks, runner
 
@@ -23,7 +24,8 @@ from coursekit.grading import checks, runner
 FORMATIVE_SEED = 20260101
 
 
-def evaluate(name, function, *, timeout=10.0, seed=FORMATIVE_SEED, memory_mb=2048):
+def evaluate(name: str, function: Callable, *, timeout: float = 10.0, seed: int = FORMATIVE_SEED,
+             memory_mb: int = 2048) -> checks.Judgement:
     """Run check ``name`` on ``function`` and return the :class:`~coursekit.grading.checks.Judgement`.
 
     Args:
@@ -51,7 +53,7 @@ _LAST: dict = {}
 _RUNG: dict = {}
 
 
-def format_judgement(j) -> str:
+def format_judgement(j: checks.Judgement) -> str:
     """The text a student sees for one judgement."""
     head = f"{j.check.name} ({j.check.title})"
     if not j.attempted:
@@ -64,7 +66,7 @@ def format_judgement(j) -> str:
     return "\n".join(lines)
 
 
-def check(name, function, *, timeout=10.0):
+def check(name: str, function: Callable, *, timeout: float = 10.0) -> None:
     """Check your function against the exercise's specification and print a verdict per property.
 
     Args:
@@ -75,7 +77,7 @@ def check(name, function, *, timeout=10.0):
     print(format_judgement(evaluate(name, function, timeout=timeout)))
 
 
-def next_hint(name) -> str:
+def next_hint(name: str) -> str:
     """The next hint for check ``name``: for its first property that does not hold, one rung higher each call."""
     check = checks.get(name)
     j = _LAST.get(name)
@@ -99,7 +101,7 @@ def next_hint(name) -> str:
     return f"Hint {rung + 1} of {len(ladder)} for '{failing.prop}': {ladder[rung]}"
 
 
-def hint(name):
+def hint(name: str) -> None:
     """Print the next hint for check ``name`` (run ``check(name, function)`` first).
 
     Each call climbs one rung of the hint ladder for the first property that does not hold; the

@@ -59,6 +59,7 @@ the hidden ones.
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import secrets
@@ -66,6 +67,7 @@ import shutil
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -84,7 +86,7 @@ from coursekit.grading.supervisor import PKG_ROOT
 MAX_NOTEBOOK_BYTES = 64 * 2**20
 
 
-def exercise_of(path, override=None) -> str:
+def exercise_of(path: str | os.PathLike[str], override: str | None = None) -> str:
     """The exercise a notebook answers: ``override`` (``--exercise``), else the notebook's metadata
     field ``coursekit.exercise`` (so a renamed file still grades), else the file stem.
 
@@ -124,7 +126,7 @@ def new_seed() -> int:
     return secrets.randbits(63)
 
 
-def make_plan(checks, cases: dict, rng) -> tuple[list, dict]:
+def make_plan(checks: Sequence, cases: dict, rng: np.random.Generator) -> tuple[list, dict]:
     """The calls sent to the grading child, and how to read their records.
 
     Every call gets a random id (it tells the kernel nothing about its case) and the calls of each
@@ -150,9 +152,11 @@ def make_plan(checks, cases: dict, rng) -> tuple[list, dict]:
 
 
 
-def grade_notebook(path, *, timeout=60.0, cell_timeout=300.0, memory_mb=4096, seed=None,
-                   exercise=None, user="nobody", sandboxed=True, hide_files=(), notebook_timeout=3600.0,
-                   max_processes=supervisor.MAX_PROCESSES, disk_mb=supervisor.DISK_MB) -> NotebookResult:
+def grade_notebook(path: str | os.PathLike[str], *, timeout: float = 60.0, cell_timeout: float = 300.0,
+                   memory_mb: int = 4096, seed: int | None = None, exercise: str | None = None, user: str = "nobody",
+                   sandboxed: bool = True, hide_files: Sequence[str | os.PathLike[str]] = (),
+                   notebook_timeout: float = 3600.0, max_processes: int = supervisor.MAX_PROCESSES,
+                   disk_mb: int = supervisor.DISK_MB) -> NotebookResult:
     """Grade one notebook in an isolated child; see the module docstring.
 
     Args:
@@ -281,7 +285,7 @@ def _zero(checks, why):
 EXIT_NOT_GRADED = 3
 
 
-def main(args) -> int:
+def main(args: argparse.Namespace) -> int:
     """``coursekit grade``: grade each notebook in isolation, print a summary, write Gradescope JSON.
 
     Exits 0 when every notebook was graded, 2 on a usage error (nothing graded, nothing written),

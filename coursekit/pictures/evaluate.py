@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 
 import numpy as np
 import torch
@@ -63,9 +64,10 @@ def cost(node: Node, warped: bool = False) -> float:
 
 
 
-def render(genomes, size=(128, 128), *, window=(0.0, 0.0, 1.0, 1.0), time: float = 0.0,
-           device=None, batch: bool = False, workers: int | None = None, group: bool | None = None,
-           as_tensor: bool = False):
+def render(genomes: Genome | Sequence[Genome], size: int | tuple[int, int] = (128, 128), *,
+           window: tuple[float, float, float, float] = (0.0, 0.0, 1.0, 1.0), time: float = 0.0,
+           device: str | torch.device | None = None, batch: bool = False, workers: int | None = None,
+           group: bool | None = None, as_tensor: bool = False) -> np.ndarray | torch.Tensor:
     """Render genomes as whole images.
 
     Args:

@@ -16,11 +16,16 @@ dozen lines written here: matplotlib has none, and networkx's tree layouts need 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import matplotlib.pyplot as plt
 from matplotlib.patches import FancyArrowPatch, Rectangle
 
 from .genome import Genome, karva
+
+if TYPE_CHECKING:
+    import matplotlib.axes
+    import matplotlib.figure
 
 #: colours: head chromosomes, tail chromosomes, the PreHeader, non-coding ones
 HEAD, TAIL, PRE, OFF = "#4c72b0", "#55a868", "#c44e52", "#c8c8c8"
@@ -54,7 +59,8 @@ def _edge(ax, p, q, coding):
                                  shrinkA=7, shrinkB=7))
 
 
-def draw_string(genome: Genome, k: int, ax=None, *, title: bool = True):
+def draw_string(genome: Genome, k: int, ax: matplotlib.axes.Axes | None = None, *,
+                title: bool = True) -> matplotlib.axes.Axes:
     """Draw string ``k`` of ``genome``: its expression tree over its row of chromosomes.
 
     Args:
@@ -107,7 +113,7 @@ def draw_string(genome: Genome, k: int, ax=None, *, title: bool = True):
     return ax
 
 
-def draw_preheader(genome: Genome, ax=None):
+def draw_preheader(genome: Genome, ax: matplotlib.axes.Axes | None = None) -> matplotlib.axes.Axes:
     """Draw the PreHeader as the paper's ring: its chromosomes and the strings, linked as decoding reads them."""
     ax = ax or plt.subplots(figsize=(3.4, 3.4))[1]
     items = list(genome.preheader) + list(range(len(genome.strings)))
@@ -136,7 +142,7 @@ def draw_preheader(genome: Genome, ax=None):
     return ax
 
 
-def draw_genome(genome: Genome, *, figsize=None):
+def draw_genome(genome: Genome, *, figsize: tuple[float, float] | None = None) -> matplotlib.figure.Figure:
     """Fig. 7 from a live genome: the PreHeader ring (when there is one) beside every string and its tree.
 
     Returns:

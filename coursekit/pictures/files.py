@@ -17,6 +17,7 @@ returned normally from a PNG written onto a full disk, leaving an unreadable fil
 
 from __future__ import annotations
 
+import os
 from coursekit.atomic import atomic_path
 
 import json
@@ -44,8 +45,9 @@ def _format(path: Path):
     return FORMATS[ext]
 
 
-def save_image(path, genome: Genome, size=(1024, 1024), *, window=(0.0, 0.0, 1.0, 1.0),
-               time: float = 0.0, device=None) -> Path:
+def save_image(path: str | os.PathLike[str], genome: Genome, size: int | tuple[int, int] = (1024, 1024), *,
+               window: tuple[float, float, float, float] = (0.0, 0.0, 1.0, 1.0), time: float = 0.0,
+               device: str | None = None) -> Path:
     """Render ``genome`` and write it with its genome in the metadata.
 
     Args:
@@ -130,7 +132,7 @@ def _spec(path) -> oiio.ImageSpec:
     return spec
 
 
-def load_genome(path) -> Genome:
+def load_genome(path: str | os.PathLike[str]) -> Genome:
     """The genome stored in an image written by :func:`save_image`.
 
     Raises:
@@ -165,7 +167,7 @@ def _picture(path, spec) -> dict | None:
     return d if isinstance(d, dict) else None
 
 
-def load_render_settings(path) -> dict:
+def load_render_settings(path: str | os.PathLike[str]) -> dict:
     """``{'window': [...], 'time': t}`` stored by :func:`save_image` (defaults if absent)."""
     spec = _spec(path)
     text = spec.getattribute(RENDER_KEY)

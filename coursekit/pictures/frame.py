@@ -7,6 +7,7 @@ functions, so a bad value gets the same clear error from either.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -15,7 +16,7 @@ __all__ = ["MAX_PIXELS", "parse_size", "parse_window"]
 MAX_PIXELS = 4096 * 4096  # pixels of one rendered picture at most (a 4096^2 poster: 192 MiB of float32)
 
 
-def parse_size(size) -> tuple[int, int]:
+def parse_size(size: int | tuple[int, int]) -> tuple[int, int]:
     """``(height, width)`` from an int or a pair of positive ints (ValueError naming ``size``)."""
     if isinstance(size, (int, np.integer)) and not isinstance(size, bool):
         size = (size, size)
@@ -32,7 +33,7 @@ def parse_size(size) -> tuple[int, int]:
     return h, w
 
 
-def parse_window(window) -> tuple[float, float, float, float]:
+def parse_window(window: Sequence[float]) -> tuple[float, float, float, float]:
     """``(x0, y0, x1, y1)`` as floats, finite, with a non-empty extent (ValueError naming ``window``)."""
     try:
         x0, y0, x1, y1 = (float(v) for v in window)

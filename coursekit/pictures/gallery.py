@@ -30,8 +30,11 @@ from __future__ import annotations
 
 import html
 import io
+import os
 from collections import OrderedDict
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -99,9 +102,11 @@ class Gallery:
         lineage_size: thumbnail size in the lineage view.
     """
 
-    def __init__(self, rng: np.random.Generator | None = None, population=None, *, n: int = 20,
-                 columns: int = 5, size: int = 96, mutations=None, recombinations=None, genome_params=None,
-                 autosave=None, render_options=None, lineage_size: int = 56):
+    def __init__(self, rng: np.random.Generator | None = None, population: Sequence[Genome] | None = None, *,
+                 n: int = 20, columns: int = 5, size: int = 96, mutations: Sequence[Callable] | None = None,
+                 recombinations: Sequence[Callable] | None = None, genome_params: dict | None = None,
+                 autosave: str | os.PathLike[str] | None = None, render_options: dict | None = None,
+                 lineage_size: int = 56) -> None:
         import ipywidgets as W
         from ipyevents import Event
 
@@ -168,7 +173,7 @@ class Gallery:
         self._sync("select pictures you like (click them), then choose an operator")
 
     @classmethod
-    def load(cls, path, rng: np.random.Generator | None = None, **kwargs) -> Gallery:
+    def load(cls, path: str | os.PathLike[str], rng: np.random.Generator | None = None, **kwargs: Any) -> Gallery:
         """Resume a session from an autosave file (it keeps autosaving there).
 
         Every field is checked first (:meth:`GalleryState.from_dict`): a broken file raises a
@@ -344,7 +349,7 @@ class Gallery:
         return ancestors
 
     # ---- mirroring the state --------------------------------------------------------------
-    def export(self, i: int, path, size=2048, **options) -> Path:
+    def export(self, i: int, path: str | os.PathLike[str], size: int | tuple[int, int] = 2048, **options: Any) -> Path:
         """Save picture ``i`` in the current view at full resolution with its genome (see
         :func:`save_image`; up to 4096 x 4096)."""
         from .files import save_image

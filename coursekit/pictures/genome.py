@@ -28,8 +28,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import ClassVar, Iterable, Sequence
+from typing import Any, ClassVar, Iterable, Sequence
 
 import numpy as np
 
@@ -268,11 +269,11 @@ class Node:
         head = " ".join([self.symbol] + [f"{v:.4g}" for v in self.params])
         return "(" + head + " " + " ".join(c.sexpr() for c in self.children) + ")"
 
-    def structure(self):
+    def structure(self) -> tuple:
         """The tree's shape and symbols without parameters (genomes sharing it batch together)."""
         return (self.symbol,) + tuple(c.structure() for c in self.children)
 
-    def walk(self):
+    def walk(self) -> Iterator[Node]:
         """All nodes of the subtree, depth first."""
         yield self
         for c in self.children:
@@ -283,7 +284,7 @@ class Node:
         return sum(1 for _ in self.walk())
 
 
-def karva(items: Sequence, arity_of) -> tuple[list[tuple[int, ...]], int]:
+def karva(items: Sequence, arity_of: Callable[[Any], int]) -> tuple[list[tuple[int, ...]], int]:
     """Breadth-first (Karva) reading: children index lists per item and the ORF length."""
     children: list[tuple[int, ...]] = [()] * len(items)
     level, nxt = [0], 1
@@ -476,7 +477,7 @@ class Genome(_CachedHash):
         return json.dumps(self.to_dict(), indent=indent)
 
     @classmethod
-    def from_dict(cls, d) -> "Genome":
+    def from_dict(cls, d: dict) -> "Genome":
         """Inverse of :meth:`to_dict`; ValueError naming the broken field otherwise."""
         if not isinstance(d, dict):
             raise ValueError(f"genome: expected a JSON object, got {type(d).__name__}")
@@ -522,7 +523,7 @@ class Genome(_CachedHash):
             raise ValueError("genome: the JSON is nested too deeply to be a genome") from None
         return cls.from_dict(d)
 
-    def replace_string(self, k, string: ChromosomeString | Iterable[Chromosome]) -> "Genome":
+    def replace_string(self, k: int, string: ChromosomeString | Iterable[Chromosome]) -> "Genome":
         """A new genome with string ``k`` (or ``'pre'`` for the PreHeader) replaced."""
         if k == "pre":
             return Genome(self.strings, tuple(string))

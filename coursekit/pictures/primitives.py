@@ -56,6 +56,7 @@ primitive stays in the set and can reach the root by mutation.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 __all__ = ["Param", "Primitive", "PRIMITIVES", "FORMS", "IMAGE_KERNELS", "PIXEL_KERNELS", "names", "arity", "get",
@@ -185,7 +186,8 @@ IMAGE_KERNELS: dict = {}
 PIXEL_KERNELS: dict = {}
 
 
-def register_primitive(primitive: Primitive, *, image=None, pixel=None, replace: bool = False) -> Primitive:
+def register_primitive(primitive: Primitive, *, image: Callable | None = None, pixel: Callable | None = None,
+                       replace: bool = False) -> Primitive:
     """Add ``primitive`` to the alphabet, with its whole-image (``image``) and per-pixel
     (``pixel``) implementations (module docstring, *Forms*). From then on random genomes and
     mutations can draw it (in proportion to its ``weight``), genomes holding it decode,
@@ -239,8 +241,8 @@ def register_primitive(primitive: Primitive, *, image=None, pixel=None, replace:
     return primitive
 
 
-def _binder(table: dict, what: str):
-    def bind(name: str):
+def _binder(table: dict, what: str) -> Callable[[str], Callable[[Callable], Callable]]:
+    def bind(name: str) -> Callable[[Callable], Callable]:
         get(name)  # a declared primitive
 
         def decorate(fn):

@@ -367,8 +367,8 @@ for _name, _fn in (("dissolve", _dissolve), ("blur", lambda ref, p, grid, i, j: 
     pixel_kernel(_name)(_fn)
 
 
-def render_reference(genome: Genome, size=(16, 16), *, window=(0.0, 0.0, 1.0, 1.0), time: float = 0.0
-                     ) -> np.ndarray:
+def render_reference(genome: Genome, size: int | tuple[int, int] = (16, 16), *,
+                     window: tuple[float, float, float, float] = (0.0, 0.0, 1.0, 1.0), time: float = 0.0) -> np.ndarray:
     """Evaluate ``genome`` pixel by pixel in Python floats.
 
     Args:

@@ -25,6 +25,7 @@ whose preview looks like a parent's or another child's is bred again.
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator, Mapping, NamedTuple
@@ -182,7 +183,7 @@ class GalleryState:
         return Generation(self.population, self.selected, self.origins)
 
     @classmethod
-    def from_dict(cls, d) -> GalleryState:
+    def from_dict(cls, d: dict) -> GalleryState:
         """Inverse of :meth:`to_dict`: every field checked, ValueError naming the bad one."""
         if not isinstance(d, dict):
             raise ValueError(f"gallery: expected a JSON object, got {type(d).__name__}")
@@ -235,7 +236,7 @@ class GalleryState:
                    origins(d.get("origins"), len(pop), "origins"), d.get("rng"))
 
     @classmethod
-    def load(cls, path) -> GalleryState:
+    def load(cls, path: str | os.PathLike[str]) -> GalleryState:
         """Read and check a session file; ValueError naming the file and the bad field."""
         path = Path(path)
         try:
@@ -276,9 +277,9 @@ class Evolution:
     """
 
     def __init__(self, state: GalleryState, rng: np.random.Generator | None = None, *,
-                 mutations: Mapping[str, Callable] | None = None,
-                 recombinations: Mapping[str, Callable] | None = None,
-                 genome_params: Mapping | None = None, autosave=None, max_history: int = 50):
+                 mutations: Mapping[str, Callable] | None = None, recombinations: Mapping[str, Callable] | None = None,
+                 genome_params: Mapping | None = None, autosave: str | os.PathLike[str] | None = None,
+                 max_history: int = 50) -> None:
         if rng is None:
             rng = _generator(state.rng_state) if state.rng_state is not None else np.random.default_rng()
         if not isinstance(rng, np.random.Generator):

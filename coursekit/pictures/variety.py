@@ -23,7 +23,7 @@ order, from the given ``rng``: the same seed gives the same population, bit for 
 
 from __future__ import annotations
 
-from typing import Iterator, Sequence
+from typing import Any, Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -67,7 +67,7 @@ def _distance(pic: np.ndarray, refs: list[np.ndarray]) -> float:
 
 
 def random_population(rng: np.random.Generator, n: int, *, tries: int = 8, size: int = PREVIEW,
-                      min_nodes: int = MIN_NODES, **genome_params) -> list[Genome]:
+                      min_nodes: int = MIN_NODES, **genome_params: Any) -> list[Genome]:
     """``n`` random genomes whose pictures are worth a look.
 
     Slot by slot, a genome (:meth:`Genome.random` with ``genome_params``) is redrawn while its
@@ -109,8 +109,9 @@ def random_population(rng: np.random.Generator, n: int, *, tries: int = 8, size:
     return genomes
 
 
-def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *, again=None,
-                      tries: int = 8, draws: int = 4, size: int = PREVIEW) -> list:
+def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
+                      again: Callable[[], Iterator[Genome]] | None = None, tries: int = 8, draws: int = 4,
+                      size: int = PREVIEW) -> list:
     """``n`` children from the iterator ``children`` that look different from ``parents`` and
     from each other.
 

@@ -9,6 +9,8 @@ Per creature, ``qpos = (root position (3), root quaternion w,x,y,z (4), joint co
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
+from typing import Any
 
 from . import backend as bk
 from . import spatial as sp
@@ -48,7 +50,7 @@ def unflatten_layout(flat, sizes, form):
     return [flat[offs[i] : offs[i + 1]] for i in range(len(sizes))]
 
 
-def split_layout(model: Model, qpos: np.ndarray, qvel: np.ndarray):
+def split_layout(model: Model, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, ...]:
     """Flat MuJoCo-layout qpos/qvel (numpy) -> internal arrays (numpy)."""
     oq = np.r_[0, np.cumsum(model.nq)[:-1]]
     ov = np.r_[0, np.cumsum(model.nv)[:-1]]
@@ -65,14 +67,15 @@ def split_layout(model: Model, qpos: np.ndarray, qvel: np.ndarray):
     return pos, quat, q, lin, omega, qd
 
 
-def join_velocity_layout(model: Model, root_lin, root_ang, joint):
+def join_velocity_layout(model: Model, root_lin: ArrayLike, root_ang: ArrayLike, joint: ArrayLike) -> np.ndarray:
     """Internal root (C, 3) + (C, 3) and joint (M,) arrays (numpy) -> flat qvel-layout vector."""
     jl = joint[model.joint_order]
     offs = np.r_[0, np.cumsum(model.joints_per_creature)]
     return np.concatenate([np.r_[root_lin[i], root_ang[i], jl[offs[i] : offs[i + 1]]] for i in range(model.n_creatures)])
 
 
-def forward_dynamics(creatures, qpos, qvel, tau=None, *, drag=False, backend="numpy", drag_coefficient=None):
+def forward_dynamics(creatures: Any, qpos: ArrayLike, qvel: ArrayLike, tau: ArrayLike | None = None, *,
+                     drag: bool = False, backend: str = "numpy", drag_coefficient: float | None = None) -> Any:
     """Generalised accelerations ``qacc`` of a population, in MuJoCo's layout (module docstring).
 
     Args:

@@ -20,6 +20,7 @@ creature's joints in BodyTree order; :attr:`Model.joint_order` maps between the 
 from __future__ import annotations
 
 import itertools
+from typing import Any
 
 import numpy as np
 
@@ -41,7 +42,7 @@ def validated(creature, i: int):
     return creature
 
 
-def as_trees(creatures) -> list[BodyTree]:
+def as_trees(creatures: Any) -> list[BodyTree]:
     """BodyTrees of ``creatures``: BodyTrees, or objects with ``.expand().body`` or ``.body``
     (validated first)."""
     if isinstance(creatures, BodyTree) or hasattr(creatures, "expand") or hasattr(creatures, "body"):
@@ -70,7 +71,7 @@ class Model:
         device: torch device (ignored for numpy).
     """
 
-    def __init__(self, creatures, backend: str = "numpy", device=None):
+    def __init__(self, creatures: Any, backend: str = "numpy", device: Any | None = None):
         self.trees = as_trees(creatures)
         self.backend = backend
         xp = self.xp = bk.namespace(backend)
@@ -222,7 +223,7 @@ class Model:
         """(C,) qvel length per creature: 6 + joints."""
         return 6 + self.joints_per_creature
 
-    def segment_sum(self, values):
+    def segment_sum(self, values: Any) -> Any:
         """Sum per-body rows (N, ...) into per-creature rows (C, ...)."""
         xp = self.xp
         if bk.is_torch(xp):

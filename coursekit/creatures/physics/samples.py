@@ -97,7 +97,8 @@ def random_body_tree(
     return BodyTree(parent, half, jtype, axis, jpp, jpc, rot, limits, gain, effector_strength(half, parent, jtype, axis, jpc, limits))
 
 
-def random_state(rng: np.random.Generator, tree: BodyTree, *, speed: float = 1.0, inside: float = 0.9):
+def random_state(rng: np.random.Generator, tree: BodyTree, *, speed: float = 1.0,
+                 inside: float = 0.9) -> tuple[np.ndarray, np.ndarray]:
     """A random MuJoCo-layout ``(qpos, qvel)`` for ``tree`` with joints inside ``inside`` x limits."""
     nj = tree.n_joints
     quat = rng.normal(size=4)

@@ -17,8 +17,11 @@ arrays rows, so NaNs cannot leak between them.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import backend as bk
 from . import spatial as sp
@@ -60,13 +63,13 @@ class World:
 
     def __init__(
         self,
-        creatures,
+        creatures: Any,
         *,
         dt: float = 1.0 / 60.0,
         backend: str = "numpy",
-        device=None,
-        integrator="rkn",
-        drag=True,
+        device: Any | None = None,
+        integrator: str | Callable = "rkn",
+        drag: bool | Callable = True,
         drag_coefficient: float = DRAG_COEFFICIENT,
         limits: bool = True,
         contacts: bool = True,
@@ -122,7 +125,7 @@ class World:
         self._total_mass = f(m.total_mass[:, None])
 
     # ------------------------------------------------------------------ state in MuJoCo layout
-    def set_state(self, qpos, qvel) -> None:
+    def set_state(self, qpos: ArrayLike, qvel: ArrayLike) -> None:
         """Set every creature's state from MuJoCo-layout ``qpos``/``qvel`` (see ``forward_dynamics``)."""
         m, xp = self.model, self.xp
         qp, _ = flatten_layout(qpos, m.nq, "qpos")
@@ -136,7 +139,7 @@ class World:
             self.limits.reset(m)
             self._lock = None
 
-    def get_state(self):
+    def get_state(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """``(qpos, qvel)`` as lists of per-creature numpy vectors (MuJoCo layout)."""
         m, s = self.model, self.state
         n = bk.to_numpy
@@ -168,7 +171,7 @@ class World:
         lin_acc = sp.mv(R, a0[:, 3:] + sp.cross3(xp, omega, vb))
         return lin_acc, a0[:, :3], qdd
 
-    def set_effectors(self, effector) -> None:
+    def set_effectors(self, effector: ArrayLike) -> None:
         """Joint forces from effector outputs (M,) in user joint order: ``strength * clip(gain * e, -1, 1)``.
 
         ``gain * e`` is the muscle's activation: at +-1 and beyond the effector pulls with its full
@@ -307,12 +310,12 @@ class World:
         )
 
     # ------------------------------------------------------------------ observables
-    def body_poses(self):
+    def body_poses(self) -> tuple[Any, Any]:
         """World rotations (N, 3, 3) and positions (N, 3) of all bodies (internal order)."""
         s = self.state
         return forward_kinematics(self.model, sp.quat_to_mat(self.xp, s.quat), s.pos, s.q)
 
-    def body_velocities(self):
+    def body_velocities(self) -> Any:
         """Body-frame spatial velocities (N, 6) of all bodies (internal order)."""
         xp, m, s = self.xp, self.model, self.state
         R0 = sp.quat_to_mat(xp, s.quat)
