@@ -36,12 +36,15 @@ def test_every_champion_passes_the_audit():
 
 
 def test_a_broken_champions_file_names_the_entry_and_field(tmp_path, monkeypatch):
-    from coursekit import data
+    import importlib
+    from importlib import resources
 
-    good = json.loads(data.path("champions.json").read_text())
+    module = importlib.import_module("coursekit.creatures.champions")  # the package's champions() shadows the name
+
+    good = json.loads((resources.files("coursekit.data") / "champions.json").read_text())
     bad = dict(good, champions=[dict(good["champions"][0], speed=-1.0)])
     (tmp_path / "champions.json").write_text(json.dumps(bad))
-    monkeypatch.setattr(data, "path", lambda name: tmp_path / name)
+    monkeypatch.setattr(module.resources, "files", lambda package: tmp_path)
     with pytest.raises(ValueError, match="champion 0: field 'speed' must be a positive number"):
         hall_of_fame()
     (tmp_path / "champions.json").write_text(json.dumps({"format": "something else"}))
