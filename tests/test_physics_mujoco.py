@@ -6,6 +6,7 @@ import pytest
 import mujoco  # in the [test] extra: the cross-check must run, never skip
 
 from coursekit.creatures.mjcf import to_mjcf
+from mujoco_oracle import mujoco_qacc
 from coursekit.creatures.physics import Model, forward_dynamics, random_body_tree, random_state
 
 N_CREATURES = 60
@@ -19,21 +20,10 @@ def _population(seed, n=N_CREATURES):
     return trees, states, tau
 
 
-def _mujoco_qacc(trees, states, tau):
-    model = mujoco.MjModel.from_xml_string(to_mjcf(trees))
-    data = mujoco.MjData(model)
-    data.qpos[:] = np.concatenate([s[0] for s in states])
-    data.qvel[:] = np.concatenate([s[1] for s in states])
-    data.qfrc_applied[:] = np.concatenate(tau)
-    mujoco.mj_forward(model, data)
-    assert data.nefc == 0, "states must be inside limits (no active constraints)"
-    return data.qacc.copy()
-
-
 @pytest.mark.parametrize("backend", ["numpy", "torch"])
 def test_forward_dynamics_matches_mujoco(backend):
     trees, states, tau = _population(0)
-    ref = _mujoco_qacc(trees, states, tau)
+    ref = mujoco_qacc(trees, states, tau)
     ours = forward_dynamics(trees, [s[0] for s in states], [s[1] for s in states], tau, backend=backend)
     offs = np.r_[0, np.cumsum([6 + t.n_joints for t in trees])]
     assert len(ours) == len(trees)
@@ -50,7 +40,7 @@ def test_joint_only_forces_and_flat_layout_agree_with_list_layout():
     a = forward_dynamics(trees, [s[0] for s in states], [s[1] for s in states], joint_tau)
     b = forward_dynamics(trees, np.concatenate([s[0] for s in states]), np.concatenate([s[1] for s in states]), np.concatenate(full))
     np.testing.assert_array_equal(np.concatenate(a), b)
-    np.testing.assert_allclose(b, _mujoco_qacc(trees, states, full), rtol=1e-9, atol=1e-9 * np.abs(b).max())
+    np.testing.assert_allclose(b, mujoco_qacc(trees, states, full), rtol=1e-9, atol=1e-9 * np.abs(b).max())
 
 
 def test_mjcf_has_exact_mass_inertia_limits_and_motors():
