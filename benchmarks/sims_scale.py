@@ -27,11 +27,12 @@ from pathlib import Path
 import numpy as np
 
 from coursekit.atomic import atomic_write
-from coursekit.creatures import evolve_swimmers, simulate
+from coursekit.creatures import evolve_swimmers, resume_swimmers, simulate
 from coursekit.creatures.audit import audit, body_length
 
 
-def run(seed: int, population: int, generations: int, seconds: float, workers: int):
+def run(seed: int, population: int, generations: int, seconds: float, workers: int, checkpoint: Path | None = None):
+    """One seed's run; with ``checkpoint`` it saves every generation and resumes a killed run."""
     rows, start = [], time.perf_counter()
 
     def record(result):
@@ -39,15 +40,30 @@ def run(seed: int, population: int, generations: int, seconds: float, workers: i
         length = body_length(best.expand().body)
         rows.append(dict(generation=result.generation, wall=time.perf_counter() - start, best=result.best_fitness,
                          best_per_length=result.best_fitness / length, mean=float(np.mean(result.fitness))))
+        print(_row(rows[-1]), flush=True)
 
+    print(f"\nseed {seed}\n{HEADER}", flush=True)
     pool = ProcessPoolExecutor(workers) if workers > 1 else None
     try:
-        result = evolve_swimmers(generations=generations, rng=np.random.default_rng(seed), population_size=population,
-                                 seconds=seconds, progress=False, callback=record, executor=pool)
+        if checkpoint is not None and checkpoint.exists():
+            print(f"resuming {checkpoint}", flush=True)
+            result = resume_swimmers(checkpoint, generations=generations, seconds=seconds, progress=False,
+                                     callback=record, executor=pool)
+        else:
+            result = evolve_swimmers(generations=generations, rng=np.random.default_rng(seed), population_size=population,
+                                     seconds=seconds, progress=False, callback=record, executor=pool,
+                                     checkpoint=checkpoint)
     finally:
         if pool is not None:
             pool.shutdown()
     return result, rows, time.perf_counter() - start
+
+
+HEADER = "gen   wall s   best m/s  best BL/s   mean m/s"
+
+
+def _row(r: dict) -> str:
+    return f"{r['generation']:3d} {r['wall']:8.1f} {r['best']:10.4f} {r['best_per_length']:10.4f} {r['mean']:10.4f}"
 
 
 def champion(creature, seconds: float = 10.0) -> dict:
@@ -77,14 +93,13 @@ def main(argv=None) -> int:
           f"{args.workers} worker process(es), seeds {args.seeds}")
     summary = []
     for seed in args.seeds:
-        result, rows, wall = run(seed, args.population, args.generations, args.seconds, args.workers)
-        evaluations = sum(result.history.evaluations)
-        print(f"\nseed {seed}")
-        print("gen   wall s   best m/s  best BL/s   mean m/s")
-        for r in rows:
-            print(f"{r['generation']:3d} {r['wall']:8.1f} {r['best']:10.4f} {r['best_per_length']:10.4f} {r['mean']:10.4f}")
+        checkpoint = args.out / f"checkpoint-seed{seed}.ckpt" if args.out else None
+        if args.out:
+            args.out.mkdir(parents=True, exist_ok=True)
+        result, rows, wall = run(seed, args.population, args.generations, args.seconds, args.workers, checkpoint)
+        evaluations = sum(result.history.evaluations[len(result.history.evaluations) - len(rows):])  # this process's
         champ = champion(result.best, max(args.seconds, 10.0))
-        g0, gN = rows[0]["best"], rows[-1]["best"]
+        g0, gN = result.history.best[0], result.history.best[-1]
         print(f"wall {wall:.0f} s; {evaluations * args.seconds / wall:.1f} creature-seconds per wall-second; "
               f"best fitness {g0:.4f} -> {gN:.4f} m/s ({gN / max(g0, 1e-12):.1f}x)")
         print(f"champion over 10 s: {champ['speed']:.4f} m/s = {champ['body_lengths_per_second']:.3f} body lengths/s, "
@@ -94,7 +109,6 @@ def main(argv=None) -> int:
                              f"--generations {args.generations} --seconds {args.seconds:g}")
         summary.append(entry)
         if args.out:
-            args.out.mkdir(parents=True, exist_ok=True)
             atomic_write(args.out / f"champion-seed{seed}.json", result.best.to_json())
     if args.out:
         atomic_write(args.out / "sims_scale.json", json.dumps(summary, indent=2))
