@@ -27,13 +27,15 @@ column. Warped coordinates fall back to ``grid_sample``. Blurs multiply by bande
 into row tiles, touching only the band. Node values are never modified in place (cached
 pictures and shared subtrees are handed to several parents); only fresh intermediates are. On
 the CPU, transcendental functions and the blurs' matrix products go through numpy (faster there
-than torch's: :func:`_ufunc`).
+than torch's: :func:`.fast.ufunc`).
 
 **Batch invariance.** Every kernel computes each image of a batch as it would compute it
 alone, bit for bit, so a picture never depends on what it was rendered with (batched, in waves,
 in a worker): no reduction over a batch picks a method or a size, and no library kernel whose
-rounding depends on an element's position in the tensor is used (torch's CPU ``atan2`` is one,
-measured).
+rounding depends on an element's position in the tensor, or on whether it arrives compact or
+broadcast, is used: torch's CPU transcendental functions round the elements past the last full
+vector differently, and so does numpy for broadcast inputs (measured), so these go through
+:func:`.fast.ufunc`, which computes each argument in its compact, contiguous form.
 """
 
 from . import coordinates, neighbourhood, noise, pixmaps, pointwise, warps  # noqa: F401  (each binds its kernels)
