@@ -287,12 +287,12 @@ def crossover(a: Genome, b: Genome, rng: np.random.Generator, splits: int = 1) -
         raise ValueError(f"splits: {splits!r} must be an integer >= 1")
     keys = _pairs(a, b, min_len=2)
     act_a, act_b = _active(a), _active(b)
+    differ = {k: _differ(_get(a, k)[0], _get(b, k)[0]) for k in keys}
+    candidates = _first([k for k in keys if set(differ[k]) & (act_a[k] | act_b[k])],
+                        [k for k in keys if differ[k]], keys)
 
     def draw(a, b, rng):
-        def coding_diff(k):
-            return set(_differ(_get(a, k)[0], _get(b, k)[0])) & (act_a[k] | act_b[k])
-        k = _pick(rng, _first([k for k in keys if coding_diff(k)],
-                              [k for k in keys if _differ(_get(a, k)[0], _get(b, k)[0])], keys))
+        k = _pick(rng, candidates)
         sa, sb = _get(a, k)[0], _get(b, k)[0]
         for _ in range(splits):
             d = _differ(sa, sb)
