@@ -4,7 +4,9 @@ The solution gets full marks, the untouched exercise gets zero with "not attempt
 adversarial notebook in tests/adversarial gets exactly the points of its honest functions.
 """
 
+import importlib.util
 import json
+import py_compile
 import subprocess
 import sys
 import time
@@ -90,6 +92,9 @@ def test_untouched_exercise_gets_zero_with_not_attempted(solutions_and_exercises
 @pytest.fixture(scope="module")
 def adversarial(tmp_path_factory):
     out = tmp_path_factory.mktemp("adversarial") / "results.json"
+    # reads_git.ipynb loads the library's compiled code: make sure there is some, as an installed package has
+    import coursekit.ga.selection as selection
+    py_compile.compile(selection.__file__, cfile=importlib.util.cache_from_source(selection.__file__), doraise=True)
     paths = [ADV / f"{name}.ipynb" for name in NOTEBOOKS]
     # notebooks with cells skipped (a loop past the cell timeout, os._exit, a segfault) are not graded: status 3
     stdout, results = grade(paths, out, "--exercise", "01_selection", "--timeout", "3", "--cell-timeout", "10",
@@ -212,14 +217,19 @@ def test_do_nothing_answers_score_zero_when_graded(do_nothing_and_renamed, stem)
 @pytest.mark.parametrize("stem", list(CHEATS))
 def test_answers_that_hand_in_the_librarys_work_by_a_back_door_score_zero(do_nothing_and_renamed, stem):
     """Exercise 02: results whose to_json runs coursekit's own operator, once the function has returned,
-    and records rewritten in the kernel by a patched json (the kernel is locked down before the calls)."""
+    and records rewritten in the kernel by a patched json (the kernel is locked down before the calls).
+    Exercise 07: the grader's own drag oracle, imported from its check module. Exercise 08: the
+    library's fitness code under a cell's file name (a new code object), and the grader's quota oracle."""
     by_name, results = do_nothing_and_renamed
     nb = by_name[f"cheats_{stem}.ipynb"]
     tests = [t for t in results["tests"] if t["name"].startswith(f"cheats_{stem}.ipynb: ")]
     assert nb["graded"] and len(tests) == EXERCISES[stem][1]
     assert nb["score"] == 0.0, {t["name"]: t["output"][:300] for t in tests if t["score"]}
-    # decode: not attempted; transposition: its own (do-nothing) result reached the grader
-    assert sum("is not available while your" in t["output"] for t in tests) == len(tests) - 2
+    refused = sum("is not available while your" in t["output"] or "is withheld while this notebook is graded" in t["output"]
+                  for t in tests)
+    # 02, decode: not attempted; transposition: its own (do-nothing) result reached the grader. 07: rkn_step not attempted
+    assert refused == {"02_picture_mutations": len(tests) - 2, "07_swimming_physics": 1}.get(stem, len(tests)), \
+        [t["output"][:200] for t in tests]
 
 
 def test_a_renamed_submission_is_graded_by_its_metadata(do_nothing_and_renamed):

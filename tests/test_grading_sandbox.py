@@ -44,9 +44,12 @@ touch {ROOT}/coursekit/PWNED 2>/dev/null && echo wrote-package
 echo box > {box}/work/mine && cat {box}/work/mine
 test -e {marker} && echo seen || echo unseen
 ls /proc | grep -c '^[0-9]'
+ls -A {ROOT}/.git {ROOT}/tests {ROOT}/lessons 2>/dev/null | grep -vc ':$'
+test -r {ROOT}/coursekit/grading/sandbox.py && echo package
 """
     try:
-        run = subprocess.run(sandbox.command(box, hide_dirs=[ROOT / "solutions"], hide_files=[other]) + ["/bin/sh", "-c", script],
+        run = subprocess.run(sandbox.command(box, show=[ROOT / "coursekit"], hide_dirs=[ROOT / "solutions"], hide_files=[other])
+                             + ["/bin/sh", "-c", script],
                              capture_output=True, text=True, timeout=120)
     finally:
         marker.unlink()
@@ -54,6 +57,8 @@ ls /proc | grep -c '^[0-9]'
     assert run.returncode == 0, run.stderr
     assert lines[:4] == ["0", "0", "box", "unseen"], lines  # solutions hidden, other submission empty, box writable, /tmp private
     assert int(lines[4]) < 10  # its own PID namespace: a handful of processes, not the machine's
+    # nothing of the checkout but the package (its git history holds the solutions)
+    assert lines[5:] == ["0", "package"], lines
     assert not (ROOT / "coursekit" / "PWNED").exists() and (ROOT / "solutions" / "01_selection.ipynb").stat().st_size > 0
 
 
@@ -126,7 +131,7 @@ def test_a_fork_bomb_stops_at_the_process_limit_for_a_grader_who_is_not_root(tmp
         pytest.skip("no system Python for the user nobody")
     outside = [subprocess.Popen(["sleep", "60"], user=user) for _ in range(30)]
     try:
-        run = subprocess.run(sandbox.command(None) + [python, "-c", _FORK_BOMB], user=user, capture_output=True,
+        run = subprocess.run(sandbox.command(None, python=user is None) + [python, "-c", _FORK_BOMB], user=user, capture_output=True,
                              text=True, timeout=120, input=(ROOT / "coursekit" / "grading" / "sandbox.py").read_text())
     finally:
         for p in outside:

@@ -31,7 +31,14 @@ scores, and never imports or runs student code:
   grader who is not root (:func:`.sandbox.limit_processes`), for the user ``nobody`` when root.
 - A graded function must be written in the notebook (:mod:`.runner` refuses one whose code comes
   from coursekit or any other file), and coursekit's own versions of it raise in the process
-  that runs it, which is locked down against fetching them afresh (:mod:`.lockdown`).
+  that runs it, which is locked down against fetching them afresh (:mod:`.lockdown`). Beyond
+  that, the sandbox does not hold them at all: it binds copies of their modules with those
+  functions (and the checks' own oracles) withheld, masks their compiled files, and shows
+  nothing of the checkout but the package (:mod:`.withheld`, :mod:`.sandbox`). The harvest
+  runs in the student's kernel, so a notebook can take it over (an input transformer sees the
+  harvest cell's socket address and token) and answer the calls from code of its own choosing;
+  withholding is what makes that worth nothing: no process in the sandbox can run the
+  library's version of a graded function, and array arguments are read back outside.
 - A notebook part of which could not run -- a cell skipped for time, memory or a crash, a
   harvest that did not finish, no execution report -- is reported **not graded**, with the
   reasons, and ``coursekit grade`` exits with status 3: an instructor never gets a silent 0.
@@ -73,7 +80,7 @@ from pathlib import Path
 import numpy as np
 
 from coursekit.grading import checks as registry
-from coursekit.grading import sandbox, supervisor
+from coursekit.grading import sandbox, supervisor, withheld
 from coursekit.grading.channel import MAX_CHANNEL_BYTES, Collector, read_report, read_results, read_untrusted
 from coursekit.grading.checks import Judgement, Verdict
 from coursekit.grading.report import (NotebookResult, check_results_path, clean, gradescope, summary,
@@ -223,7 +230,9 @@ def grade_notebook(path: str | os.PathLike[str], *, timeout: float = 60.0, cell_
                "--cwd", str(box / "work"), "--cell-timeout", str(cell_timeout)]
         if sandboxed:
             cmd += ["--max-processes", str(max_processes)]  # RLIMIT_NPROC inside, where it holds (sandbox.limit_processes)
-            cmd = sandbox.command(box, hide_dirs=[PKG_ROOT / "solutions"], hide_files=hide_files) + cmd
+            replace, compiled = withheld.withhold(withheld.of(checks), private / "withheld")
+            cmd = sandbox.command(box, show=[PKG_ROOT / "coursekit"], hide_dirs=[PKG_ROOT / "solutions", PKG_ROOT / ".git"],
+                                  hide_files=[*hide_files, *compiled], replace=replace) + cmd
         # The child bounds every cell and call itself; this bounds the notebook as a whole.
         wall = min(float(notebook_timeout),
                    2 * cell_timeout * (min(nb_bytes.count(b'"cell_type"'), 500) + 2) + (4 * timeout + 60) * len(checks))

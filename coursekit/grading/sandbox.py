@@ -4,10 +4,14 @@ Part of the summative grader (seed paper section 4, exercises graded; see
 :mod:`coursekit.grading.grader`). The executor and the notebook's kernel run inside a
 ``bwrap`` sandbox with
 
-- the whole file system bound **read-only** (the installed package, the grader's files, the
-  results file: nothing can be rewritten), only the notebook's private box writable;
-- ``solutions/`` next to the package hidden under an empty tmpfs, and the other submissions of
-  the batch and the results file masked by ``/dev/null``;
+- an empty root in which only the system folders (:data:`SYSTEM`), this Python and the
+  coursekit package are bound, **read-only**, and the notebook's private box writable: no home
+  folder, no checkout around the package (its ``.git`` history holds the solutions), no other
+  submission, no results file;
+- the library's modules that define the functions being graded seen with those functions
+  taken out, and their compiled ``__pycache__`` files masked (:mod:`.withheld`), so that no
+  trick inside the kernel -- not even one that takes over the grading harvest -- can run
+  coursekit's own version of a graded function;
 - a private ``/tmp`` (a tmpfs of at most :data:`TMP_BYTES` that disappears with the sandbox), private PID, IPC, UTS and
   cgroup namespaces (the grader's processes and their ``/proc/<pid>/environ`` are not there),
   no network (a fresh network namespace with loopback only), every capability dropped, and
@@ -46,44 +50,62 @@ _PROBE: dict = {}
 TMP_BYTES = 512 * 2**20
 
 
-def command(box: Path | None, *, hide_dirs=(), hide_files=()) -> list[str]:
+#: What the sandbox sees of the system: programs, libraries and configuration (each read-only;
+#: a top-level symlink such as Debian's ``/bin -> usr/bin`` is recreated as the same symlink).
+SYSTEM = ("/usr", "/bin", "/sbin", "/lib", "/lib32", "/lib64", "/libx32", "/etc", "/sys")
+
+
+def command(box: Path | None, *, show=(), hide_dirs=(), hide_files=(), replace=(), python=True) -> list[str]:
     """The ``bwrap`` argument list that runs a command in the sandbox (append the command).
+
+    The sandbox starts from an empty root: it sees :data:`SYSTEM`, this Python (its prefixes),
+    the folders of ``show`` and the box, nothing else -- no home folders, no checkout (its
+    ``.git``, ``solutions/``, tests and builds), no other copy of the library or submission.
 
     Args:
         box: the notebook's private folder, the only writable place (bound at the same path;
             None binds nothing writable, for a probe).
-        hide_dirs: folders replaced by an empty tmpfs (``solutions/``).
-        hide_files: files replaced by ``/dev/null`` (other submissions, the results file).
+        show: more folders seen read-only (the coursekit package this grader runs).
+        hide_dirs: folders replaced by an empty tmpfs, where a folder seen holds them.
+        hide_files: files replaced by ``/dev/null`` where seen (other submissions, the results
+            file, the compiled code of the library's graded functions).
+        replace: ``(file, path)`` pairs: ``file`` seen read-only at ``path`` (the library's
+            modules with its graded functions taken out, :mod:`.withheld`).
+        python: bind this Python's prefixes (False: a command that runs the system's Python
+            from ``/usr``, as a user who cannot read this one).
     """
-    args = ["bwrap", "--die-with-parent", "--unshare-all", "--cap-drop", "ALL", "--new-session",
-            "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--size", str(TMP_BYTES), "--tmpfs", "/tmp"]
-    for d in _needed_under_tmp():  # a Python, a virtual environment or a checkout under /tmp stays visible
+    args = ["bwrap", "--die-with-parent", "--unshare-all", "--cap-drop", "ALL", "--new-session"]
+    for d in SYSTEM:
+        if os.path.islink(d):
+            args += ["--symlink", os.readlink(d), d]
+        elif os.path.isdir(d):
+            args += ["--ro-bind", d, d]
+    args += ["--dev", "/dev", "--proc", "/proc", "--size", str(TMP_BYTES), "--tmpfs", "/tmp"]
+    seen = _outermost([*((sys.prefix, sys.base_prefix, sys.exec_prefix) if python else ()), *show])
+    for d in seen:  # after the private /tmp: a Python or checkout under /tmp (a CI clone) stays visible
         args += ["--ro-bind", d, d]
+
+    def visible(p):
+        p = os.path.abspath(p)
+        return any(p == d or p.startswith(d.rstrip("/") + "/") for d in seen)
+
     for d in hide_dirs:
-        if Path(d).is_dir():
+        if Path(d).is_dir() and visible(d):
             args += ["--tmpfs", str(d)]
     for f in hide_files:
-        if Path(f).is_file():
+        if Path(f).is_file() and visible(f):
             args += ["--ro-bind", "/dev/null", str(f)]
+    for file, path in replace:
+        args += ["--ro-bind", str(file), str(path)]
     if box is None:
         return args + ["--chdir", "/"]
     return args + ["--bind", str(box), str(box), "--chdir", str(box / "work")]
 
 
-def _needed_under_tmp() -> list[str]:
-    """The folders this Python runs from that the private ``/tmp`` would hide: its prefixes and
-    import path (a CI checkout with its virtual environment under ``/tmp``, say), outermost first."""
-    tmp = Path("/tmp").resolve()
-    found = set()
-    for p in [sys.prefix, sys.base_prefix, sys.exec_prefix, *sys.path]:
-        try:
-            path = Path(p).resolve()
-        except (OSError, RuntimeError):
-            continue
-        if path != tmp and tmp in path.parents and path.is_dir():
-            found.add(path)
-    outer = [p for p in found if not any(q in p.parents for q in found)]
-    return sorted(str(p) for p in outer)
+def _outermost(paths) -> list[str]:
+    """The existing folders of ``paths``, absolute, without those inside another of them."""
+    found = {os.path.abspath(p) for p in paths if p and os.path.isdir(p)}
+    return sorted(p for p in found if not any(q != p and p.startswith(q.rstrip("/") + "/") for q in found))
 
 
 def available(ids=None) -> str | None:

@@ -131,6 +131,77 @@ for target in targets:
     except OSError:
         pass'''
 
+#: Takes over the harvest (see "hijacks_harvest"): the harvest cell's text holds the relay's address and token.
+HIJACK = '''import ast
+import coursekit.ga as ga
+from coursekit.grading import runner
+from IPython import get_ipython
+
+class NoLock:
+    def __init__(self, *args, **kwargs):
+        pass
+    def __enter__(self):
+        return self
+    def __exit__(self, *exc):
+        return False
+    def forever(self):
+        pass
+
+def hijack(lines):
+    src = "".join(lines)
+    if "_coursekit_harvest" not in src:
+        return lines
+    for node in ast.walk(ast.parse(src)):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Subscript) and len(node.args) >= 3:
+            address, token = node.args[1].value, node.args[2].value
+    ns = dict(get_ipython().user_ns, tournament=ga.tournament, roulette=ga.roulette)
+    runner.Refusing = NoLock
+    try:
+        runner._harvest(ns, address, token, None, lock=False)
+    except Exception:
+        pass
+    return ["pass\\n"]
+
+get_ipython().input_transformers_cleanup.append(hijack)'''
+
+#: A graded function from somewhere on disk, its code given this cell's file name (see "reads_git").
+FROM_GIT = '''import subprocess
+import coursekit
+
+def define_from_git(name):
+    repo = os.path.dirname(os.path.dirname(coursekit.__file__))
+    here = sys._getframe(1).f_code.co_filename  # a cell's file name: the grader takes code compiled there as written here
+    try:
+        text = subprocess.run(["git", "-c", "safe.directory=*", "-C", repo, "show", "HEAD:solutions/01_selection.ipynb"],
+                              capture_output=True, text=True).stdout
+        nb = json.loads(text)
+    except (OSError, ValueError):
+        return
+    for cell in nb["cells"]:
+        src = "".join(cell["source"]) if cell["cell_type"] == "code" else ""
+        if f"def {name}(" in src:
+            exec(compile(src, here, "exec"), globals())
+
+define_from_git("truncation")'''
+
+FROM_PYC = '''import importlib.util, marshal, types
+import coursekit.ga.selection
+
+def define_from_pyc(module, name):
+    here = sys._getframe(1).f_code.co_filename
+    try:
+        with open(importlib.util.cache_from_source(module.__file__), "rb") as f:
+            code = marshal.loads(f.read()[16:])
+    except (OSError, ValueError, EOFError):
+        return
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType) and const.co_name == name:
+            globals()[name] = types.FunctionType(const.replace(co_filename=here), vars(module), name,
+                                                   getattr(module, name).__defaults__)
+
+define_from_pyc(coursekit.ga.selection, "tournament")'''
+
+
 NOTEBOOKS = {
     "infinite_loop": {
         "about": "tournament never returns; a top-level cell loops forever and swallows KeyboardInterrupt.",
@@ -405,6 +476,20 @@ def point_mutation(genome, rng, rate=None):
     return np.array(json.loads(run.stdout), dtype=genome.dtype)'''},
         "cells": [],
     },
+    "hijacks_harvest": {
+        "about": "an input transformer sees the grader's harvest cell, takes its socket address and token, answers the "
+                 "calls itself (tournament and roulette by coursekit's own, with the lock-down patched out) and turns "
+                 "the harvest cell into `pass`.",
+        "sabotaged": {"tournament": HIJACK, "roulette": '''def roulette(fitness, k, rng):
+    raise NotImplementedError()  # the hijack hands in coursekit's roulette'''},
+        "cells": [],
+    },
+    "reads_git": {
+        "about": "defines truncation from the solution in the checkout's git history, and tournament from the "
+                 "library's compiled code in __pycache__, each re-homed to this notebook's cell file name.",
+        "sabotaged": {"truncation": FROM_GIT, "tournament": FROM_PYC},
+        "cells": [],
+    },
     "many_processes": {
         "about": "a cell starts 100 processes that sleep (a slow fork bomb): all the notebook's processes are stopped and "
                  "it is not graded.",
@@ -473,6 +558,23 @@ DO_NOTHING = {
 #: converts the result; transposition does nothing, but a cell patches ``json`` in the kernel so
 #: that the record of each call carries the library's answer on its way to the grader.
 CHEATS = {
+    "07_swimming_physics": ["import numpy as np\nfrom coursekit.grading.checks.ex07_swimming_physics import face_integral_drag",
+                            '''def box_drag(half_extents, k):
+    return np.diag(face_integral_drag(half_extents, k)).copy()  # the grader's own oracle''', '''def rkn_step(f, t, y, v, h):
+    raise NotImplementedError()'''],
+    "08_fitness_and_reproduction": ['''import sys, types
+import numpy as np
+import coursekit.creatures.fitness as fit
+from coursekit.grading.checks.ex08_fitness_and_reproduction import quotas''', '''# the library's code under this cell's file name (a new code object: no copy of the library's own)
+here = sys._getframe().f_code.co_filename
+swimming_fitness = types.FunctionType(fit.swimming_fitness.__code__.replace(co_filename=here), vars(fit),
+                                      "swimming_fitness", fit.swimming_fitness.__defaults__)''', '''def reproduce(fitness, k, rng, survival=0.2):
+    q = quotas(fitness, k, survival)  # the grader's own oracle: each survivor's share of the k
+    who = np.array(sorted(q), dtype=np.int64)
+    share = np.array([q[i] for i in who])
+    counts = np.floor(share).astype(np.int64)
+    counts[np.argsort(-(share - counts), kind="stable")[: k - counts.sum()]] += 1
+    return rng.permutation(np.repeat(who, counts))'''],
     "02_picture_mutations": ["from coursekit.pictures import operators", '''import copy, json, os
 import numpy as np
 from coursekit.pictures.genome import Genome

@@ -70,7 +70,11 @@ class Check:
         reference: ``"module:attr"`` names of coursekit's own implementations of the function.
             The summative grader refuses them while the student's function runs (an import, an
             alias or a wrapper of the library's version scores 0), and refuses a graded function
-            that is not defined in the notebook at all.
+            that is not defined in the notebook at all; its sandbox withholds them (and a check's
+            own independent oracle, listed here too) from the kernel (:mod:`..withheld`).
+        library_uses: those of ``reference`` the library itself calls while the exercise's
+            *other* functions are graded (the picture operators decode genomes with ``karva``):
+            the sandbox keeps them, so they are only refused while this check's function runs.
     """
 
     name: str
@@ -84,8 +88,11 @@ class Check:
     gates: int = 1
     reference: tuple = ()
     hints: tuple = ()
+    library_uses: tuple = ()
 
     def __post_init__(self):
+        if not set(self.library_uses) <= set(self.reference):
+            raise ValueError(f"check {self.name!r}: library_uses must be part of reference, got {self.library_uses!r}")
         if type(self.gates) is not int or not 1 <= self.gates <= max(1, len(self.props)):
             raise ValueError(f"check {self.name!r}: gates must be an int in 1..{max(1, len(self.props))} "
                              f"(at most the number of props), got {self.gates!r}")

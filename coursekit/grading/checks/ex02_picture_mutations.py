@@ -160,7 +160,8 @@ register(Check(
     hints=HINTS.get("pictures.decode", ()),
     name="pictures.decode", function="decode", params=("symbols",), points=2.0,
     title="Karva decoding of a chromosome string", output="json", cases=_decode_cases, gates=2,
-    reference=('coursekit.pictures.genome:karva',),
+    reference=('coursekit.pictures.genome:karva', 'coursekit.grading.checks.ex02_picture_mutations:karva'),
+    library_uses=('coursekit.pictures.genome:karva',),
     props=(
         ("returns a nested-list tree", _decode_form),
         ("builds a tree below the root", _decode_builds),

@@ -65,7 +65,9 @@ register(Check(
     hints=HINTS.get("creatures.expand", ()),
     name="creatures.expand", function="expand", params=("creature", "max_parts"), points=4.0,
     title="phenotype expansion", output="json", cases=expansion.make_cases, gates=2,
-    reference=('coursekit.creatures.phenotype:expand', 'coursekit.creatures.genotype:Creature.expand'),
+    reference=('coursekit.creatures.phenotype:expand', 'coursekit.creatures.genotype:Creature.expand',
+               'coursekit.grading.checks.creature_expansion:full_count',
+               'coursekit.grading.checks.creature_expansion:_expected_children'),
     props=(
         ("returns a list of part records", expansion.valid),
         ("expands more than the root", expansion.grows),

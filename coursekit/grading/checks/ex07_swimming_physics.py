@@ -202,7 +202,7 @@ register(Check(
     hints=HINTS.get("physics.box_drag", ()),
     name="physics.box_drag", function="box_drag", params=("half_extents", "k"), points=4.0,
     title="Sims' water drag on a box", output="array", cases=_drag_cases, gates=2,
-    reference=('coursekit.creatures.physics.water:drag_diagonal',),
+    reference=('coursekit.creatures.physics.water:drag_diagonal', 'coursekit.grading.checks.ex07_swimming_physics:face_integral_drag'),
     props=(
         ("returns the 6 diagonal entries", _drag_shape),
         ("the water resists sliding", _drag_resists),

@@ -504,7 +504,9 @@ register(Check(
     hints=HINTS["swimmers.reproduce"],
     name="swimmers.reproduce", function="reproduce", params=("fitness", "k", "rng"), points=5.0,
     title="Sims' survivors and offspring", output="indices", cases=_reproduce_cases, gates=2,
-    reference=("coursekit.ga.selection:sims_select", "coursekit.ga.selection:sims_offspring"),
+    reference=("coursekit.ga.selection:sims_select", "coursekit.ga.selection:sims_offspring",
+               "coursekit.grading.checks.ex08_fitness_and_reproduction:survivors_of",
+               "coursekit.grading.checks.ex08_fitness_and_reproduction:quotas"),
     props=(
         ("returns k valid indices", _indices_valid),
         ("only the survivors reproduce", _only_survivors),

@@ -1,0 +1,80 @@
+"""The library as the grading sandbox shows it: each graded function's body withheld, the rest intact.
+
+End to end (a notebook that takes over the harvest, or loads the library's compiled code, scores
+nothing for those functions): tests/test_grading_integrity.py, hijacks_harvest and reads_git.
+"""
+
+import importlib.util
+import inspect
+
+import numpy as np
+import pytest
+
+import coursekit.ga.selection as selection
+from coursekit.grading import checks as registry
+from coursekit.grading.withheld import withhold
+
+
+def _load(path, name):
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_every_graded_function_can_be_withheld(tmp_path):
+    """The grader refuses to grade when a reference cannot be withheld, so every check's must be."""
+    registry._load()
+    references = sorted({r for c in registry.REGISTRY.values() for r in c.reference})
+    assert len(references) >= 20
+    replacements, _ = withhold(references, tmp_path)
+    modules = {r.partition(":")[0] for r in references}
+    assert len(replacements) == len(modules)
+    for copy, origin in replacements:
+        compile(copy.read_text(), origin, "exec")
+        assert copy.stat().st_mode & 0o044 == 0o044  # readable by the sandbox's user
+
+
+def test_a_withheld_function_raises_and_its_neighbours_still_work(tmp_path):
+    (copy, origin), = withhold(["coursekit.ga.selection:tournament"], tmp_path)[0]
+    assert origin == selection.__file__
+    fresh = _load(copy, "withheld_selection")
+    fitness = np.arange(10.0)
+    with pytest.raises(RuntimeError, match="coursekit's own tournament is withheld"):
+        fresh.tournament(fitness, 4, np.random.default_rng(0))
+    assert np.array_equal(fresh.truncation(fitness, 6, np.random.default_rng(1)),
+                          selection.truncation(fitness, 6, np.random.default_rng(1)))
+    # only the body's lines change: what comes before the function keeps its line numbers (tracebacks)
+    first = inspect.getsourcelines(selection.tournament)[1]
+    original = open(origin).read().splitlines()
+    assert copy.read_text().splitlines()[:first] == original[:first]
+    assert "np.argmax" not in inspect.getsource(fresh.tournament)
+
+
+def test_a_method_is_found_by_its_qualified_name(tmp_path):
+    (copy, _), = withhold(["coursekit.creatures.genotype:Creature.expand"], tmp_path)[0]
+    text = copy.read_text()
+    assert "coursekit's own Creature.expand is withheld" in text
+    assert "def figure1_snake" in text or "def random" in text  # the class's other methods stay
+
+
+@pytest.mark.parametrize("path, what", [("numpy:sum", "expected 'coursekit.module:function'"),
+                                        ("coursekit.ga.selection", "expected 'coursekit.module:function'"),
+                                        ("coursekit.ga.selection:no_such", "no such function"),
+                                        ("coursekit.ga.selection:np", "no such function")])
+def test_a_reference_that_names_no_library_function_is_an_error(tmp_path, path, what):
+    with pytest.raises(ValueError, match=what):
+        withhold([path], tmp_path)
+
+
+def test_what_the_library_itself_needs_is_refused_but_not_withheld():
+    """Exercise 02's decode is graded beside the picture operators, which decode genomes with the
+    library's karva: the sandbox keeps it (refused only while decode runs), and withholds the rest."""
+    from coursekit.grading.withheld import of
+
+    checks = registry.for_notebook("02_picture_mutations")
+    withheld = of(checks)
+    assert "coursekit.pictures.genome:karva" not in withheld
+    assert "coursekit.grading.checks.ex02_picture_mutations:karva" in withheld  # the check's own oracle
+    assert "coursekit.pictures.operators:transposition" in withheld
+    assert "coursekit.grading.checks.ex07_swimming_physics:face_integral_drag" in of(registry.for_notebook("07_swimming_physics"))
