@@ -108,14 +108,15 @@ def _outermost(paths) -> list[str]:
     return sorted(p for p in found if not any(q != p and p.startswith(q.rstrip("/") + "/") for q in found))
 
 
-def available(ids=None) -> str | None:
-    """None when the sandbox starts this Python (as ``ids`` = (uid, gid), or this user); else why not."""
-    key = ids or ()
+def available(ids=None, show=()) -> str | None:
+    """None when the sandbox starts this Python (as ``ids`` = (uid, gid), or this user), with the
+    folders of ``show`` in view; else why not."""
+    key = (ids or (), tuple(map(str, show)))
     if key not in _PROBE:
         if os.name != "posix" or shutil.which("bwrap") is None:
             _PROBE[key] = "bubblewrap (bwrap) is not installed (Debian/Ubuntu: apt-get install bubblewrap)"
         else:
-            cmd = command(None) + [sys.executable, "-c", "import nbclient, numpy"]
+            cmd = command(None, show=show) + [sys.executable, "-c", "import nbclient, numpy"]
             try:
                 run = subprocess.run(cmd, capture_output=True, timeout=120, stdin=subprocess.DEVNULL,
                                      user=ids[0] if ids else None, group=ids[1] if ids else None,
