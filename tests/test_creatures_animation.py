@@ -208,3 +208,18 @@ def test_one_plotter_draws_every_picture_and_keeps_nothing_from_the_last():
     again = render(snake, size=SIZE)
     assert R._SHARED[__import__("os").getpid()] is plotter  # the same plotter (one GL context) ...
     np.testing.assert_array_equal(first, again)  # ... and the picture bit for bit the same: nothing left over
+
+
+def test_long_films_show_a_progress_bar_that_ends_full_and_short_ones_none(tmp_path, capsys):
+    snake = Creature.figure1_snake()
+    still = np.tile(np.r_[[0.0, 0, 0, 1], np.zeros(8)], (R.BAR_FRAMES, 1))  # at rest, BAR_FRAMES frames
+    animate(snake, still[:5], tmp_path / "short.gif", size=(48, 36))  # a short clip: no bar by default
+    keyframes(snake, still, n=3, size=(48, 36))  # 3 frames filmed of 60: no bar
+    assert capsys.readouterr().err == ""
+    animate(snake, still, tmp_path / "long.gif", size=(48, 36))
+    bar = capsys.readouterr().err.rstrip().split("\r")[-1]
+    assert f"{R.BAR_FRAMES}/{R.BAR_FRAMES}" in bar and "100%" in bar, bar  # ends in the finished state
+    keyframes(snake, still, n=3, size=(48, 36), progress=True)
+    assert "3/3" in capsys.readouterr().err
+    animate(snake, still, tmp_path / "quiet.gif", size=(48, 36), progress=False)
+    assert capsys.readouterr().err == ""

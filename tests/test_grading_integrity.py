@@ -77,14 +77,15 @@ def test_solution_gets_full_marks(solutions_and_exercises, stem):
 
 @pytest.mark.parametrize("stem", list(EXERCISES))
 def test_untouched_exercise_gets_zero_with_not_attempted(solutions_and_exercises, stem):
-    _, results, by_path = solutions_and_exercises
+    stdout, results, by_path = solutions_and_exercises
     points, n_checks = EXERCISES[stem]
+    assert "not attempted yet" in stdout and "attempted: not attempted" not in stdout  # said once, not as a property
     ex = by_path[f"exercises/{stem}.ipynb"]
     assert ex["score"] == 0.0 and ex["max_score"] == points
     tests = [t for t in results["tests"] if t["name"].startswith(f"{stem}.ipynb: ")]  # solution and exercise
     assert len(tests) == 2 * n_checks
     exercise_tests = [t for t in tests if t["score"] == 0.0]
-    assert len(exercise_tests) == n_checks and all("not attempted yet" in t["output"] for t in exercise_tests)
+    assert len(exercise_tests) == n_checks and all(t["output"].startswith("FAIL not attempted yet: ") for t in exercise_tests)
     if stem == "01_selection":
         assert set(per_check(results, f"{stem}.ipynb")) == set(CHECK_OF.values())
 

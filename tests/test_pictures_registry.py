@@ -8,6 +8,8 @@ import pytest
 import torch
 
 from coursekit.pictures import Genome, primitives as P, render, render_reference
+from coursekit.pictures import workers as Wk
+from coursekit.pictures.evaluate import _POOL_PIXELS
 from coursekit.pictures.genome import Chromosome, ChromosomeString
 from coursekit.pictures.primitives import Param, Primitive, register_primitive
 
@@ -18,9 +20,10 @@ WINDOW = (-0.3, 0.1, 1.4, 1.2)
 def registry():
     """The registry as it was, restored afterwards (a test's primitives must not leak into the
     random genomes of the tests that share its process)."""
-    saved = [dict(t) for t in (P.PRIMITIVES, P.IMAGE_KERNELS, P.PIXEL_KERNELS)]
+    tables = (P.PRIMITIVES, P.IMAGE_KERNELS, P.PIXEL_KERNELS, P.REGISTERED)
+    saved = [t.copy() for t in tables]
     yield
-    for table, old in zip((P.PRIMITIVES, P.IMAGE_KERNELS, P.PIXEL_KERNELS), saved):
+    for table, old in zip(tables, saved):
         table.clear()
         table.update(old)
 
@@ -98,3 +101,25 @@ def test_a_primitive_without_an_implementation_says_which_is_missing(registry):
         render(g, 4, workers=1)
     with pytest.raises(ValueError, match="'unfinished' has no per-pixel implementation"):
         render_reference(g, 2)
+
+
+def test_a_population_with_a_primitive_registered_at_run_time_renders_in_process(registry):
+    # the worker processes import the built-ins only: sent a tree holding "ripple" they would
+    # not know it, so render keeps such a population in this process (17 pictures at 128^2 are
+    # past the size from which it would use the workers)
+    rng = np.random.default_rng(5)
+    pop = [Genome.random(rng, n_strings=2, head_length=4) for _ in range(16)]  # built-ins only
+    register_primitive(Primitive("ripple", 1, (Param("rings", 2.0, 12.0),), "stripes of a across x"),
+                       image=lambda ctx, p, a: a * torch.cos(p[0] * 6.2832 * ctx.x),
+                       pixel=lambda ref, x, y, p, a: tuple(v * math.cos(p[0] * 6.2832 * x) for v in a))
+    pop.append(one(Chromosome("ripple", (5.0,)), Chromosome("radius"), h=1))
+    size = (128, 128)
+    assert (len(pop) - 1) * size[0] * size[1] >= _POOL_PIXELS
+    Wk.shutdown()
+    pics = render(pop, size, workers=2)
+    assert Wk._pool is None  # not sent to the workers
+    assert np.array_equal(pics, render(pop, size, workers=1))
+    assert np.abs(pics[-1] - render_reference(pop[-1], size)).max() < 1e-4
+    # the built-in population alone still goes to the workers
+    assert np.array_equal(render(pop[:-1], size, workers=2), pics[:-1])
+    assert Wk._pool is not None

@@ -371,6 +371,11 @@ def _nice_step(length: float) -> float:
     return float(min((1.0, 2.0, 5.0, 10.0), key=lambda k: abs(np.log(k * e / length))) * e)
 
 
+#: Frames from which :func:`animate` and :func:`keyframes` show a progress bar by default
+#: (``progress=None``): about 3 s of filming at 480 x 360.
+BAR_FRAMES = 60
+
+
 class Clip:
     """A recorded swim ready to film: the poses, a follow camera for the whole clip, the floor grid
     and the centre-of-mass trail. :func:`frames`, :func:`animate` and :func:`keyframes` film it.
@@ -446,15 +451,19 @@ class Clip:
         text = f"t = {self.times[i]:.2f} s"
         return text + (f"   grid {self.grid_step:g} m" if self.floor is not None else "")
 
-    def film(self, indices: Sequence[int] | None = None) -> Iterator[np.ndarray]:
-        """Yield ``(i, image)`` for the frames ``indices`` (default all), one plotter for them all."""
+    def film(self, indices: Sequence[int] | None = None, progress: bool | None = False) -> Iterator[np.ndarray]:
+        """Yield ``(i, image)`` for the frames ``indices`` (default all), one plotter for them all;
+        ``progress``: a tqdm bar (``None``: when there are at least :data:`BAR_FRAMES` frames)."""
         import pyvista as pv
+        from tqdm.auto import tqdm
 
         indices = range(len(self)) if indices is None else [int(i) for i in indices]
         for i in indices:
             if not 0 <= i < len(self):
                 raise ValueError(f"frame index {i} is outside the clip's {len(self)} frames")
         scene = _Scene(self.body, *self._options)
+        bar = tqdm(total=len(indices), desc="filming", unit="frame", leave=True,
+                   disable=not (len(indices) >= BAR_FRAMES if progress is None else progress))
         try:
             width = _line_width(self.size)
             if self.floor is not None:
@@ -485,7 +494,9 @@ class Clip:
                 s = self.follow[i]
                 scene.camera(self.eye + s, self.centre + s, self.up)
                 yield i, scene.image()
+                bar.update()
         finally:
+            bar.close()
             scene.close()
 
 
@@ -501,7 +512,7 @@ def frames(obj: Any, trajectory: ArrayLike, **options: Any) -> Iterator[np.ndarr
 
 def animate(obj: Any, trajectory: ArrayLike, path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], *,
             fps: int = 20, size: tuple[int, int] = (480, 360), joint_axes: bool = False, background: str = "white",
-            azimuth: float = 30.0, elevation: float = 25.0, **options: Any) -> Path | list[Path]:
+            azimuth: float = 30.0, elevation: float = 25.0, progress: bool | None = None, **options: Any) -> Path | list[Path]:
     """Film a creature swimming along a recorded trajectory: a GIF, an MP4, or both from one pass.
 
     The camera follows the creature and keeps all of it in the picture for the whole clip, over
@@ -516,6 +527,7 @@ def animate(obj: Any, trajectory: ArrayLike, path: str | os.PathLike[str] | Sequ
         path: the file to write, ``.gif`` or ``.mp4`` (H.264, even ``size`` only); or a list of them.
         fps: frames per second of the files.
         size, joint_axes, background, azimuth, elevation: as for :func:`render`.
+        progress: a tqdm bar of the frames filmed; ``None``: for :data:`BAR_FRAMES` frames or more.
         **options: :class:`Clip`'s ``frame_times``, ``follow``, ``trail``, ``floor``, ``label``, ``margin``.
 
     Returns:
@@ -534,7 +546,7 @@ def animate(obj: Any, trajectory: ArrayLike, path: str | os.PathLike[str] | Sequ
         try:
             for p, t in zip(paths, tmps):
                 writers.append(WRITERS[p.suffix.lower()](t, fps, size))
-            for _, img in clip.film():
+            for _, img in clip.film(progress=progress):
                 for w in writers:
                     w.add(img)
         except BaseException:
@@ -549,7 +561,7 @@ def animate(obj: Any, trajectory: ArrayLike, path: str | os.PathLike[str] | Sequ
 
 def keyframes(obj: Any, trajectory: ArrayLike, path: str | os.PathLike[str] | None = None, *, n: int = 4,
               size: tuple[int, int] = (320, 240), gap: int = 4, gap_colour: tuple[int, int, int] = (200, 200, 200),
-              **options: Any) -> np.ndarray | Path:
+              progress: bool | None = None, **options: Any) -> np.ndarray | Path:
     """The paper's Figure 3: ``n`` key frames of a swim side by side, time increasing left to right.
 
     The frames are evenly spaced from the first to the last, filmed with the clip's follow
@@ -562,6 +574,7 @@ def keyframes(obj: Any, trajectory: ArrayLike, path: str | os.PathLike[str] | No
         n: key frames (at most the trajectory's frames).
         size: (width, height) of one key frame.
         gap: pixels between key frames, in ``gap_colour``.
+        progress: as for :func:`animate`.
         **options: :class:`Clip`'s options (``frame_times``, ``follow``, ``azimuth`` ...).
 
     Returns:
@@ -579,6 +592,6 @@ def keyframes(obj: Any, trajectory: ArrayLike, path: str | os.PathLike[str] | No
     w, h = size
     strip = np.empty((h, n * w + (n - 1) * gap, 3), dtype=np.uint8)
     strip[:] = np.asarray(gap_colour, dtype=np.uint8)
-    for k, (_, img) in enumerate(clip.film(picks)):
+    for k, (_, img) in enumerate(clip.film(picks, progress)):
         strip[:, k * (w + gap): k * (w + gap) + w] = img
     return strip if path is None else write_png(strip, path)

@@ -66,8 +66,14 @@ def clean(text) -> str:
     return _CONTROLS.sub("", _ESCAPES.sub("", str(text))).replace("\r", "")
 
 
+def _said(j: Judgement, v) -> str:
+    """One verdict as a line: its property and message; an unattempted function's message alone
+    ("not attempted yet: ..."), which needs no property before it."""
+    return clean(v.message) if not j.attempted else f"{v.prop}: {clean(v.message)}"
+
+
 def _messages(j: Judgement) -> str:
-    return "\n".join(f"{'PASS' if v.passed else 'FAIL'} {v.prop}: {clean(v.message)}" for v in j.verdicts)
+    return "\n".join(f"{'PASS' if v.passed else 'FAIL'} {_said(j, v)}" for v in j.verdicts)
 
 
 def _headline(r: NotebookResult) -> str:
@@ -111,7 +117,7 @@ def summary(results: list) -> str:
         for j in r.judgements:
             first = next((v for v in j.verdicts if not v.passed), None)
             lines.append(f"  {j.check.name:<24} {j.score:>6.2f} / {j.check.points:g}   "
-                         + ("all properties hold" if first is None else f"{first.prop}: {clean(first.message)}"))
+                         + ("all properties hold" if first is None else _said(j, first)))
         lines += [f"  not graded: {clean(n)}" for n in r.not_graded]
         lines += [f"  note: {clean(n)}" for n in r.notes]
     bad = [r for r in results if not r.graded]

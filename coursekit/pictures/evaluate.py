@@ -84,7 +84,9 @@ def render(genomes: Genome | Sequence[Genome], size: int | tuple[int, int] = (12
             across genomes operation by operation instead, keeping the sharing.
         workers: on the CPU, worker processes that render parts of a population at once when
             there is enough work (at least 2**18 pixels in all; :mod:`.workers`); default one
-            per core, ``1`` renders in this process.
+            per core, ``1`` renders in this process. A population using a primitive registered
+            at run time (:func:`~.primitives.register_primitive`) renders in this process: the
+            workers import the built-in primitives only.
         group: evaluate the population in waves, one operation per primitive for all genomes
             (:mod:`.grouped`: about 5x fewer tensor operations for 256 random genomes, so
             fewer kernel launches on a GPU). Default: on a GPU, and on the CPU for images of at
@@ -117,7 +119,8 @@ def render(genomes: Genome | Sequence[Genome], size: int | tuple[int, int] = (12
     with no_gc():
         trees = [g.decode() for g in genomes]  # once: the workers get the trees
         groups = _groups(trees, batch)
-        if device.type == "cpu" and workers > 1 and len(groups) > 1 and len(genomes) * H * W >= _POOL_PIXELS:
+        if (device.type == "cpu" and workers > 1 and len(groups) > 1 and len(genomes) * H * W >= _POOL_PIXELS
+                and not (P.REGISTERED and any(_uses(t, P.REGISTERED) for t in trees))):
             pics = render_parts([(idx, [trees[i] for i in idx]) for idx in groups],
                                 [cost(trees[idx[0]]) * len(idx) for idx in groups], (H, W),
                                 {"window": window, "time": float(time), "group": group}, int(workers))
@@ -126,6 +129,11 @@ def render(genomes: Genome | Sequence[Genome], size: int | tuple[int, int] = (12
         out = torch.empty(len(genomes), H, W, 3, dtype=torch.float32, device=device)
         render_into(out, trees, groups, window, float(time), device, group)
     return out if as_tensor else out.cpu().numpy()
+
+
+def _uses(node: Node, names: set[str]) -> bool:
+    """Whether the tree holds a primitive called one of ``names``."""
+    return node.symbol in names or any(_uses(c, names) for c in node.children)
 
 
 def _groups(trees: list[Node], batch: bool) -> list[list[int]]:

@@ -184,6 +184,9 @@ PRIMITIVES: dict[str, Primitive] = {p.name: p for p in _LIST}
 IMAGE_KERNELS: dict = {}
 #: Per-pixel implementations by primitive name (the built-ins: :mod:`.reference`).
 PIXEL_KERNELS: dict = {}
+#: Names given to :func:`register_primitive` in this process: worker processes (:mod:`.workers`)
+#: import the built-ins only, so genomes using these render in-process.
+REGISTERED: set[str] = set()
 
 
 def register_primitive(primitive: Primitive, *, image: Callable | None = None, pixel: Callable | None = None,
@@ -210,7 +213,8 @@ def register_primitive(primitive: Primitive, *, image: Callable | None = None, p
     (plain arithmetic does; some vectorised library functions round the last elements of a
     tensor differently, see :mod:`.kernels`), or pictures rendered in waves differ in the last
     bits. Registering changes what random genomes draw from: same seed, other genomes (a
-    ``weight`` and ``root`` of 0 keep it out of random draws).
+    ``weight`` and ``root`` of 0 keep it out of random draws). Worker processes know only the
+    built-ins, so a population holding a registered primitive renders in this process.
     """
     if not isinstance(primitive, Primitive):
         raise TypeError(f"primitive: expected a Primitive, got {type(primitive).__name__}")
@@ -233,6 +237,7 @@ def register_primitive(primitive: Primitive, *, image: Callable | None = None, p
         if fn is not None and not callable(fn):
             raise TypeError(f"{where}: expected a function, got {type(fn).__name__}")
     PRIMITIVES[primitive.name] = primitive
+    REGISTERED.add(primitive.name)
     for table, fn in ((IMAGE_KERNELS, image), (PIXEL_KERNELS, pixel)):
         if fn is not None:
             table[primitive.name] = fn
