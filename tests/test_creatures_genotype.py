@@ -33,7 +33,7 @@ def test_random_is_valid_deterministic_and_round_trips(seed):
     assert a.to_json() == b.to_json()
     c = Creature.from_json(a.to_json())
     assert c == a
-    assert json.loads(a.to_json())["format"] == "coursekit.creature/1"
+    assert json.loads(a.to_json())["format"] == "coursekit.creature/2"
 
 
 def test_save_load_atomic_and_refuses_bad_files(tmp_path):
@@ -222,7 +222,7 @@ def test_joint_types_and_axes_units():
     body = c.expand().body
     assert set(body.joint_type[1:].tolist()) <= {REVOLUTE, PRISMATIC}
     np.testing.assert_allclose(np.linalg.norm(body.joint_axis[1:], axis=1), 1.0)
-    assert FORMAT == "coursekit.creature/1"
+    assert FORMAT == "coursekit.creature/2"
 
 
 json_values = st.recursive(
