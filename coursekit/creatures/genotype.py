@@ -34,6 +34,7 @@ from .body import MAX_HALF_EXTENT, MIN_HALF_EXTENT
 from .generation import (
     AXES,
     COORDS,
+    DEFAULT_JOINT_TYPES,
     FACES,
     FORCES,
     PRISMATIC_LIMITS,
@@ -43,6 +44,7 @@ from .generation import (
     SIZES,
     choice,
     facing_rotation,
+    limit_values,
     mirror_axis,
     random_face_point,
     random_link,
@@ -51,6 +53,7 @@ from .generation import (
 )
 from .morphology import (
     IDENTITY,
+    JOINT_AXES,
     JOINT_DOF,
     MAX_CHILDREN,
     MAX_FORCE,
@@ -73,7 +76,8 @@ from .neural import MAX_BRAIN_NEURONS, Neuron, need_keys, validate_neuron
 from .phenotype import MAX_PARTS, Phenotype, expand
 from . import render as rendering  # the module (the package's name `render` is the function)
 
-__all__ = ["FORMAT", "Creature", "ChildLink", "Node", "Recursion", "Symmetry", "JOINT_DOF", "MAX_HALF_EXTENT",
+__all__ = ["FORMAT", "Creature", "ChildLink", "Node", "Recursion", "Symmetry", "JOINT_AXES", "JOINT_DOF",
+           "DEFAULT_JOINT_TYPES", "limit_values", "MAX_HALF_EXTENT",
            "MIN_HALF_EXTENT", "MAX_NODES", "MAX_CHILDREN", "MAX_RECURSION_ENTRIES", "MAX_RECURSIVE_LIMIT",
            "MAX_SYMMETRY", "MAX_FORCE", "SCALE_RANGE", "IDENTITY", "SIZES", "COORDS", "FORCES", "REVOLUTE_LIMITS",
            "PRISMATIC_LIMITS", "SCALES", "AXES", "ROTATIONS", "FACES", "choice", "facing_rotation", "mirror_axis",
@@ -230,7 +234,8 @@ class Creature:
     def random(cls, rng: np.random.Generator, **params: Any) -> "Creature":
         """A random valid creature: see :func:`.generation.random_genotype` for ``params``
         (``n_nodes``, ``max_children``, ``neurons``, ``brain_neurons``, ``p_recursion``,
-        ``p_symmetry``, ``max_parts``). Nodes are numbered in LR pre-order, all reachable, acyclic."""
+        ``p_symmetry``, ``max_parts``, ``joint_types``: e.g. ``["revolute", "spherical"]`` for
+        multi-DOF joints). Nodes are numbered in LR pre-order, all reachable, acyclic."""
         return cls(*generation.random_genotype(rng, **params))
 
     @classmethod
