@@ -22,6 +22,7 @@ import numpy as np
 from .morphology import (
     IDENTITY,
     JOINT_AXES,
+    limit_bound,
     MAX_CHILDREN,
     MAX_NODES,
     MAX_RECURSIVE_LIMIT,
@@ -126,14 +127,17 @@ def joint_types_arg(joint_types, where: str) -> tuple:
     return tuple(joint_types)
 
 
-def limit_values(joint_type: str) -> tuple:
-    """The predefined limit magnitudes of a joint type's DOFs."""
-    return PRISMATIC_LIMITS if joint_type == "prismatic" else REVOLUTE_LIMITS
+def limit_values(joint_type: str, dof: int = 0) -> tuple:
+    """The predefined limit magnitudes of DOF ``dof`` of a joint type (within
+    :func:`~.morphology.limit_bound`: a spherical joint's bend is kept from gimbal lock)."""
+    vals = PRISMATIC_LIMITS if joint_type == "prismatic" else REVOLUTE_LIMITS
+    bound = limit_bound(joint_type, dof)
+    return tuple(v for v in vals if v <= bound)
 
 
-def random_limits(rng: np.random.Generator, joint_type: str) -> tuple:
-    """A random ``(lo, hi)`` from :func:`limit_values` (two draws)."""
-    vals = limit_values(joint_type)
+def random_limits(rng: np.random.Generator, joint_type: str, dof: int = 0) -> tuple:
+    """A random ``(lo, hi)`` for DOF ``dof`` from :func:`limit_values` (two draws)."""
+    vals = limit_values(joint_type, dof)
     lim = choice(rng, vals)
     return (-lim, choice(rng, vals))
 
@@ -147,7 +151,7 @@ def random_node(rng: np.random.Generator, joint_types: Sequence[str] | None = No
         size=tuple(choice(rng, SIZES[2:]) for _ in range(3)), joint_type=jt, joint_pos=choice(rng, FACES),
         joint_axis=choice(rng, AXES), limits=limits, force=choice(rng, FORCES),
     )
-    node.extra_limits = [random_limits(rng, jt) for _ in range(node.dof - 1)]
+    node.extra_limits = [random_limits(rng, jt, d) for d in range(1, node.dof)]
     node.effectors = [None] * node.dof
     return node
 

@@ -43,7 +43,7 @@ import numpy as np
 from .body import MAX_HALF_EXTENT, MIN_HALF_EXTENT
 from .neural import MAX_JOINT_DOF, MAX_NEURONS, N_SENSORS, Input, Neuron, is_int, is_real, need_keys, validate_input, validate_neuron
 
-__all__ = ["JOINT_AXES", "JOINT_DOF", "MAX_DOF", "ROTATIONAL_TYPES", "joint_axes", "MAX_NODES", "MAX_CHILDREN", "MAX_RECURSION_ENTRIES", "MAX_RECURSIVE_LIMIT", "MAX_SYMMETRY",
+__all__ = ["JOINT_AXES", "JOINT_DOF", "MAX_DOF", "ROTATIONAL_TYPES", "SPHERICAL_BEND_BOUND", "limit_bound", "joint_axes", "MAX_NODES", "MAX_CHILDREN", "MAX_RECURSION_ENTRIES", "MAX_RECURSIVE_LIMIT", "MAX_SYMMETRY",
            "MAX_FORCE", "SCALE_RANGE", "IDENTITY", "ChildLink", "Recursion", "Symmetry", "Node", "node_from_dict",
            "validate_node", "preorder", "renumber", "has_cycle"]
 
@@ -63,6 +63,23 @@ MAX_DOF = max(JOINT_DOF.values())
 assert MAX_DOF <= MAX_JOINT_DOF, "neural.MAX_JOINT_DOF bounds the DOF sensor ids"
 #: Every type but ``"prismatic"`` turns about its axes (limits in radians).
 ROTATIONAL_TYPES = tuple(t for t in JOINT_AXES if t != "prismatic")
+#: The largest |limit| of a spherical joint's middle (bend) DOF: three hinges in series lose a
+#: DOF where the first and the last axes line up, at a bend of ±π/2 (gimbal lock: the joint
+#: inertia becomes singular and a strong effector whips the part past any speed), so the bend
+#: stays well short of it.
+SPHERICAL_BEND_BOUND = 1.0
+
+
+def limit_bound(joint_type: str, dof: int) -> float:
+    """The largest |limit| DOF ``dof`` of a ``joint_type`` joint may have (radians, or half
+    widths for a prismatic joint).
+
+    >>> limit_bound("revolute", 0), limit_bound("spherical", 1)
+    (3.141592653589793, 1.0)
+    """
+    if joint_type == "prismatic":
+        return MAX_HALF_EXTENT
+    return SPHERICAL_BEND_BOUND if joint_type == "spherical" and dof == 1 else math.pi
 
 MAX_NODES = 24  #: genotype node cap (after garbage collection)
 MAX_CHILDREN = 4  #: child links per node
@@ -219,13 +236,12 @@ def validate_node(node: Node, where: str, n_nodes: int, n_brain: int) -> None:
     _vec(node.joint_axis, f"{where}.joint_axis", lo=None)
     if abs(math.hypot(*node.joint_axis) - 1.0) > 1e-9:
         raise ValueError(f"{where}.joint_axis: must be a unit vector, got {list(node.joint_axis)}")
-    bound = math.pi if node.joint_type in ROTATIONAL_TYPES else MAX_HALF_EXTENT
-    _limits(node.limits, f"{where}.limits", node.joint_type, bound)
+    _limits(node.limits, f"{where}.limits", node.joint_type, limit_bound(node.joint_type, 0))
     if not isinstance(node.extra_limits, (list, tuple)) or len(node.extra_limits) != node.dof - 1:
         raise ValueError(f"{where}.extra_limits: a {node.joint_type} joint ({node.dof} DOF) needs a list of "
                          f"{node.dof - 1} [lo, hi] pairs (one per DOF after the first), got {node.extra_limits!r:.80}")
     for k, lim in enumerate(node.extra_limits):
-        _limits(lim, f"{where}.extra_limits[{k}]", node.joint_type, bound)
+        _limits(lim, f"{where}.extra_limits[{k}]", node.joint_type, limit_bound(node.joint_type, k + 1))
     if not is_real(node.force) or node.force == 0 or abs(node.force) > MAX_FORCE:
         raise ValueError(f"{where}.force: must be nonzero with |force| <= {MAX_FORCE}, got {node.force!r}")
     if not is_int(node.recursive_limit) or not 0 <= node.recursive_limit <= MAX_RECURSIVE_LIMIT:
@@ -283,7 +299,7 @@ def _limits(lim, where: str, joint_type: str, bound: float) -> None:
     if not isinstance(lim, (list, tuple)) or len(lim) != 2 or not all(is_real(v) for v in lim) or not lim[0] < 0 < lim[1]:
         raise ValueError(f"{where}: need [lo, hi], two finite numbers with lo < 0 < hi, got {lim!r}")
     if -lim[0] > bound or lim[1] > bound:
-        raise ValueError(f"{where}: {joint_type} limits must lie within ±{bound:g}, got {list(lim)}")
+        raise ValueError(f"{where}: {joint_type} limits must lie within ±{bound:g} here, got {list(lim)}")
 
 
 def joint_axes(node: Node) -> list:

@@ -321,12 +321,13 @@ def _mutate_joint(node: Node, rng, joint_types=None) -> None:
 
 def _mutate_limits(node: Node, rng, redraw: bool = False) -> None:
     """Step 3: joint mobility (of one DOF, drawn when the joint has several)."""
-    vals = limit_values(node.joint_type)
     if redraw:
+        vals = limit_values(node.joint_type)
         node.limits = (-choice(rng, vals), choice(rng, vals))
-        node.extra_limits = [random_limits(rng, node.joint_type) for _ in range(node.dof - 1)]
+        node.extra_limits = [random_limits(rng, node.joint_type, d) for d in range(1, node.dof)]
         return
     d = int(rng.integers(node.dof)) if node.dof > 1 else 0
+    vals = limit_values(node.joint_type, d)
     lim = node.dof_limits[d]
     lo, hi = -lim[0], lim[1]
     new = (-_step(rng, vals, lo), hi) if rng.random() < 0.5 else (-lo, _step(rng, vals, hi))

@@ -37,8 +37,8 @@ def _off_list(c):
             return f"{w}.size = {list(n.size)}; sizes come from {list(g.SIZES)}"
         if not _near(n.force, g.FORCES):
             return f"{w}.force = {n.force!r}; forces come from {list(g.FORCES)}"
-        lims = g.limit_values(n.joint_type)  # every DOF of a multi-DOF joint draws from the same list
-        for k, lim in enumerate(n.dof_limits):
+        for k, lim in enumerate(n.dof_limits):  # every DOF of a multi-DOF joint draws from its list
+            lims = g.limit_values(n.joint_type, k)
             if not (_near(-lim[0], lims) and _near(lim[1], lims)):
                 field = "limits" if k == 0 else f"extra_limits[{k - 1}]"
                 return f"{w}.{field} = {list(lim)}; {n.joint_type} limits are ±values from {list(lims)}"
