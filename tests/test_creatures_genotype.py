@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from coursekit.creatures import ChildLink, Creature, Node, Recursion, Symmetry, expand, part_poses
 from coursekit.creatures.body import MIN_HALF_EXTENT, PRISMATIC, REVOLUTE, rotation_about
-from coursekit.creatures.genotype import FORMAT, ROTATIONS
+from coursekit.creatures.genotype import FORMAT, JOINT_AXES, ROTATIONS
 from coursekit.creatures.neural import Input
 from coursekit.creatures.render import box_corners
 
@@ -239,7 +239,9 @@ json_values = st.recursive(
 def test_corrupted_files_give_clear_errors_or_valid_creatures(seed, value, pick):
     """Replace one random field anywhere in a valid file: loading either raises ValueError /
     TypeError naming the field or yields a creature that passes validation and expands."""
-    d = Creature.random(np.random.default_rng(seed), n_nodes=(1, 4), neurons=(0, 2), brain_neurons=(0, 2)).to_dict()
+    joint_types = list(JOINT_AXES) if seed % 2 else None  # multi-DOF joints (their extra_limits) half the time
+    d = Creature.random(np.random.default_rng(seed), n_nodes=(1, 4), neurons=(0, 2), brain_neurons=(0, 2),
+                        joint_types=joint_types).to_dict()
     slots = []
 
     def walk(obj):

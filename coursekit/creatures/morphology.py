@@ -307,7 +307,7 @@ def joint_axes(node: Node) -> list:
 
     >>> [tuple(map(float, a)) for a in joint_axes(Node(joint_type="universal", joint_pos=(-1.0, 0.0, 0.0),
     ...                                                joint_axis=(0.0, 0.0, 1.0)))]
-    [(0.0, 0.0, 1.0), (-0.0, 1.0, 0.0)]
+    [(0.0, 0.0, 1.0), (0.0, -1.0, 0.0)]
     """
     a = np.asarray(node.joint_axis, dtype=np.float64)
     kinds = JOINT_AXES[node.joint_type]
