@@ -114,7 +114,7 @@ def mirror_axis(rng: np.random.Generator, node: Node, child: int) -> int | None:
 DEFAULT_JOINT_TYPES = ("revolute", "revolute", "revolute", "prismatic")
 
 
-def joint_types_arg(joint_types, where: str) -> tuple:
+def joint_types_arg(joint_types: Sequence[str] | None, where: str) -> tuple:
     """``joint_types`` checked: a non-empty sequence of names of :data:`~.morphology.JOINT_AXES`
     (repeats weight the draw); None gives :data:`DEFAULT_JOINT_TYPES`."""
     if joint_types is None:
