@@ -59,7 +59,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-#: Sensor names of one part's network, in control-id order (one joint DOF per part).
+#: Sensor names of one part's network, in control-id order (a multi-DOF joint's further DOFs: :func:`dof_sensor`).
 SENSORS = ("joint_angle", "joint_velocity", "contact_-x", "contact_+x", "contact_-y", "contact_+y", "contact_-z", "contact_+z")
 N_SENSORS = len(SENSORS)
 
