@@ -343,3 +343,16 @@ def test_a_universal_joint_turns_about_both_axes():
     np.testing.assert_allclose(R[~tree.massless], d.xmat[1:].reshape(-1, 3, 3), atol=1e-12)
     np.testing.assert_allclose(t[~tree.massless], d.xipos[1:], atol=1e-12)
     assert m.njnt == 3 and np.allclose(m.jnt_axis[1] @ m.jnt_axis[2], 0.0)
+
+
+def test_random_and_mutated_networks_read_the_further_dofs_and_stay_valid():
+    creatures = _creatures(17, 30, joint_types=["spherical"], neurons=(1, 3))
+    own = [i.ctrl for c in creatures for n in c.nodes
+           for i in [x for neuron in n.neurons for x in neuron.inputs] + n.effectors if i is not None and i.morph == 0]
+    assert {16, 17, 18, 19} <= set(own)  # every further-DOF sensor gets wired somewhere
+    rng = np.random.default_rng(18)
+    c = creatures[0]
+    for _ in range(60):  # type changes drop DOFs: repair redraws the inputs that named them
+        c = operators.mutate(c, rng, rate=2.0, joint_types=ALL)
+        c.validate()
+        c.expand()

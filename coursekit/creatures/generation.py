@@ -256,8 +256,9 @@ def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), 
         k = int(rng.integers(neurons[0], neurons[1] + 1))
         n_local = N_SENSORS + k
         nc = max(1, len(node.children) + len(node.recursion))
-        node.neurons = [random_neuron(rng, brain=False, n_local=n_local, n_brain=nb, n_children=nc) for _ in range(k)]
-        node.effectors = [random_input(rng, brain=False, n_local=n_local, n_brain=nb, n_children=nc) for _ in range(node.dof)]
+        kw = dict(brain=False, n_local=n_local, n_brain=nb, n_children=nc, dof=node.dof)
+        node.neurons = [random_neuron(rng, **kw) for _ in range(k)]
+        node.effectors = [random_input(rng, **kw) for _ in range(node.dof)]
     draft = _Draft(renumber(nodes), brain)
     # Sims discards creatures over the part cap; we prune multipliers until it fits.
     while expand(draft, max_parts).body.meta["truncated"]:

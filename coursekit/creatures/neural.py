@@ -239,13 +239,16 @@ def random_param(func: str, rng: np.random.Generator) -> float:
     return float(rng.uniform(lo, hi))
 
 
-def random_input(rng: np.random.Generator, *, brain: bool, n_local: int, n_brain: int, n_children: int) -> Input:
+def random_input(rng: np.random.Generator, *, brain: bool, n_local: int, n_brain: int, n_children: int,
+                 dof: int = 1) -> Input:
     """A random valid input for a local network or the brain.
 
     Args:
         n_local: control ids available in the same network (sensors + neurons).
         n_brain: brain neurons.
         n_children: expected child count of the part (bounds ``m``; at least 1 is tried).
+        dof: the DOFs of the network's joint: a same-network input may also read the sensors
+            of its further DOFs (:func:`dof_sensor`; for 1 DOF the draws are as before).
     """
     w = float(np.round(rng.uniform(-2.0, 2.0), 3))
     kinds = ["const", "self"]
@@ -261,7 +264,8 @@ def random_input(rng: np.random.Generator, *, brain: bool, n_local: int, n_brain
     if kind == "self":
         if brain:
             return Input(0, int(rng.integers(n_brain)), w) if n_brain else Input(None, 0, w)
-        return Input(0, int(rng.integers(n_local)), w)
+        k = int(rng.integers(n_local + 2 * (dof - 1)))
+        return Input(0, k if k < n_local else DOF_SENSOR_BASE + k - n_local, w)
     if kind == "brain":
         return Input(-2, int(rng.integers(n_brain)), w)
     if kind == "parent":
@@ -270,11 +274,12 @@ def random_input(rng: np.random.Generator, *, brain: bool, n_local: int, n_brain
     return Input(m, int(rng.integers(N_SENSORS + 2)), w)
 
 
-def random_neuron(rng: np.random.Generator, *, brain: bool, n_local: int, n_brain: int, n_children: int) -> Neuron:
+def random_neuron(rng: np.random.Generator, *, brain: bool, n_local: int, n_brain: int, n_children: int,
+                  dof: int = 1) -> Neuron:
     """A random neuron with 1..3 random inputs (see :func:`random_input`)."""
     func = FUNCTION_NAMES[int(rng.integers(len(FUNCTION_NAMES)))]
     k = int(rng.integers(1, MAX_INPUTS + 1))
-    inputs = [random_input(rng, brain=brain, n_local=n_local, n_brain=n_brain, n_children=n_children) for _ in range(k)]
+    inputs = [random_input(rng, brain=brain, n_local=n_local, n_brain=n_brain, n_children=n_children, dof=dof) for _ in range(k)]
     return Neuron(func, inputs, random_param(func, rng))
 
 

@@ -59,6 +59,7 @@ from .morphology import (
     renumber,
 )
 from .neural import (
+    DOF_SENSOR_BASE,
     FUNCTION_NAMES,
     MAX_BRAIN_NEURONS,
     MAX_INPUTS,
@@ -179,7 +180,7 @@ def _break_cycles(nodes: list) -> None:
             visit(i)
 
 
-def _fix_input(inp, rng, *, brain: bool, n_local: int, n_brain: int, n_children: int):
+def _fix_input(inp, rng, *, brain: bool, n_local: int, n_brain: int, n_children: int, dof: int = 1):
     if inp is None:
         return None
     m = inp.morph
@@ -187,10 +188,10 @@ def _fix_input(inp, rng, *, brain: bool, n_local: int, n_brain: int, n_children:
     if m is not None:
         if m == -2 or (brain and m == 0):
             bad = inp.ctrl >= n_brain
-        elif m == 0:
-            bad = inp.ctrl >= n_local
+        elif m == 0:  # a further DOF's sensor stays valid while the joint has that DOF
+            bad = inp.ctrl >= n_local and not DOF_SENSOR_BASE <= inp.ctrl < DOF_SENSOR_BASE + 2 * (dof - 1)
     if bad:
-        return random_input(rng, brain=brain, n_local=n_local, n_brain=n_brain, n_children=n_children)
+        return random_input(rng, brain=brain, n_local=n_local, n_brain=n_brain, n_children=n_children, dof=dof)
     return inp
 
 
@@ -202,7 +203,7 @@ def _repair_neural(nodes: list, brain: list, rng) -> None:
         node.neurons = node.neurons[:MAX_NEURONS]
         n_local = N_SENSORS + len(node.neurons)
         nc = max(1, len(node.children) + len(node.recursion))
-        kw = dict(brain=False, n_local=n_local, n_brain=nb, n_children=nc)
+        kw = dict(brain=False, n_local=n_local, n_brain=nb, n_children=nc, dof=node.dof)
         for neuron in node.neurons:
             neuron.inputs = [_fix_input(i, rng, **kw) for i in neuron.inputs]
         node.effectors = [_fix_input(e, rng, **kw) for e in node.effectors][: node.dof]
@@ -478,13 +479,13 @@ def _mutate_weight(w: float, rng) -> float:
 
 
 def _mutate_network(neurons: list, effectors: list | None, rng, p: float, *, brain: bool, n_brain: int,
-                    n_children: int, cap: int) -> None:
+                    n_children: int, cap: int, dof: int = 1) -> None:
     size = len(neurons) + (len(effectors) if effectors else 0) + 1
     q = p / size
 
     def kw():
         return dict(brain=brain, n_local=(0 if brain else N_SENSORS) + len(neurons), n_brain=n_brain,
-                    n_children=n_children)
+                    n_children=n_children, dof=dof)
 
     for neuron in neurons:
         if rng.random() < q:
@@ -530,7 +531,7 @@ def _delete_neuron(creature: Creature, node: Node | None, k: int, rng) -> None:
         if hit_same:
             if inp.ctrl == gone:
                 inp.ctrl = 10**6  # out of range: repair redraws it
-            elif inp.ctrl > gone:
+            elif inp.ctrl > gone and (node is None or inp.ctrl < DOF_SENSOR_BASE):  # not a further DOF's sensor
                 inp.ctrl -= 1
         return inp
 
@@ -558,7 +559,8 @@ def _mutate_networks(creature: Creature, rng, p: float) -> None:
     nb = len(creature.brain)
     for node in creature.nodes:
         nc = max(1, len(node.children) + len(node.recursion))
-        _mutate_network(node.neurons, node.effectors, rng, p, brain=False, n_brain=nb, n_children=nc, cap=MAX_NEURONS)
+        _mutate_network(node.neurons, node.effectors, rng, p, brain=False, n_brain=nb, n_children=nc, cap=MAX_NEURONS,
+                        dof=node.dof)
         if node.neurons and rng.random() < p / (len(node.neurons) + 2):
             _delete_neuron(creature, node, int(rng.integers(len(node.neurons))), rng)
     _mutate_network(creature.brain, None, rng, p, brain=True, n_brain=nb, n_children=1, cap=MAX_BRAIN_NEURONS)
