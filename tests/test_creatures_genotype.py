@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from coursekit.creatures import ChildLink, Creature, Node, Recursion, Symmetry, expand, part_poses
 from coursekit.creatures.body import MIN_HALF_EXTENT, PRISMATIC, REVOLUTE, rotation_about
-from coursekit.creatures.genotype import FORMAT, ROTATIONS
+from coursekit.creatures.genotype import FORMAT, JOINT_AXES, ROTATIONS
 from coursekit.creatures.neural import Input
 from coursekit.creatures.render import box_corners
 
@@ -33,7 +33,7 @@ def test_random_is_valid_deterministic_and_round_trips(seed):
     assert a.to_json() == b.to_json()
     c = Creature.from_json(a.to_json())
     assert c == a
-    assert json.loads(a.to_json())["format"] == "coursekit.creature/1"
+    assert json.loads(a.to_json())["format"] == "coursekit.creature/2"
 
 
 def test_save_load_atomic_and_refuses_bad_files(tmp_path):
@@ -61,7 +61,9 @@ def test_save_load_atomic_and_refuses_bad_files(tmp_path):
         (lambda n: setattr(n[0], "size", (0.01, 0.1, 0.1)), r"nodes\[0\]\.size.*0\.025"),
         (lambda n: setattr(n[0], "limits", (0.1, 0.5)), r"limits.*lo < 0 < hi"),
         (lambda n: setattr(n[0], "joint_axis", (1.0, 1.0, 0.0)), r"joint_axis.*unit"),
-        (lambda n: setattr(n[0], "joint_type", "universal"), r"joint_type.*revolute"),
+        (lambda n: setattr(n[0], "joint_type", "ball"), r"joint_type.*revolute.*spherical"),
+        (lambda n: setattr(n[0], "joint_type", "universal"), r"extra_limits.*universal.*1 \[lo, hi\]"),
+        (lambda n: (setattr(n[0], "joint_type", "universal"), setattr(n[0], "extra_limits", [None])), r"extra_limits\[0\]: need \[lo, hi\]"),
         (lambda n: n[0].children.append(ChildLink(7)), r"children\[\d\]\.child.*\[0, 2\)"),
         (lambda n: n[1].children.append(ChildLink(0)), r"cycle"),
         (lambda n: n[0].symmetry.append(Symmetry(0, 1)), r"symmetry\[\d\]\.child"),
@@ -222,7 +224,7 @@ def test_joint_types_and_axes_units():
     body = c.expand().body
     assert set(body.joint_type[1:].tolist()) <= {REVOLUTE, PRISMATIC}
     np.testing.assert_allclose(np.linalg.norm(body.joint_axis[1:], axis=1), 1.0)
-    assert FORMAT == "coursekit.creature/1"
+    assert FORMAT == "coursekit.creature/2"
 
 
 json_values = st.recursive(
@@ -237,7 +239,9 @@ json_values = st.recursive(
 def test_corrupted_files_give_clear_errors_or_valid_creatures(seed, value, pick):
     """Replace one random field anywhere in a valid file: loading either raises ValueError /
     TypeError naming the field or yields a creature that passes validation and expands."""
-    d = Creature.random(np.random.default_rng(seed), n_nodes=(1, 4), neurons=(0, 2), brain_neurons=(0, 2)).to_dict()
+    joint_types = list(JOINT_AXES) if seed % 2 else None  # multi-DOF joints (their extra_limits) half the time
+    d = Creature.random(np.random.default_rng(seed), n_nodes=(1, 4), neurons=(0, 2), brain_neurons=(0, 2),
+                        joint_types=joint_types).to_dict()
     slots = []
 
     def walk(obj):

@@ -42,6 +42,14 @@ the same way or opposite), and ``strength[i] > 0`` is the largest joint force or
 effector can apply (proportional to the cross-sectional area of the parts it joins, Sims 1994).
 Row 0 of every per-joint array belongs to the root's free joint and is ignored (zeros; identity
 for ``joint_rot``).
+
+Multi-DOF joints. A joint of ``k`` DOFs (a genotype's universal or spherical joint) is ``k``
+hinges in series: ``k - 1`` *massless* bodies (``massless[i]``; half extents, mass and inertia
+zero) sit at the joint anchor between the parent and the part, each with one hinge, and the part
+itself carries the last. Massless bodies feel no water and touch nothing, are not drawn and are
+not parts (:attr:`BodyTree.n_parts`); the articulated-body algorithm needs nothing special for
+them, the part after them carrying the inertia. In MJCF the ``k`` hinges are ``k`` joints of the
+part's one ``<body>`` (MuJoCo applies a body's joints in series, as here).
 """
 
 from __future__ import annotations
@@ -84,6 +92,7 @@ class BodyTree:
     density: float = 1.0
     node_id: np.ndarray | None = None  # (B,) genotype node each body was instantiated from
     meta: dict = field(default_factory=dict)
+    massless: np.ndarray | None = None  # (B,) bool: an intermediate frame of a multi-DOF joint (default none)
 
     def __post_init__(self) -> None:
         B = len(self.parent)
@@ -100,6 +109,7 @@ class BodyTree:
         self.strength = as_f(self.strength, (B,))
         if self.node_id is not None:
             self.node_id = np.asarray(self.node_id, dtype=np.int64).reshape(B)
+        self.massless = np.zeros(B, dtype=bool) if self.massless is None else np.asarray(self.massless, dtype=bool).reshape(B)
         self.validate()
 
     @property
@@ -108,13 +118,35 @@ class BodyTree:
 
     @property
     def n_joints(self) -> int:
-        """Number of 1-DOF joints (every body but the root)."""
+        """Number of 1-DOF joints (every body but the root): the creature's joint DOFs."""
         return len(self.parent) - 1
 
     @property
+    def n_parts(self) -> int:
+        """Number of boxes (bodies that are not massless frames of multi-DOF joints)."""
+        return int(len(self.parent) - np.count_nonzero(self.massless))
+
+    def part_of(self) -> np.ndarray:
+        """(B,) the part (box) every body belongs to: itself, or for a massless frame the part
+        whose joint it is a DOF of (the first part below it)."""
+        out = np.arange(self.n_bodies)
+        for i in range(self.n_bodies - 1, 0, -1):
+            if self.massless[i]:
+                out[i] = out[i + 1]  # pre-order: a massless frame's one child comes next
+        return out
+
+    def part_parent(self) -> np.ndarray:
+        """(B,) the nearest ancestor of every body that is a part (-1 for the root)."""
+        out = self.parent.copy()
+        for i in range(1, self.n_bodies):
+            if self.massless[out[i]]:
+                out[i] = out[out[i]]
+        return out
+
+    @property
     def mass(self) -> np.ndarray:
-        """(B,) mass of every box."""
-        return 8.0 * np.prod(self.half_extents, axis=1) * self.density
+        """(B,) mass of every box (0 for massless frames)."""
+        return np.where(self.massless, 0.0, 8.0 * np.prod(self.half_extents, axis=1) * self.density)
 
     @property
     def inertia(self) -> np.ndarray:
@@ -147,9 +179,20 @@ class BodyTree:
             raise ValueError(
                 f"BodyTree.joint_type: root must be FREE (0) and others REVOLUTE (1) or PRISMATIC (2), got {self.joint_type.tolist()}"
             )
-        if np.any(self.half_extents < MIN_HALF_EXTENT - 1e-12) or not np.all(np.isfinite(self.half_extents)):
-            i = int(np.argmin(self.half_extents.min(axis=1)))
+        parts = self.half_extents[~self.massless]
+        if np.any(parts < MIN_HALF_EXTENT - 1e-12) or not np.all(np.isfinite(parts)):
+            i = int(np.flatnonzero(~self.massless)[np.argmin(np.where(np.isfinite(parts), parts, -1).min(axis=1))])
             raise ValueError(f"BodyTree.half_extents[{i}]: every half extent must be >= {MIN_HALF_EXTENT}, got {self.half_extents[i].tolist()}")
+        if self.massless.any():
+            i = int(np.argmax(self.massless))
+            if self.massless[0]:
+                raise ValueError("BodyTree.massless[0]: the root must be a part, not a massless frame")
+            bad = np.flatnonzero(self.massless & (np.abs(self.half_extents).max(axis=1) > 0))
+            if bad.size:
+                raise ValueError(f"BodyTree.half_extents[{int(bad[0])}]: a massless frame has half extents 0, got {self.half_extents[int(bad[0])].tolist()}")
+            for i in np.flatnonzero(self.massless):
+                if i + 1 >= B or self.parent[i + 1] != i or np.count_nonzero(self.parent == i) != 1:
+                    raise ValueError(f"BodyTree.massless[{int(i)}]: a massless frame needs exactly one child, the next body")
         if B > 1:
             n = np.linalg.norm(self.joint_axis[1:], axis=1)
             if np.any(np.abs(n - 1.0) > 1e-9):

@@ -3,12 +3,14 @@
 The paper keeps the expanded network "as a list together with a map storing the state of each
 element". Here a :class:`Brain` holds, for one creature, every neuron instance (each part's copy
 of its node's local neurons in body order, then the central brain's neurons) with its function
-code, parameter and up to three ``(source slot, weight)`` inputs, plus one effector per part.
+code, parameter and up to three ``(source slot, weight)`` inputs, plus one effector per joint DOF
+(per body of the body tree: a multi-DOF joint's massless frames carry its further DOFs).
 Relative ids are resolved once, at expansion (see :mod:`coursekit.creatures.neural` for their
 meaning; unresolvable ones read the constant-0 slot).
 
 Slots of one creature's value vector: ``0`` the constant 0, ``1`` the constant 1, ``2 + 8 b + k``
-sensor ``k`` of part ``b`` (:data:`~coursekit.creatures.neural.SENSORS`), then ``2 + 8 B + j``
+sensor ``k`` of body ``b`` (:data:`~coursekit.creatures.neural.SENSORS`; a massless frame uses only its
+joint's angle and velocity), then ``2 + 8 B + j``
 neuron ``j``. :class:`BrainBatch` concatenates many brains into one vector and evaluates them
 together: synchronous update (every neuron reads the previous tick's values and this tick's
 sensors), then every effector reads its source's new value times its weight. Physics calls
@@ -24,7 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .neural import FUNCTION_CODE, FUNCTION_NAMES, MAX_INPUTS, N_SENSORS, SENSORS, evaluate, function_groups
+from .neural import FUNCTION_CODE, FUNCTION_NAMES, MAX_INPUTS, MAX_NEURONS, N_SENSORS, SENSORS, evaluate, function_groups, sensor_dof
 
 if TYPE_CHECKING:
     from .phenotype import Phenotype
@@ -67,19 +69,28 @@ class Brain:
         return out
 
 
-def build_brain(creature, node_of: list[int], parent_of: list[int], children: list[list[int]]) -> Brain:
-    """Resolve the relative ids of ``creature``'s networks over an expanded part tree.
+def build_brain(creature, node_of: list[int], parent_of: list[int], children: list[list[int]],
+                dof_bodies: list[list[int]] | None = None, massless: list[bool] | None = None) -> Brain:
+    """Resolve the relative ids of ``creature``'s networks over an expanded body tree.
 
     Args:
         creature: the genotype.
-        node_of, parent_of: genotype node and parent part of every part (pre-order).
+        node_of, parent_of: genotype node and parent part of every body (pre-order).
         children: children[b], part indices in relative-id order.
+        dof_bodies: dof_bodies[b], the bodies whose joints are the DOFs of part ``b``'s joint, in
+            DOF order (default ``[b]``: 1-DOF joints). Their angle and velocity are the part's
+            joint sensors (:func:`~coursekit.creatures.neural.dof_sensor`), and each DOF's
+            effector drives its body's joint.
+        massless: massless[b], body ``b`` is a massless frame of a multi-DOF joint (no network
+            of its own; default none).
     """
     B = len(node_of)
     nodes = creature.nodes
+    massless = [False] * B if massless is None else list(massless)
+    dof_bodies = [[b] for b in range(B)] if dof_bodies is None else dof_bodies
     first = np.zeros(B + 1, dtype=np.int64)  # first neuron index of each part; the brain last
     for b in range(B):
-        first[b + 1] = first[b] + len(nodes[node_of[b]].neurons)
+        first[b + 1] = first[b] + (0 if massless[b] else len(nodes[node_of[b]].neurons))
     brain_first = int(first[B])
     N = brain_first + len(creature.brain)
     neuron_base = N_CONST + N_SENSORS * B
@@ -88,9 +99,15 @@ def build_brain(creature, node_of: list[int], parent_of: list[int], children: li
         """Slot of control id ``ctrl`` of part ``part``'s network (-1: the brain)."""
         if part == -1:
             return neuron_base + brain_first + ctrl if ctrl < len(creature.brain) else ZERO
+        joint = sensor_dof(ctrl)
+        if joint is not None:
+            d, which = joint
+            return N_CONST + N_SENSORS * dof_bodies[part][d] + which if d < len(dof_bodies[part]) else ZERO
         if ctrl < N_SENSORS:
             return N_CONST + N_SENSORS * part + ctrl
         k = ctrl - N_SENSORS
+        if k >= MAX_NEURONS:
+            return ZERO
         return neuron_base + first[part] + k if k < len(nodes[node_of[part]].neurons) else ZERO
 
     def resolve(inp, part: int) -> tuple[int, float]:
@@ -133,10 +150,13 @@ def build_brain(creature, node_of: list[int], parent_of: list[int], children: li
             src[j, s], weight[j, s] = resolve(inp, part)
 
     for b in range(B):
+        if massless[b]:
+            continue
         node = nodes[node_of[b]]
         for k, neuron in enumerate(node.neurons):
             fill(int(first[b]) + k, neuron, b, k)
-        eff_src[b], eff_w[b] = resolve(node.effectors[0], b)
+        for d, j in enumerate(dof_bodies[b]):
+            eff_src[j], eff_w[j] = resolve(node.effectors[d], b)
     for k, neuron in enumerate(creature.brain):
         fill(brain_first + k, neuron, -1, k)
     return Brain(B, func, param, src, weight, n_inputs, eff_src, eff_w, neuron_body, neuron_index)

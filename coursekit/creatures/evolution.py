@@ -12,6 +12,7 @@ so it goes in as the engine's ``map``. Every operator is a parameter: a student'
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
 import os
@@ -130,6 +131,7 @@ def evolve_swimmers(
     callback: Callable | None = None,
     random_options: dict | None = None,
     executor: Any | None = None,
+    joint_types: Sequence[str] | None = None,
     **simulate_options: Any,
 ) -> ga.EvolutionResult:
     """Evolve swimmers for speed.
@@ -148,6 +150,11 @@ def evolve_swimmers(
         elite: survivors copied unchanged (default: the top fifth, as Sims kept his survivors).
         checkpoint, progress, callback: as for :func:`coursekit.ga.evolve`.
         random_options: options for ``Creature.random``.
+        joint_types: the joint types random creatures, new nodes and joint-type mutations draw
+            from (names of :data:`~coursekit.creatures.morphology.JOINT_AXES`, e.g.
+            ``["revolute", "universal", "spherical"]``); default the 1-DOF revolute and prismatic
+            joints (the same runs as before multi-DOF joints existed). Passed to ``mutate`` when
+            it takes ``joint_types``.
         executor: a ``concurrent.futures`` pool or a Dask ``distributed.Client`` the generation
             swims in, a batch per worker (:class:`SwimmerFitness`); the result is bit for bit the
             serial one.
@@ -161,9 +168,12 @@ def evolve_swimmers(
     if population is None:
         if not (isinstance(population_size, int) and population_size >= 2):
             raise ValueError(f"population_size: must be an integer >= 2, got {population_size!r}")
-        population = [Creature.random(rng, **(random_options or {})) for _ in range(population_size)]
+        options = dict(random_options or {})
+        if joint_types is not None:
+            options.setdefault("joint_types", joint_types)
+        population = [Creature.random(rng, **options) for _ in range(population_size)]
     population = list(population)
-    vary, evaluate = _breeding(seconds, mutate, crossover, graft, ratios, executor, simulate_options)
+    vary, evaluate = _breeding(seconds, _with_joint_types(mutate, joint_types), crossover, graft, ratios, executor, simulate_options)
     if elite is None:
         elite = max(1, math.ceil(len(population) / 5))
     return ga.evolve(
@@ -184,16 +194,25 @@ def resume_swimmers(
     progress: bool = True,
     callback: Callable | None = None,
     executor: Any | None = None,
+    joint_types: Sequence[str] | None = None,
     **simulate_options: Any,
 ) -> ga.EvolutionResult:
     """Continue a run of :func:`evolve_swimmers` from its checkpoint (:func:`coursekit.ga.resume`).
 
     Given the settings the run was started with (``seconds``, the operators, ``ratios`` and the
-    simulation options; selection and elitism come from the checkpoint), the result equals, bit
-    for bit, that of the uninterrupted run. ``generations`` is the total the run should reach.
+    simulation options, ``joint_types``; selection and elitism come from the checkpoint), the
+    result equals, bit for bit, that of the uninterrupted run. ``generations`` is the total the
+    run should reach.
     """
-    vary, evaluate = _breeding(seconds, mutate, crossover, graft, ratios, executor, simulate_options)
+    vary, evaluate = _breeding(seconds, _with_joint_types(mutate, joint_types), crossover, graft, ratios, executor, simulate_options)
     return ga.resume(checkpoint, _unbatched, vary, generations=generations, map=evaluate, progress=progress, callback=callback)
+
+
+def _with_joint_types(mutate, joint_types):
+    """``mutate`` drawing from ``joint_types`` when it takes them (a picklable partial)."""
+    if joint_types is None or "joint_types" not in inspect.signature(mutate).parameters:
+        return mutate
+    return functools.partial(mutate, joint_types=list(joint_types))
 
 
 def _breeding(seconds, mutate, crossover, graft, ratios, executor, simulate_options):

@@ -133,16 +133,18 @@ def draw_body_tree(creature: Creature, ax: matplotlib.axes.Axes | None = None, *
     body = pheno.body
     ax = ax or plt.subplots(figsize=(4, 3.5))[1]
     pos = {b: (x, -y) for b, (x, y) in tree_layout(pheno.children).items()}
-    for b in range(1, body.n_bodies):
-        _arrow(ax, pos[int(body.parent[b])], pos[b], r=0.24)
-    for b in range(body.n_bodies):
-        _disc(ax, *pos[b], str(b), _colour(int(body.node_id[b])), size=8, r=0.24)
+    parts = np.flatnonzero(~body.massless)  # a multi-DOF joint's massless frames are not parts
+    up = body.part_parent()
+    for b in parts[1:]:
+        _arrow(ax, pos[int(up[b])], pos[int(b)], r=0.24)
+    for b in parts:
+        _disc(ax, *pos[int(b)], str(int(b)), _colour(int(body.node_id[b])), size=8, r=0.24)
     xs, ys = zip(*pos.values())
     ax.set_xlim(min(xs) - 0.6, max(xs) + 0.6)
     ax.set_ylim(min(ys) - 0.6, max(ys) + 0.6)
     ax.set_aspect("equal")
     ax.axis("off")
-    ax.set_title(title or f"expanded body: {body.n_bodies} parts (colour = genotype node)", fontsize=10)
+    ax.set_title(title or f"expanded body: {body.n_parts} parts (colour = genotype node)", fontsize=10)
     return ax
 
 
@@ -329,7 +331,8 @@ def draw_contacts(tree: BodyTree, qpos: ArrayLike, ax: matplotlib.axes.Axes | No
     touching = set(ia.tolist()) | set(ib.tolist())
     from scipy.spatial import ConvexHull
 
-    for k in range(len(order)):
+    boxes = [k for k in range(len(order)) if not tree.massless[order[k]]]  # massless frames have no box
+    for k in boxes:
         xy = np.c_[corners[k] @ e1, corners[k] @ e2]
         hull = xy[ConvexHull(xy).vertices]
         hit = k in touching
@@ -349,5 +352,5 @@ def draw_contacts(tree: BodyTree, qpos: ArrayLike, ax: matplotlib.axes.Axes | No
     ax.set_aspect("equal")
     ax.autoscale_view()
     ax.axis("off")
-    ax.set_title(f"{len(ia)} touching pairs (red) of {len(order)} boxes; arrows: contact normals", fontsize=9)
+    ax.set_title(f"{len(ia)} touching pairs (red) of {len(boxes)} boxes; arrows: contact normals", fontsize=9)
     return ax, out

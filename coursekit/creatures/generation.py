@@ -21,6 +21,8 @@ import numpy as np
 
 from .morphology import (
     IDENTITY,
+    JOINT_AXES,
+    limit_bound,
     MAX_CHILDREN,
     MAX_NODES,
     MAX_RECURSIVE_LIMIT,
@@ -36,7 +38,8 @@ from .phenotype import MAX_PARTS, expand
 
 T = TypeVar("T")
 
-__all__ = ["SIZES", "COORDS", "FORCES", "REVOLUTE_LIMITS", "PRISMATIC_LIMITS", "SCALES", "AXES", "ROTATIONS", "FACES",
+__all__ = ["SIZES", "COORDS", "FORCES", "REVOLUTE_LIMITS", "PRISMATIC_LIMITS", "DEFAULT_JOINT_TYPES",
+           "joint_types_arg", "limit_values", "random_limits", "SCALES", "AXES", "ROTATIONS", "FACES",
            "choice", "random_face_point", "facing_rotation", "mirror_axis", "random_node", "random_link",
            "random_recursion", "random_genotype", "figure1_snake", "paddle_turtle"]
 
@@ -106,15 +109,49 @@ def mirror_axis(rng: np.random.Generator, node: Node, child: int) -> int | None:
     return choice(rng, axes) if links and axes else None
 
 
-def random_node(rng: np.random.Generator) -> Node:
-    """A random node with no links and no neurons (effector: constant 0 until wired)."""
-    jt = choice(rng, ("revolute", "revolute", "revolute", "prismatic"))
-    lim = choice(rng, REVOLUTE_LIMITS if jt == "revolute" else PRISMATIC_LIMITS)
-    lim2 = choice(rng, REVOLUTE_LIMITS if jt == "revolute" else PRISMATIC_LIMITS)
+#: The joint types random creatures and mutation draw from by default (as many revolute draws as
+#: before multi-DOF joints existed, so seeds give the same creatures).
+DEFAULT_JOINT_TYPES = ("revolute", "revolute", "revolute", "prismatic")
+
+
+def joint_types_arg(joint_types: Sequence[str] | None, where: str) -> tuple:
+    """``joint_types`` checked: a non-empty sequence of names of :data:`~.morphology.JOINT_AXES`
+    (repeats weight the draw); None gives :data:`DEFAULT_JOINT_TYPES`."""
+    if joint_types is None:
+        return DEFAULT_JOINT_TYPES
+    if isinstance(joint_types, str) or not isinstance(joint_types, Sequence) or not joint_types:
+        raise ValueError(f"{where}.joint_types: need a non-empty list of joint type names from {list(JOINT_AXES)}, got {joint_types!r}")
+    bad = [t for t in joint_types if t not in JOINT_AXES]
+    if bad:
+        raise ValueError(f"{where}.joint_types: unknown joint type(s) {bad}; allowed: {list(JOINT_AXES)}")
+    return tuple(joint_types)
+
+
+def limit_values(joint_type: str, dof: int = 0) -> tuple:
+    """The predefined limit magnitudes of DOF ``dof`` of a joint type (within
+    :func:`~.morphology.limit_bound`: a spherical joint's bend is kept from gimbal lock)."""
+    vals = PRISMATIC_LIMITS if joint_type == "prismatic" else REVOLUTE_LIMITS
+    bound = limit_bound(joint_type, dof)
+    return tuple(v for v in vals if v <= bound)
+
+
+def random_limits(rng: np.random.Generator, joint_type: str, dof: int = 0) -> tuple:
+    """A random ``(lo, hi)`` for DOF ``dof`` from :func:`limit_values` (two draws)."""
+    vals = limit_values(joint_type, dof)
+    lim = choice(rng, vals)
+    return (-lim, choice(rng, vals))
+
+
+def random_node(rng: np.random.Generator, joint_types: Sequence[str] | None = None) -> Node:
+    """A random node with no links and no neurons (effector: constant 0 until wired); its joint
+    type is drawn from ``joint_types`` (default :data:`DEFAULT_JOINT_TYPES`)."""
+    jt = choice(rng, joint_types_arg(joint_types, "random_node"))
+    limits = random_limits(rng, jt)
     node = Node(
         size=tuple(choice(rng, SIZES[2:]) for _ in range(3)), joint_type=jt, joint_pos=choice(rng, FACES),
-        joint_axis=choice(rng, AXES), limits=(-lim, lim2), force=choice(rng, FORCES),
+        joint_axis=choice(rng, AXES), limits=limits, force=choice(rng, FORCES),
     )
+    node.extra_limits = [random_limits(rng, jt, d) for d in range(1, node.dof)]
     node.effectors = [None] * node.dof
     return node
 
@@ -151,7 +188,8 @@ class _Draft(NamedTuple):
 
 def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), max_children: int = 3,
                     neurons: tuple = (0, 3), brain_neurons: tuple = (0, 3), p_recursion: float = 0.3,
-                    p_symmetry: float = 0.4, max_parts: int | None = None) -> tuple[list, list]:
+                    p_symmetry: float = 0.4, max_parts: int | None = None,
+                    joint_types: Sequence[str] | None = None) -> tuple[list, list]:
     """The nodes and brain of a random valid creature (``Creature.random`` wraps them).
 
     Args:
@@ -164,6 +202,9 @@ def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), 
         max_parts: the expansion must fit this many parts without truncation (default
             ``phenotype.MAX_PARTS``); recursion and symmetry entries are pruned at random
             until it does.
+        joint_types: the joint types nodes draw from (names of
+            :data:`~.morphology.JOINT_AXES`, repeats weighting the draw; default
+            :data:`DEFAULT_JOINT_TYPES`, 1-DOF joints only).
 
     Returns:
         ``(nodes, brain)``: nodes numbered in LR pre-order, all reachable, acyclic.
@@ -184,8 +225,9 @@ def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), 
     max_parts = MAX_PARTS if max_parts is None else max_parts
     if not is_int(max_parts) or max_parts < hi:
         raise ValueError(f"Creature.random.max_parts: must be an int >= the largest node count {hi}, got {max_parts!r}")
+    joint_types = joint_types_arg(joint_types, "Creature.random")
     count = int(rng.integers(lo, hi + 1))
-    nodes = [random_node(rng) for _ in range(count)]
+    nodes = [random_node(rng, joint_types) for _ in range(count)]
     # A random tree over the nodes (parent id < child id keeps the graph acyclic), then a few
     # extra links to later nodes (shared subgraphs, as Sims' graphs allow).
     for i in range(1, count):
@@ -214,8 +256,9 @@ def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), 
         k = int(rng.integers(neurons[0], neurons[1] + 1))
         n_local = N_SENSORS + k
         nc = max(1, len(node.children) + len(node.recursion))
-        node.neurons = [random_neuron(rng, brain=False, n_local=n_local, n_brain=nb, n_children=nc) for _ in range(k)]
-        node.effectors = [random_input(rng, brain=False, n_local=n_local, n_brain=nb, n_children=nc) for _ in range(node.dof)]
+        kw = dict(brain=False, n_local=n_local, n_brain=nb, n_children=nc, dof=node.dof)
+        node.neurons = [random_neuron(rng, **kw) for _ in range(k)]
+        node.effectors = [random_input(rng, **kw) for _ in range(node.dof)]
     draft = _Draft(renumber(nodes), brain)
     # Sims discards creatures over the part cap; we prune multipliers until it fits.
     while expand(draft, max_parts).body.meta["truncated"]:

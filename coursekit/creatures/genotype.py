@@ -9,7 +9,9 @@ by hand through :mod:`.generation` (``Creature.random``, ``Creature.figure1_snak
 ``Creature.paddle_turtle``). The names of :mod:`.morphology` and :mod:`.generation` (the
 elements, the value lists, the random elements) are also importable from here.
 
-Files are JSON with ``"format": "coursekit.creature/1"``, written atomically.
+Files are JSON with ``"format": "coursekit.creature/2"`` (version 2 adds each node's
+``extra_limits``, the limits of multi-DOF joints), written atomically; version 1 files (1-DOF
+joints only) are still read, as the same creatures.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from .body import MAX_HALF_EXTENT, MIN_HALF_EXTENT
 from .generation import (
     AXES,
     COORDS,
+    DEFAULT_JOINT_TYPES,
     FACES,
     FORCES,
     PRISMATIC_LIMITS,
@@ -41,6 +44,7 @@ from .generation import (
     SIZES,
     choice,
     facing_rotation,
+    limit_values,
     mirror_axis,
     random_face_point,
     random_link,
@@ -49,6 +53,7 @@ from .generation import (
 )
 from .morphology import (
     IDENTITY,
+    JOINT_AXES,
     JOINT_DOF,
     MAX_CHILDREN,
     MAX_FORCE,
@@ -71,14 +76,17 @@ from .neural import MAX_BRAIN_NEURONS, Neuron, need_keys, validate_neuron
 from .phenotype import MAX_PARTS, Phenotype, expand
 from . import render as rendering  # the module (the package's name `render` is the function)
 
-__all__ = ["FORMAT", "Creature", "ChildLink", "Node", "Recursion", "Symmetry", "JOINT_DOF", "MAX_HALF_EXTENT",
+__all__ = ["FORMAT", "Creature", "ChildLink", "Node", "Recursion", "Symmetry", "JOINT_AXES", "JOINT_DOF",
+           "DEFAULT_JOINT_TYPES", "limit_values", "MAX_HALF_EXTENT",
            "MIN_HALF_EXTENT", "MAX_NODES", "MAX_CHILDREN", "MAX_RECURSION_ENTRIES", "MAX_RECURSIVE_LIMIT",
            "MAX_SYMMETRY", "MAX_FORCE", "SCALE_RANGE", "IDENTITY", "SIZES", "COORDS", "FORCES", "REVOLUTE_LIMITS",
            "PRISMATIC_LIMITS", "SCALES", "AXES", "ROTATIONS", "FACES", "choice", "facing_rotation", "mirror_axis",
            "random_face_point", "random_link", "random_node", "random_recursion", "validate_node", "preorder",
            "renumber", "has_cycle"]
 
-FORMAT = "coursekit.creature/1"
+FORMAT = "coursekit.creature/2"
+#: Every format version this module reads (the first had no multi-DOF joints).
+READABLE_FORMATS = {"coursekit.creature/1": 1, FORMAT: 2}
 
 
 @dataclass
@@ -135,8 +143,8 @@ class Creature:
         """
         ph = self.expand()
         body = ph.body
-        dof = sum(JOINT_DOF[self.nodes[int(i)].joint_type] for i in body.node_id[1:]) if body.node_id is not None else body.n_joints
-        return {"parts": body.n_bodies, "joints": body.n_joints, "dof": int(dof), "mass": float(body.mass.sum()),
+        dof = body.n_joints  # one body-tree joint per DOF (multi-DOF joints are chains of hinges)
+        return {"parts": body.n_parts, "joints": body.n_parts - 1, "dof": int(dof), "mass": float(body.mass.sum()),
                 "neurons": int(ph.brain.n_neurons), "nodes": len(self.nodes)}
 
     def __repr__(self) -> str:
@@ -175,19 +183,20 @@ class Creature:
         return {"format": FORMAT, "nodes": [n.to_dict() for n in self.nodes], "brain": [n.to_dict() for n in self.brain]}
 
     def to_json(self) -> str:
-        """Versioned JSON text (``"format": "coursekit.creature/1"``)."""
+        """Versioned JSON text (``"format": "coursekit.creature/2"``)."""
         return json.dumps(self.to_dict(), indent=1)
 
     @classmethod
     def from_dict(cls, d: dict) -> "Creature":
         if not isinstance(d, dict):
             raise TypeError(f"creature: expected a JSON object, got {type(d).__name__}")
-        if d.get("format") != FORMAT:
-            raise ValueError(f"creature.format: expected {FORMAT!r}, got {d.get('format')!r} (not a coursekit creature file?)")
+        fmt = d.get("format")
+        if not isinstance(fmt, str) or fmt not in READABLE_FORMATS:
+            raise ValueError(f"creature.format: expected one of {list(READABLE_FORMATS)}, got {fmt!r} (not a coursekit creature file?)")
         need_keys(d, ("nodes", "brain"), "creature")
         if not isinstance(d["nodes"], list) or not isinstance(d["brain"], list):
             raise TypeError("creature.nodes / creature.brain: expected lists")
-        nodes = [node_from_dict(n, f"creature.nodes[{i}]") for i, n in enumerate(d["nodes"])]
+        nodes = [node_from_dict(n, f"creature.nodes[{i}]", READABLE_FORMATS[fmt]) for i, n in enumerate(d["nodes"])]
         brain = [Neuron.from_dict(n, f"creature.brain[{k}]") for k, n in enumerate(d["brain"])]
         return cls(nodes, brain)
 
@@ -225,7 +234,8 @@ class Creature:
     def random(cls, rng: np.random.Generator, **params: Any) -> "Creature":
         """A random valid creature: see :func:`.generation.random_genotype` for ``params``
         (``n_nodes``, ``max_children``, ``neurons``, ``brain_neurons``, ``p_recursion``,
-        ``p_symmetry``, ``max_parts``). Nodes are numbered in LR pre-order, all reachable, acyclic."""
+        ``p_symmetry``, ``max_parts``, ``joint_types``: e.g. ``["revolute", "spherical"]`` for
+        multi-DOF joints). Nodes are numbered in LR pre-order, all reachable, acyclic."""
         return cls(*generation.random_genotype(rng, **params))
 
     @classmethod

@@ -3,7 +3,8 @@
 ``to_mjcf`` writes the body tree of a creature (or several, side by side) as an MJCF model that
 MuJoCo loads with ``mujoco.MjModel.from_xml_string``: one ``<body>`` per box with an explicit
 ``<inertial>`` (exact box mass and principal inertia at the centre), a free root joint, ``hinge``
-and ``slide`` joints with their limits, one ``<motor>`` per joint (``gear`` = the joint's signed
+and ``slide`` joints with their limits (a multi-DOF joint is its hinges in series, several
+``<joint>`` of one ``<body>``: the body tree's massless frames are not bodies there), one ``<motor>`` per joint DOF (``gear`` = the joint's signed
 gain, force range = its strength), gravity off. Box geoms are visual only (no MuJoCo contacts) unless ``contacts=True``, where
 they collide under MuJoCo's own rules (every pair of boxes but parent and child; creatures are
 then spaced apart so that they never touch one another); water is not exported. Its ``qpos``/``qvel`` layout is the one of
@@ -62,30 +63,37 @@ def _creature_xml(tree, prefix: str, pos, contacts: bool = False) -> tuple[list[
         children[tree.parent[i]].append(i)
 
     def body(i: int, indent: str) -> None:
-        name = f"{prefix}b{i}"
+        """The part whose joint's first DOF is body ``i``: after massless frames, body ``b``."""
+        chain = [i]
+        while tree.massless[chain[-1]]:
+            chain.append(children[chain[-1]][0])
+        b = chain[-1]
+        name = f"{prefix}b{b}"
         if i == 0:
             lines.append(f'{indent}<body name="{name}" pos="{_f(pos)}">')
             lines.append(f'{indent}  <freejoint name="{prefix}root"/>')
         else:
-            bpos = tree.joint_pos_parent[i] - tree.joint_rot[i] @ tree.joint_pos_child[i]
+            # the part's pose at q = 0 (the massless frames' joints have no rotation or offset of their own)
+            bpos = tree.joint_pos_parent[i] - tree.joint_rot[i] @ tree.joint_pos_child[b]
             lines.append(f'{indent}<body name="{name}" pos="{_f(bpos)}" quat="{_f(quats[i])}">')
-            kind = "hinge" if tree.joint_type[i] == REVOLUTE else "slide"
-            jname = f"{prefix}j{i}"
-            lines.append(
-                f'{indent}  <joint name="{jname}" type="{kind}" pos="{_f(tree.joint_pos_child[i])}" '
-                f'axis="{_f(tree.joint_axis[i])}" limited="true" range="{_f(tree.limits[i])}"/>'
-            )
-            s = float(tree.strength[i])
-            motors.append(
-                f'    <motor name="{prefix}m{i}" joint="{jname}" gear="{_f([tree.gain[i]])}" ctrllimited="true" '
-                f'ctrlrange="-1 1" forcelimited="true" forcerange="{_f([-s, s])}"/>'
-            )
+            for j in chain:  # MuJoCo applies a body's joints in series, in order: one per DOF
+                kind = "hinge" if tree.joint_type[j] == REVOLUTE else "slide"
+                jname = f"{prefix}j{j}"
+                lines.append(
+                    f'{indent}  <joint name="{jname}" type="{kind}" pos="{_f(tree.joint_pos_child[b])}" '
+                    f'axis="{_f(tree.joint_axis[j])}" limited="true" range="{_f(tree.limits[j])}"/>'
+                )
+                s = float(tree.strength[j])
+                motors.append(
+                    f'    <motor name="{prefix}m{j}" joint="{jname}" gear="{_f([tree.gain[j]])}" ctrllimited="true" '
+                    f'ctrlrange="-1 1" forcelimited="true" forcerange="{_f([-s, s])}"/>'
+                )
         lines.append(
-            f'{indent}  <inertial pos="0 0 0" mass="{_f([tree.mass[i]])}" diaginertia="{_f(tree.inertia[i])}"/>'
+            f'{indent}  <inertial pos="0 0 0" mass="{_f([tree.mass[b]])}" diaginertia="{_f(tree.inertia[b])}"/>'
         )
         collide = "" if contacts else ' contype="0" conaffinity="0"'
-        lines.append(f'{indent}  <geom type="box" size="{_f(tree.half_extents[i])}"{collide}/>')
-        for k in children[i]:
+        lines.append(f'{indent}  <geom type="box" size="{_f(tree.half_extents[b])}"{collide}/>')
+        for k in children[b]:
             body(k, indent + "  ")
         lines.append(f"{indent}</body>")
 
@@ -112,7 +120,8 @@ def to_mjcf(creatures: Any, *, timestep: float = 1.0 / 60.0, integrator: str = "
             two creatures never touch (the roots' ``qpos0``), instead of 2 m apart.
 
     Returns:
-        The MJCF document. Bodies of creature ``c`` are named ``c{c}_b{i}``, joints ``c{c}_j{i}``.
+        The MJCF document. Bodies of creature ``c`` are named ``c{c}_b{i}``, joints ``c{c}_j{i}``
+        (``i`` the body-tree index of the part, and of the body carrying the DOF).
     """
     if not (np.isfinite(timestep) and timestep > 0):
         raise ValueError(f"timestep: must be a positive number, got {timestep}")

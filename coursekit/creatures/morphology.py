@@ -14,13 +14,16 @@ attributes of a node, as in the paper's Haskell types:
   element, reflected across the parent's plane ``axis = 0, 1, 2`` (x, y, z).
 
 The child-link graph must be acyclic (repetition is the recursion attribute's job). A node also
-describes the joint to its parent: ``joint_type`` (rotational ``"revolute"`` or translational
-``"prismatic"``, 1 DOF each — :data:`JOINT_DOF` keeps a type name and per-type DOF count so
-universal or spherical joints can be added), ``joint_pos`` (relative to the node's centre of
+describes the joint to its parent: ``joint_type`` (Sims' types, :data:`JOINT_AXES`: rotational
+``"revolute"`` about ``joint_axis`` or translational ``"prismatic"`` along it, 1 DOF each;
+``"twist"`` about the attachment axis; ``"universal"`` about two bend axes; ``"bend_twist"``,
+``"twist_bend"`` and ``"spherical"`` with 2 and 3 DOF -- :func:`joint_axes` gives each DOF's
+axis; :data:`JOINT_DOF` the counts), ``joint_pos`` (relative to the node's centre of
 mass, in units of its half extents, so ``(-1, 0, 0)`` is the centre of its −x face),
-``joint_axis`` (unit, node frame), ``limits`` (mobility, ``lo < 0 < hi``: radians for a revolute
+``joint_axis`` (unit, node frame), ``limits`` (mobility of the first DOF, ``lo < 0 < hi``: radians for a rotational
 joint; for a prismatic joint in units of the part's half-width along its axis, so a slide means
-the same at every scale) and ``force`` (the signed force coefficient: a mirrored copy of the node
+the same at every scale), ``extra_limits`` (one ``[lo, hi]`` per further DOF; ``dof_limits``
+lists them all) and ``force`` (the signed force coefficient: a mirrored copy of the node
 has gain ``force`` and the original ``|force|``, so a positive value moves symmetric parts as
 mirror images — wings — and a negative one in opposition — legs).
 
@@ -38,15 +41,45 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .body import MAX_HALF_EXTENT, MIN_HALF_EXTENT
-from .neural import MAX_NEURONS, N_SENSORS, Input, Neuron, is_int, is_real, need_keys, validate_input, validate_neuron
+from .neural import MAX_JOINT_DOF, MAX_NEURONS, N_SENSORS, Input, Neuron, is_int, is_real, need_keys, validate_input, validate_neuron
 
-__all__ = ["JOINT_DOF", "MAX_NODES", "MAX_CHILDREN", "MAX_RECURSION_ENTRIES", "MAX_RECURSIVE_LIMIT", "MAX_SYMMETRY",
+__all__ = ["JOINT_AXES", "JOINT_DOF", "MAX_DOF", "ROTATIONAL_TYPES", "SPHERICAL_BEND_BOUND", "limit_bound", "joint_axes", "MAX_NODES", "MAX_CHILDREN", "MAX_RECURSION_ENTRIES", "MAX_RECURSIVE_LIMIT", "MAX_SYMMETRY",
            "MAX_FORCE", "SCALE_RANGE", "IDENTITY", "ChildLink", "Recursion", "Symmetry", "Node", "node_from_dict",
            "validate_node", "preorder", "renumber", "has_cycle"]
 
-#: Joint types and their degrees of freedom (add "universal": 2, "spherical": 3 here and in
-#: expansion to extend; every per-DOF list — effectors, sensors — is sized from this table).
-JOINT_DOF = {"revolute": 1, "prismatic": 1}
+#: Joint types (Sims 1994's, but rigid) and the axis of each of their DOFs, in the order the DOFs
+#: act (parent side first): ``"axis"`` the node's ``joint_axis`` (a slide for prismatic);
+#: ``"twist"`` the attachment axis (the normal of the face the joint sits on, ``joint_pos``);
+#: ``"bend"`` ``joint_axis`` made perpendicular to the twist axis; ``"bend2"`` perpendicular to
+#: both. Adding a type is one row here (every per-DOF list -- limits, effectors, sensors, bodies,
+#: MJCF joints -- is sized from it).
+JOINT_AXES = {
+    "revolute": ("axis",), "prismatic": ("axis",), "twist": ("twist",), "universal": ("bend", "bend2"),
+    "bend_twist": ("bend", "twist"), "twist_bend": ("twist", "bend"), "spherical": ("twist", "bend", "bend2"),
+}
+#: Joint types and their degrees of freedom.
+JOINT_DOF = {name: len(axes) for name, axes in JOINT_AXES.items()}
+MAX_DOF = max(JOINT_DOF.values())
+assert MAX_DOF <= MAX_JOINT_DOF, "neural.MAX_JOINT_DOF bounds the DOF sensor ids"
+#: Every type but ``"prismatic"`` turns about its axes (limits in radians).
+ROTATIONAL_TYPES = tuple(t for t in JOINT_AXES if t != "prismatic")
+#: The largest |limit| of a spherical joint's middle (bend) DOF: three hinges in series lose a
+#: DOF where the first and the last axes line up, at a bend of ±π/2 (gimbal lock: the joint
+#: inertia becomes singular and a strong effector whips the part past any speed), so the bend
+#: stays well short of it.
+SPHERICAL_BEND_BOUND = 1.0
+
+
+def limit_bound(joint_type: str, dof: int) -> float:
+    """The largest |limit| DOF ``dof`` of a ``joint_type`` joint may have (radians, or half
+    widths for a prismatic joint).
+
+    >>> limit_bound("revolute", 0), limit_bound("spherical", 1)
+    (3.141592653589793, 1.0)
+    """
+    if joint_type == "prismatic":
+        return MAX_HALF_EXTENT
+    return SPHERICAL_BEND_BOUND if joint_type == "spherical" and dof == 1 else math.pi
 
 MAX_NODES = 24  #: genotype node cap (after garbage collection)
 MAX_CHILDREN = 4  #: child links per node
@@ -130,10 +163,16 @@ class Node:
     symmetry: list = field(default_factory=list)
     neurons: list = field(default_factory=list)
     effectors: list = field(default_factory=list)  #: one Input (or None: output 0) per DOF
+    extra_limits: list = field(default_factory=list)  #: ``[lo, hi]`` of every DOF after the first
 
     @property
     def dof(self) -> int:
         return JOINT_DOF[self.joint_type]
+
+    @property
+    def dof_limits(self) -> list:
+        """``(lo, hi)`` of every DOF, in DOF order: ``limits`` then ``extra_limits``."""
+        return [tuple(self.limits)] + [tuple(lim) for lim in self.extra_limits]
 
     def to_dict(self) -> dict:
         return {
@@ -145,6 +184,7 @@ class Node:
             "symmetry": [s.to_dict() for s in self.symmetry],
             "neurons": [n.to_dict() for n in self.neurons],
             "effectors": [None if e is None else e.to_dict() for e in self.effectors],
+            "extra_limits": [list(lim) for lim in self.extra_limits],
         }
 
 
@@ -156,8 +196,10 @@ def _tuple(v):
     return tuple(_tuple(x) for x in v) if isinstance(v, list) else v
 
 
-def node_from_dict(d, where: str) -> Node:
-    need_keys(d, _NODE_KEYS, where)
+def node_from_dict(d, where: str, version: int = 2) -> Node:
+    """A node from its JSON object (``version`` 1 files have no ``extra_limits``: 1-DOF joints)."""
+    need_keys(d, _NODE_KEYS + (("extra_limits",) if version >= 2 else ()), where)
+    extra = d.get("extra_limits", [])
     for k in ("children", "recursion", "symmetry", "neurons", "effectors"):
         if not isinstance(d[k], list):
             raise TypeError(f"{where}.{k}: expected a list, got {type(d[k]).__name__}")
@@ -176,7 +218,8 @@ def node_from_dict(d, where: str) -> Node:
     neurons = [Neuron.from_dict(n, f"{where}.neurons[{k}]") for k, n in enumerate(d["neurons"])]
     effectors = [None if e is None else Input.from_dict(e, f"{where}.effectors[{k}]") for k, e in enumerate(d["effectors"])]
     return Node(_tuple(d["size"]), d["joint_type"], _tuple(d["joint_pos"]), _tuple(d["joint_axis"]), _tuple(d["limits"]),
-                d["force"], d["recursive_limit"], children, recursion, symmetry, neurons, effectors)
+                d["force"], d["recursive_limit"], children, recursion, symmetry, neurons, effectors,
+                [_tuple(lim) for lim in extra] if isinstance(extra, list) else extra)
 
 
 def validate_node(node: Node, where: str, n_nodes: int, n_brain: int) -> None:
@@ -193,12 +236,12 @@ def validate_node(node: Node, where: str, n_nodes: int, n_brain: int) -> None:
     _vec(node.joint_axis, f"{where}.joint_axis", lo=None)
     if abs(math.hypot(*node.joint_axis) - 1.0) > 1e-9:
         raise ValueError(f"{where}.joint_axis: must be a unit vector, got {list(node.joint_axis)}")
-    lim = node.limits
-    if not isinstance(lim, (list, tuple)) or len(lim) != 2 or not all(is_real(v) for v in lim) or not lim[0] < 0 < lim[1]:
-        raise ValueError(f"{where}.limits: need (lo, hi) with lo < 0 < hi, got {lim!r}")
-    bound = math.pi if node.joint_type == "revolute" else MAX_HALF_EXTENT
-    if -lim[0] > bound or lim[1] > bound:
-        raise ValueError(f"{where}.limits: {node.joint_type} limits must lie within ±{bound:g}, got {list(lim)}")
+    _limits(node.limits, f"{where}.limits", node.joint_type, limit_bound(node.joint_type, 0))
+    if not isinstance(node.extra_limits, (list, tuple)) or len(node.extra_limits) != node.dof - 1:
+        raise ValueError(f"{where}.extra_limits: a {node.joint_type} joint ({node.dof} DOF) needs a list of "
+                         f"{node.dof - 1} [lo, hi] pairs (one per DOF after the first), got {node.extra_limits!r:.80}")
+    for k, lim in enumerate(node.extra_limits):
+        _limits(lim, f"{where}.extra_limits[{k}]", node.joint_type, limit_bound(node.joint_type, k + 1))
     if not is_real(node.force) or node.force == 0 or abs(node.force) > MAX_FORCE:
         raise ValueError(f"{where}.force: must be nonzero with |force| <= {MAX_FORCE}, got {node.force!r}")
     if not is_int(node.recursive_limit) or not 0 <= node.recursive_limit <= MAX_RECURSIVE_LIMIT:
@@ -244,12 +287,41 @@ def validate_node(node: Node, where: str, n_nodes: int, n_brain: int) -> None:
         raise ValueError(f"{where}.neurons: at most {MAX_NEURONS} neurons, got {len(node.neurons)}")
     n_local = N_SENSORS + len(node.neurons)
     for k, n in enumerate(node.neurons):
-        validate_neuron(n, f"{where}.neurons[{k}]", brain=False, n_local=n_local, n_brain=n_brain)
+        validate_neuron(n, f"{where}.neurons[{k}]", brain=False, n_local=n_local, n_brain=n_brain, dof=node.dof)
     if len(node.effectors) != node.dof:
         raise ValueError(f"{where}.effectors: need one per DOF ({node.dof}), got {len(node.effectors)}")
     for k, e in enumerate(node.effectors):
         if e is not None:
-            validate_input(e, f"{where}.effectors[{k}]", brain=False, n_local=n_local, n_brain=n_brain)
+            validate_input(e, f"{where}.effectors[{k}]", brain=False, n_local=n_local, n_brain=n_brain, dof=node.dof)
+
+
+def _limits(lim, where: str, joint_type: str, bound: float) -> None:
+    if not isinstance(lim, (list, tuple)) or len(lim) != 2 or not all(is_real(v) for v in lim) or not lim[0] < 0 < lim[1]:
+        raise ValueError(f"{where}: need [lo, hi], two finite numbers with lo < 0 < hi, got {lim!r}")
+    if -lim[0] > bound or lim[1] > bound:
+        raise ValueError(f"{where}: {joint_type} limits must lie within ±{bound:g} here, got {list(lim)}")
+
+
+def joint_axes(node: Node) -> list:
+    """The unit axis (node frame) of every DOF of ``node``'s joint, in DOF order (:data:`JOINT_AXES`).
+
+    >>> [tuple(map(float, a)) for a in joint_axes(Node(joint_type="universal", joint_pos=(-1.0, 0.0, 0.0),
+    ...                                                joint_axis=(0.0, 0.0, 1.0)))]
+    [(0.0, 0.0, 1.0), (0.0, -1.0, 0.0)]
+    """
+    a = np.asarray(node.joint_axis, dtype=np.float64)
+    kinds = JOINT_AXES[node.joint_type]
+    if kinds == ("axis",):
+        return [a]
+    jp = np.asarray(node.joint_pos, dtype=np.float64)
+    t = np.zeros(3)
+    t[int(np.argmax(np.abs(jp)))] = 1.0  # the attachment axis: the joint face's normal (x when centred)
+    bend = a - (a @ t) * t
+    if np.linalg.norm(bend) < 1e-6:  # joint_axis along the twist axis: the next cube axis
+        bend = np.roll(t, 1)
+    bend = bend / np.linalg.norm(bend)
+    axes = {"twist": t, "bend": bend, "bend2": np.cross(t, bend)}
+    return [axes[k] for k in kinds]
 
 
 def preorder(nodes: list) -> list[int]:

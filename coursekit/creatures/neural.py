@@ -46,8 +46,10 @@ oscillate_saw         ``2 * frac(p t + s / 2π) − 1``
 ====================  ============================================================
 
 Every output is made finite and clipped to ``±OUTPUT_LIMIT``. Sims did not publish his
-oscillator formulas or thresholds; these are ours. Sensors are per part and per joint DOF (all
-joints have one DOF today; multi-DOF joints would add angle/velocity ids per DOF).
+oscillator formulas or thresholds; these are ours. Sensors are per part and per joint DOF: ids
+``0, 1`` are the angle and velocity of the joint's first DOF, and a multi-DOF joint's further DOFs
+have ids from 16 on (:func:`dof_sensor`), after the largest neuron id, so a 1-DOF creature's ids
+are the same as before multi-DOF joints existed.
 """
 
 from __future__ import annotations
@@ -57,7 +59,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-#: Sensor names of one part's network, in control-id order (one joint DOF per part).
+#: Sensor names of one part's network, in control-id order (a multi-DOF joint's further DOFs: :func:`dof_sensor`).
 SENSORS = ("joint_angle", "joint_velocity", "contact_-x", "contact_+x", "contact_-y", "contact_+y", "contact_-z", "contact_+z")
 N_SENSORS = len(SENSORS)
 
@@ -97,6 +99,9 @@ MAX_INPUTS = 3
 MAX_NEURONS = 8  #: neurons per local network (bloat cap)
 MAX_BRAIN_NEURONS = 8
 MAX_CHILD_REF = 8  #: largest child index ``m`` a relative id may name
+MAX_JOINT_DOF = 3  #: the most DOFs a joint has (spherical), so the most DOF sensor ids a part has
+#: The first control id of the sensors of a joint's second DOF (after every sensor and neuron id).
+DOF_SENSOR_BASE = N_SENSORS + MAX_NEURONS
 WEIGHT_LIMIT = 10.0
 OUTPUT_LIMIT = 1.0e3
 
@@ -153,12 +158,34 @@ def is_real(v) -> bool:
     return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and math.isfinite(v)
 
 
-def validate_input(inp: Input, where: str, *, brain: bool, n_local: int, n_brain: int) -> None:
+def dof_sensor(dof: int, which: int) -> int:
+    """The control id of the angle (``which = 0``) or velocity (``1``) sensor of DOF ``dof`` of a
+    part's joint: ``0, 1`` for the first DOF (as :data:`SENSORS`), ``16, 17`` for the second,
+    ``18, 19`` for the third.
+
+    >>> [dof_sensor(d, w) for d in range(3) for w in (0, 1)]
+    [0, 1, 16, 17, 18, 19]
+    """
+    if not (is_int(dof) and 0 <= dof < MAX_JOINT_DOF and which in (0, 1)):
+        raise ValueError(f"dof_sensor: need dof in [0, {MAX_JOINT_DOF}) and which 0 (angle) or 1 (velocity), got {dof!r}, {which!r}")
+    return which if dof == 0 else DOF_SENSOR_BASE + 2 * (dof - 1) + which
+
+
+def sensor_dof(ctrl: int) -> tuple[int, int] | None:
+    """``(dof, which)`` of a joint sensor's control id (inverse of :func:`dof_sensor`), else None."""
+    if ctrl in (0, 1):
+        return 0, ctrl
+    k = ctrl - DOF_SENSOR_BASE
+    return (1 + k // 2, k % 2) if 0 <= k < 2 * (MAX_JOINT_DOF - 1) else None
+
+
+def validate_input(inp: Input, where: str, *, brain: bool, n_local: int, n_brain: int, dof: int = 1) -> None:
     """Check one input of a local network (``brain=False``) or of the brain.
 
     Args:
         n_local: number of control ids of the network itself (sensors + neurons).
         n_brain: number of brain neurons.
+        dof: the DOFs of the network's own joint (its further DOFs' sensors, :func:`dof_sensor`).
     """
     if not isinstance(inp, Input):
         raise TypeError(f"{where}: expected an Input, got {type(inp).__name__}")
@@ -176,13 +203,15 @@ def validate_input(inp: Input, where: str, *, brain: bool, n_local: int, n_brain
         if inp.ctrl >= n_brain:
             raise ValueError(f"{where}.ctrl: brain has {n_brain} neurons, got ctrl={inp.ctrl}")
     elif m == 0:
-        if inp.ctrl >= n_local:
-            raise ValueError(f"{where}.ctrl: this network has {n_local} nodes (8 sensors + neurons), got ctrl={inp.ctrl}")
-    elif inp.ctrl >= N_SENSORS + MAX_NEURONS:
-        raise ValueError(f"{where}.ctrl: a part network has at most {N_SENSORS + MAX_NEURONS} nodes, got ctrl={inp.ctrl}")
+        if inp.ctrl >= n_local and not DOF_SENSOR_BASE <= inp.ctrl < DOF_SENSOR_BASE + 2 * (dof - 1):
+            extra = f" or a sensor of its further DOFs in [{DOF_SENSOR_BASE}, {DOF_SENSOR_BASE + 2 * (dof - 1)})" if dof > 1 else ""
+            raise ValueError(f"{where}.ctrl: this network has {n_local} nodes (8 sensors + neurons){extra}, got ctrl={inp.ctrl}")
+    elif inp.ctrl >= DOF_SENSOR_BASE + 2 * (MAX_JOINT_DOF - 1):
+        raise ValueError(f"{where}.ctrl: a part network has at most {N_SENSORS + MAX_NEURONS} nodes and "
+                         f"{2 * (MAX_JOINT_DOF - 1)} further DOF sensors, got ctrl={inp.ctrl}")
 
 
-def validate_neuron(n: Neuron, where: str, *, brain: bool, n_local: int, n_brain: int) -> None:
+def validate_neuron(n: Neuron, where: str, *, brain: bool, n_local: int, n_brain: int, dof: int = 1) -> None:
     """Check a neuron's function, parameter and inputs (see :func:`validate_input`)."""
     if not isinstance(n, Neuron):
         raise TypeError(f"{where}: expected a Neuron, got {type(n).__name__}")
@@ -196,7 +225,7 @@ def validate_neuron(n: Neuron, where: str, *, brain: bool, n_local: int, n_brain
     if not isinstance(n.inputs, list) or not 1 <= len(n.inputs) <= MAX_INPUTS:
         raise ValueError(f"{where}.inputs: a neuron needs 1..{MAX_INPUTS} inputs, got {n.inputs!r}")
     for k, inp in enumerate(n.inputs):
-        validate_input(inp, f"{where}.inputs[{k}]", brain=brain, n_local=n_local, n_brain=n_brain)
+        validate_input(inp, f"{where}.inputs[{k}]", brain=brain, n_local=n_local, n_brain=n_brain, dof=dof)
 
 
 # ---------------------------------------------------------------------------------- random
@@ -210,13 +239,16 @@ def random_param(func: str, rng: np.random.Generator) -> float:
     return float(rng.uniform(lo, hi))
 
 
-def random_input(rng: np.random.Generator, *, brain: bool, n_local: int, n_brain: int, n_children: int) -> Input:
+def random_input(rng: np.random.Generator, *, brain: bool, n_local: int, n_brain: int, n_children: int,
+                 dof: int = 1) -> Input:
     """A random valid input for a local network or the brain.
 
     Args:
         n_local: control ids available in the same network (sensors + neurons).
         n_brain: brain neurons.
         n_children: expected child count of the part (bounds ``m``; at least 1 is tried).
+        dof: the DOFs of the network's joint: a same-network input may also read the sensors
+            of its further DOFs (:func:`dof_sensor`; for 1 DOF the draws are as before).
     """
     w = float(np.round(rng.uniform(-2.0, 2.0), 3))
     kinds = ["const", "self"]
@@ -232,7 +264,8 @@ def random_input(rng: np.random.Generator, *, brain: bool, n_local: int, n_brain
     if kind == "self":
         if brain:
             return Input(0, int(rng.integers(n_brain)), w) if n_brain else Input(None, 0, w)
-        return Input(0, int(rng.integers(n_local)), w)
+        k = int(rng.integers(n_local + 2 * (dof - 1)))
+        return Input(0, k if k < n_local else DOF_SENSOR_BASE + k - n_local, w)
     if kind == "brain":
         return Input(-2, int(rng.integers(n_brain)), w)
     if kind == "parent":
@@ -241,11 +274,12 @@ def random_input(rng: np.random.Generator, *, brain: bool, n_local: int, n_brain
     return Input(m, int(rng.integers(N_SENSORS + 2)), w)
 
 
-def random_neuron(rng: np.random.Generator, *, brain: bool, n_local: int, n_brain: int, n_children: int) -> Neuron:
+def random_neuron(rng: np.random.Generator, *, brain: bool, n_local: int, n_brain: int, n_children: int,
+                  dof: int = 1) -> Neuron:
     """A random neuron with 1..3 random inputs (see :func:`random_input`)."""
     func = FUNCTION_NAMES[int(rng.integers(len(FUNCTION_NAMES)))]
     k = int(rng.integers(1, MAX_INPUTS + 1))
-    inputs = [random_input(rng, brain=brain, n_local=n_local, n_brain=n_brain, n_children=n_children) for _ in range(k)]
+    inputs = [random_input(rng, brain=brain, n_local=n_local, n_brain=n_brain, n_children=n_children, dof=dof) for _ in range(k)]
     return Neuron(func, inputs, random_param(func, rng))
 
 

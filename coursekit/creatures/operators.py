@@ -25,6 +25,7 @@ signatures students implement in the exercises, so theirs plug in wherever these
 from __future__ import annotations
 
 import copy
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -32,14 +33,15 @@ from .generation import (
     AXES,
     COORDS,
     FORCES,
-    PRISMATIC_LIMITS,
-    REVOLUTE_LIMITS,
     ROTATIONS,
     SCALES,
     SIZES,
     choice,
+    joint_types_arg,
+    limit_values,
     mirror_axis,
     random_face_point,
+    random_limits,
     random_link,
     random_node,
     random_recursion,
@@ -57,6 +59,7 @@ from .morphology import (
     renumber,
 )
 from .neural import (
+    DOF_SENSOR_BASE,
     FUNCTION_NAMES,
     MAX_BRAIN_NEURONS,
     MAX_INPUTS,
@@ -177,7 +180,7 @@ def _break_cycles(nodes: list) -> None:
             visit(i)
 
 
-def _fix_input(inp, rng, *, brain: bool, n_local: int, n_brain: int, n_children: int):
+def _fix_input(inp, rng, *, brain: bool, n_local: int, n_brain: int, n_children: int, dof: int = 1):
     if inp is None:
         return None
     m = inp.morph
@@ -185,10 +188,10 @@ def _fix_input(inp, rng, *, brain: bool, n_local: int, n_brain: int, n_children:
     if m is not None:
         if m == -2 or (brain and m == 0):
             bad = inp.ctrl >= n_brain
-        elif m == 0:
-            bad = inp.ctrl >= n_local
+        elif m == 0:  # a further DOF's sensor stays valid while the joint has that DOF
+            bad = inp.ctrl >= n_local and not DOF_SENSOR_BASE <= inp.ctrl < DOF_SENSOR_BASE + 2 * (dof - 1)
     if bad:
-        return random_input(rng, brain=brain, n_local=n_local, n_brain=n_brain, n_children=n_children)
+        return random_input(rng, brain=brain, n_local=n_local, n_brain=n_brain, n_children=n_children, dof=dof)
     return inp
 
 
@@ -200,7 +203,7 @@ def _repair_neural(nodes: list, brain: list, rng) -> None:
         node.neurons = node.neurons[:MAX_NEURONS]
         n_local = N_SENSORS + len(node.neurons)
         nc = max(1, len(node.children) + len(node.recursion))
-        kw = dict(brain=False, n_local=n_local, n_brain=nb, n_children=nc)
+        kw = dict(brain=False, n_local=n_local, n_brain=nb, n_children=nc, dof=node.dof)
         for neuron in node.neurons:
             neuron.inputs = [_fix_input(i, rng, **kw) for i in neuron.inputs]
         node.effectors = [_fix_input(e, rng, **kw) for e in node.effectors][: node.dof]
@@ -300,28 +303,39 @@ def _step(rng, values: tuple, current) -> float:
     return choice(rng, vals)
 
 
-def _mutate_joint(node: Node, rng) -> None:
-    """Step 1: joint axis and joint position (rarely the joint type)."""
+def _mutate_joint(node: Node, rng, joint_types=None) -> None:
+    """Step 1: joint axis and joint position (rarely the joint type: revolute and prismatic
+    swap, or with ``joint_types`` another of those; the effectors follow the DOFs in repair)."""
     r = rng.random()
     if r < 0.4:
         node.joint_axis = choice(rng, AXES)
     elif r < 0.8:
         node.joint_pos = random_face_point(rng)
     else:
-        node.joint_type = "prismatic" if node.joint_type == "revolute" else "revolute"
+        if joint_types is None:
+            node.joint_type = "prismatic" if node.joint_type == "revolute" else "revolute"
+        else:
+            others = [t for t in joint_types if t != node.joint_type]
+            node.joint_type = choice(rng, others) if others else node.joint_type
         _mutate_limits(node, rng, redraw=True)
 
 
 def _mutate_limits(node: Node, rng, redraw: bool = False) -> None:
-    """Step 3: joint mobility."""
-    vals = REVOLUTE_LIMITS if node.joint_type == "revolute" else PRISMATIC_LIMITS
-    lo, hi = -node.limits[0], node.limits[1]
+    """Step 3: joint mobility (of one DOF, drawn when the joint has several)."""
     if redraw:
+        vals = limit_values(node.joint_type)
         node.limits = (-choice(rng, vals), choice(rng, vals))
-    elif rng.random() < 0.5:
-        node.limits = (-_step(rng, vals, lo), hi)
+        node.extra_limits = [random_limits(rng, node.joint_type, d) for d in range(1, node.dof)]
+        return
+    d = int(rng.integers(node.dof)) if node.dof > 1 else 0
+    vals = limit_values(node.joint_type, d)
+    lim = node.dof_limits[d]
+    lo, hi = -lim[0], lim[1]
+    new = (-_step(rng, vals, lo), hi) if rng.random() < 0.5 else (-lo, _step(rng, vals, hi))
+    if d == 0:
+        node.limits = new
     else:
-        node.limits = (-lo, _step(rng, vals, hi))
+        node.extra_limits = [new if k == d - 1 else e for k, e in enumerate(node.extra_limits)]
 
 
 def _mutate_size(node: Node, rng) -> None:
@@ -394,7 +408,8 @@ def _mutate_link(link, n_nodes: int, rng) -> None:
 
 
 def mutate(c: Creature, rng: np.random.Generator, *, rate: float = 1.0, p_delete: float = 0.15,
-           p_add: float = 0.25, p_modify: float = 1.0, p_link: float = 0.5, p_neural: float = 1.0) -> Creature:
+           p_add: float = 0.25, p_modify: float = 1.0, p_link: float = 0.5, p_neural: float = 1.0,
+           joint_types: Sequence[str] | None = None) -> Creature:
     """Mutate a copy of ``c`` (paper section 2.2.2; see the module docstring).
 
     Args:
@@ -404,6 +419,8 @@ def mutate(c: Creature, rng: np.random.Generator, *, rate: float = 1.0, p_delete
         p_delete, p_add, p_modify: per-node chances, each divided by the node count.
         p_link: per-link chance of a connection mutation, divided by the node count.
         p_neural: per-element chance of a neural mutation, divided by the network's size.
+        joint_types: the joint types new nodes and joint-type changes draw from (names of
+            :data:`~.morphology.JOINT_AXES`); default revolute and prismatic, as Sims' 1-DOF runs.
 
     Returns:
         A new valid :class:`Creature`.
@@ -414,6 +431,7 @@ def mutate(c: Creature, rng: np.random.Generator, *, rate: float = 1.0, p_delete
                     ("p_link", p_link), ("p_neural", p_neural)):
         if not (isinstance(p, (int, float)) and 0.0 <= p <= 10.0):
             raise ValueError(f"mutate.{name}: must be a number in [0, 10], got {p!r}")
+    types = None if joint_types is None else joint_types_arg(joint_types, "mutate")
     nodes: list = copy.deepcopy(c.nodes)
     brain = copy.deepcopy(c.brain)
     n0 = len(nodes)
@@ -427,7 +445,7 @@ def mutate(c: Creature, rng: np.random.Generator, *, rate: float = 1.0, p_delete
             continue
         if rng.random() < p_add * scale and len(node.children) < MAX_CHILDREN:
             if len(nodes) < MAX_NODES and rng.random() < 0.7:
-                new = random_node(rng)
+                new = random_node(rng, types)
                 nodes.append(new)
                 node.children.append(random_link(rng, len(nodes) - 1, node, new))
             else:
@@ -437,7 +455,10 @@ def mutate(c: Creature, rng: np.random.Generator, *, rate: float = 1.0, p_delete
         if rng.random() < p_modify * scale:
             picked = [f for f in MODIFY_STEPS if rng.random() < 1.0 / 3.0] or [choice(rng, MODIFY_STEPS)]
             for f in picked:
-                f(node, rng)
+                if f is _mutate_joint:
+                    f(node, rng, types)
+                else:
+                    f(node, rng)
         for link in node.children:
             if rng.random() < p_link * scale:
                 _mutate_link(link, len(nodes), rng)
@@ -458,13 +479,13 @@ def _mutate_weight(w: float, rng) -> float:
 
 
 def _mutate_network(neurons: list, effectors: list | None, rng, p: float, *, brain: bool, n_brain: int,
-                    n_children: int, cap: int) -> None:
+                    n_children: int, cap: int, dof: int = 1) -> None:
     size = len(neurons) + (len(effectors) if effectors else 0) + 1
     q = p / size
 
     def kw():
         return dict(brain=brain, n_local=(0 if brain else N_SENSORS) + len(neurons), n_brain=n_brain,
-                    n_children=n_children)
+                    n_children=n_children, dof=dof)
 
     for neuron in neurons:
         if rng.random() < q:
@@ -510,7 +531,7 @@ def _delete_neuron(creature: Creature, node: Node | None, k: int, rng) -> None:
         if hit_same:
             if inp.ctrl == gone:
                 inp.ctrl = 10**6  # out of range: repair redraws it
-            elif inp.ctrl > gone:
+            elif inp.ctrl > gone and (node is None or inp.ctrl < DOF_SENSOR_BASE):  # not a further DOF's sensor
                 inp.ctrl -= 1
         return inp
 
@@ -538,7 +559,8 @@ def _mutate_networks(creature: Creature, rng, p: float) -> None:
     nb = len(creature.brain)
     for node in creature.nodes:
         nc = max(1, len(node.children) + len(node.recursion))
-        _mutate_network(node.neurons, node.effectors, rng, p, brain=False, n_brain=nb, n_children=nc, cap=MAX_NEURONS)
+        _mutate_network(node.neurons, node.effectors, rng, p, brain=False, n_brain=nb, n_children=nc, cap=MAX_NEURONS,
+                        dof=node.dof)
         if node.neurons and rng.random() < p / (len(node.neurons) + 2):
             _delete_neuron(creature, node, int(rng.integers(len(node.neurons))), rng)
     _mutate_network(creature.brain, None, rng, p, brain=True, n_brain=nb, n_children=1, cap=MAX_BRAIN_NEURONS)

@@ -28,6 +28,12 @@ Sizes: an instance's half extents are ``size * scale`` clamped to ``[MIN_HALF_EX
 MAX_HALF_EXTENT]``; prismatic limits are in units of the part's half-width along the joint axis. Strength follows Sims' law (∝ the joined parts'
 cross-section), capped for small parts by a maximum sweep speed (:func:`body.effector_strength`).
 
+Multi-DOF joints: a part whose node's joint has ``k`` DOFs (:data:`~.morphology.JOINT_AXES`) is
+preceded in the body tree by ``k - 1`` massless frames, one hinge each, about the axes of
+:func:`~.morphology.joint_axes` (mirrored like a revolute axis) with the node's per-DOF limits
+(:attr:`~.morphology.Node.dof_limits`); see :mod:`.body`. Each DOF gets the node's gain and its
+part's strength, and one effector and one angle/velocity sensor pair in the brain.
+
 Part cap: expansion stops creating parts once :data:`MAX_PARTS` (default 64) exist; later links
 are dropped in pre-order and ``body.meta["truncated"]`` is set; :func:`~coursekit.creatures.simulate.simulate` scores such a body 0.
 """
@@ -41,6 +47,7 @@ import numpy as np
 
 from .body import MAX_HALF_EXTENT, MIN_HALF_EXTENT, PRISMATIC, REVOLUTE, BodyTree, effector_strength, rotation_about
 from .brain import Brain, build_brain
+from .morphology import joint_axes
 
 if TYPE_CHECKING:
     from .genotype import Creature
@@ -54,7 +61,7 @@ class Phenotype:
 
     body: BodyTree
     brain: Brain
-    children: list  #: children[b]: part indices of part b's children, in relative-id order
+    children: list  #: children[b]: body indices of part b's child parts, in relative-id order ([] for massless frames)
 
 
 @dataclass
@@ -144,15 +151,33 @@ def expand(creature: Creature, max_parts: int = MAX_PARTS) -> Phenotype:
             grow(_Instance(child, b, inst.scale * scale, Fc, depth, anchor, R))
 
     grow(_Instance(0, -1, 1.0, np.ones(3), 0, np.zeros(3), np.eye(3)))
-    body = _body_tree(nodes, insts, [half_of(i) for i in insts], truncated)
-    brain = build_brain(creature, [i.node for i in insts], [i.parent for i in insts], children)
-    return Phenotype(body, brain, children)
+    body, first = _body_tree(nodes, insts, [half_of(i) for i in insts], truncated)
+    real = [int(f) + nodes[i.node].dof - 1 if k else 0 for k, (f, i) in enumerate(zip(first, insts))]  # part -> body
+    B = body.n_bodies
+    node_of = body.node_id.tolist()
+    parent_of = [-1] * B
+    kids: list[list[int]] = [[] for _ in range(B)]
+    dof_bodies: list[list[int]] = [[] for _ in range(B)]
+    for k, inst in enumerate(insts):
+        b = real[k]
+        parent_of[b] = real[inst.parent] if k else -1
+        kids[b] = [real[c] for c in children[k]]
+        dof_bodies[b] = list(range(int(first[k]), b + 1)) if k else [0]
+    brain = build_brain(creature, node_of, parent_of, kids, dof_bodies, body.massless.tolist())
+    return Phenotype(body, brain, kids)
 
 
-def _body_tree(nodes, insts, halves, truncated) -> BodyTree:
-    B = len(insts)
-    parent = np.array([i.parent for i in insts], dtype=np.int64)
-    half = np.array(halves)
+def _body_tree(nodes, insts, halves, truncated) -> tuple[BodyTree, np.ndarray]:
+    """The body tree of the part instances (pre-order); a part whose joint has ``k`` DOFs gets
+    ``k - 1`` massless frames before it (:mod:`.body`). Also returns every part's first body."""
+    first = np.zeros(len(insts), dtype=np.int64)
+    B = 1
+    for k in range(1, len(insts)):
+        first[k] = B
+        B += nodes[insts[k].node].dof
+    real = first + np.array([nodes[i.node].dof - 1 for i in insts]) * (first > 0)
+    parent = np.full(B, -1, dtype=np.int64)
+    half = np.zeros((B, 3))
     jtype = np.zeros(B, dtype=np.int64)
     axis = np.zeros((B, 3))
     jpp = np.zeros((B, 3))
@@ -160,28 +185,52 @@ def _body_tree(nodes, insts, halves, truncated) -> BodyTree:
     rot = np.tile(np.eye(3), (B, 1, 1))
     limits = np.zeros((B, 2))
     gain = np.zeros(B)
-    for b in range(1, B):
-        inst = insts[b]
+    massless = np.zeros(B, dtype=bool)
+    node_id = np.zeros(B, dtype=np.int64)
+    half[0] = halves[0]
+    # for the effectors' strength, every DOF body stands for its part (the box it turns, the
+    # part it is attached to)
+    part_half = np.zeros((B, 3))
+    part_parent = np.zeros(B, dtype=np.int64)
+    part_half[0] = halves[0]
+    for k in range(1, len(insts)):
+        inst = insts[k]
         node = nodes[inst.node]
         F = inst.F
         det = float(np.prod(F))
-        a = np.asarray(node.joint_axis, dtype=np.float64)
-        if node.joint_type == "revolute":
-            jtype[b] = REVOLUTE
-            axis[b] = det * F * a
-            limits[b] = node.limits
-        else:
-            jtype[b] = PRISMATIC
-            axis[b] = F * a
-            limits[b] = np.asarray(node.limits, dtype=np.float64) * np.sum(np.abs(a) * half[b])  # half-widths along the axis
-        axis[b] /= np.linalg.norm(axis[b])
-        jpp[b] = inst.anchor
-        jpc[b] = F * (np.asarray(node.joint_pos, dtype=np.float64) * half[b])
-        rot[b] = inst.rot
-        gain[b] = abs(node.force) if det > 0 else node.force
-    strength = effector_strength(half, parent, jtype, axis, jpc, limits)
-    return BodyTree(parent, half, jtype, axis, jpp, jpc, rot, limits, gain, strength,
-                    node_id=np.array([i.node for i in insts], dtype=np.int64), meta={"truncated": truncated})
+        h = halves[k]
+        chain = range(int(first[k]), int(real[k]) + 1)
+        anchor_child = F * (np.asarray(node.joint_pos, dtype=np.float64) * h)
+        for d, (b, a, lim) in enumerate(zip(chain, joint_axes(node), node.dof_limits)):
+            parent[b] = real[inst.parent] if d == 0 else b - 1
+            node_id[b] = inst.node
+            if node.joint_type == "prismatic":
+                jtype[b] = PRISMATIC
+                axis[b] = F * a
+                limits[b] = np.asarray(lim, dtype=np.float64) * np.sum(np.abs(a) * h)  # half-widths along the axis
+            else:
+                jtype[b] = REVOLUTE
+                axis[b] = det * F * a
+                limits[b] = lim
+            axis[b] /= np.linalg.norm(axis[b])
+            if d == 0:
+                jpp[b] = inst.anchor
+                rot[b] = inst.rot
+            if b == real[k]:
+                half[b] = h
+                jpc[b] = anchor_child
+            else:
+                massless[b] = True
+            gain[b] = abs(node.force) if det > 0 else node.force
+            part_half[b] = h
+            part_parent[b] = real[inst.parent]
+    jpc_part = jpc.copy()
+    for k in range(1, len(insts)):
+        jpc_part[int(first[k]):int(real[k]) + 1] = jpc[int(real[k])]
+    strength = effector_strength(part_half, np.where(np.arange(B) > 0, part_parent, -1), jtype, axis, jpc_part, limits)
+    body = BodyTree(parent, half, jtype, axis, jpp, jpc, rot, limits, gain, strength, node_id=node_id,
+                    meta={"truncated": truncated}, massless=massless)
+    return body, first
 
 
 def part_poses(body: BodyTree, q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:

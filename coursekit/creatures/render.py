@@ -58,6 +58,14 @@ def _body_of(obj) -> BodyTree:
     raise TypeError(f"render: expected a Creature, Phenotype or BodyTree, got {type(obj).__name__}")
 
 
+def _part_depth(body: BodyTree) -> np.ndarray:
+    """(B,) depth of every body counted in parts (massless frames add none)."""
+    up, d = body.part_parent(), np.zeros(body.n_bodies, dtype=np.int64)
+    for i in range(1, body.n_bodies):
+        d[i] = d[up[i]] + 1
+    return d
+
+
 def box_corners(body: BodyTree, q: ArrayLike | None = None) -> np.ndarray:
     """(B, 8, 3) world corners of every part's box (root at the origin)."""
     R, t = part_poses(body, q)
@@ -193,12 +201,14 @@ class _Scene:
         cube = pv.Box(bounds=(-1, 1, -1, 1, -1, 1))  # 8 corners, 6 quads
         self.unit = np.asarray(cube.points)
         B, P = body.n_bodies, len(self.unit)
+        self.parts = np.flatnonzero(~body.massless)  # a multi-DOF joint's massless frames have no box
         quads = np.asarray(cube.faces).reshape(-1, 5)
-        faces = np.concatenate([quads + np.array([0, 1, 1, 1, 1]) * b * P for b in range(B)])
+        faces = np.concatenate([quads + np.array([0, 1, 1, 1, 1]) * b * P for b in range(len(self.parts))])
         # All parts are one mesh (one actor: the scene builds and draws in a fraction of the time
         # of an actor per part), coloured per face by the part's depth.
-        self.boxes = pv.PolyData(np.zeros((B * P, 3)), faces=faces.ravel())
-        depth, top = body.depth, max(int(body.depth.max()), 1)
+        self.boxes = pv.PolyData(np.zeros((len(self.parts) * P, 3)), faces=faces.ravel())
+        depth = _part_depth(body)[self.parts]
+        top = max(int(depth.max()), 1)
         colours = matplotlib.colormaps["viridis"](0.15 + 0.75 * depth / top)[:, :3]
         self.boxes.cell_data["colour"] = np.repeat((255 * colours).round().astype(np.uint8), len(quads), axis=0)
         self.pl.add_mesh(self.boxes, scalars="colour", rgb=True, show_edges=True, edge_color="black", line_width=1,
@@ -219,7 +229,8 @@ class _Scene:
     def pose(self, R, t) -> np.ndarray:
         """Move every part to its pose; returns the points to frame: box corners, lines' ends."""
         body = self.body
-        corners = (np.einsum("bij,bkj->bki", R, self.unit[None] * body.half_extents[:, None, :]) + t[:, None, :]).reshape(-1, 3)
+        k = self.parts
+        corners = (np.einsum("bij,bkj->bki", R[k], self.unit[None] * body.half_extents[k][:, None, :]) + t[k][:, None, :]).reshape(-1, 3)
         self.boxes.points = corners
         sliders, axes = self.lines
         if sliders is not None:
@@ -231,7 +242,8 @@ class _Scene:
         if axes is not None:
             b = np.array(self.axes)
             anchor = np.einsum("bij,bj->bi", R[b], body.joint_pos_child[b]) + t[b]
-            half = 1.2 * body.half_extents[b].max(axis=1, keepdims=True) * np.einsum("bij,bj->bi", R[b], body.joint_axis[b])
+            part = body.part_of()[b]  # a massless frame's axis is drawn at its part's scale
+            half = 1.2 * body.half_extents[part].max(axis=1, keepdims=True) * np.einsum("bij,bj->bi", R[b], body.joint_axis[b])
             axes.points = np.stack([anchor - half, anchor + half], axis=1).reshape(-1, 3)
         return np.concatenate([corners] + [np.asarray(m.points) for m in self.lines if m is not None])
 

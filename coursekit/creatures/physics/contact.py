@@ -64,9 +64,9 @@ class Contacts:
         if not (np.isfinite(w) and w > 0):
             raise ValueError(f"contact_stiffness: must be a positive frequency (rad/s), got {stiffness}")
         a_list, b_list = [], []
-        par = m.parent
+        par = m.part_parent_np  # parts joined by a joint (through a multi-DOF joint's massless frames) never collide
         for c in range(m.n_creatures):
-            idx = np.flatnonzero(m.creature == c)
+            idx = np.flatnonzero((m.creature == c) & ~m.massless_np)  # massless frames touch nothing
             if len(idx) < 3:
                 continue
             ia, ib = np.triu_indices(len(idx), k=1)

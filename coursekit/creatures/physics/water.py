@@ -61,7 +61,8 @@ def body_drag(half_extents: np.ndarray, k: float, box_drag=None) -> np.ndarray:
         half_extents: (B, 3) box half extents.
         k: drag coefficient.
         box_drag: optional ``box_drag(half_extents (3,), k) -> (6,)``, called once per box on a
-            copy of its half extents; its results must be finite and >= 0.
+            copy of its half extents; its results must be finite and >= 0. Rows of half extents
+            0 (massless frames of multi-DOF joints) have no drag and are not passed to it.
     Returns:
         (B, 6) float64 array ``(D_wx, D_wy, D_wz, D_vx, D_vy, D_vz)`` per box.
     """
@@ -72,8 +73,10 @@ def body_drag(half_extents: np.ndarray, k: float, box_drag=None) -> np.ndarray:
     if not (np.isfinite(k) and k >= 0):
         raise ValueError(f"drag_coefficient: must be finite and >= 0, got {k}")
     h = np.asarray(half_extents, dtype=np.float64)
-    out = np.empty((len(h), 6))
+    out = np.zeros((len(h), 6))
     for i, hb in enumerate(h):
+        if not hb.any():
+            continue  # a massless frame of a multi-DOF joint: no faces, no water
         d = np.asarray(box_drag(hb.copy(), float(k)), dtype=np.float64)
         if d.shape != (6,) or not np.all(np.isfinite(d)) or np.any(d < 0):
             raise ValueError(f"drag: {getattr(box_drag, '__name__', 'box_drag')}({hb.tolist()}, {k}) returned {d.tolist()}; "
@@ -102,4 +105,5 @@ def max_drag_rate(model, k: float | None = None, box_drag=None) -> float:
     bound = k / (min(float(t.density) for t in model.trees) * MIN_HALF_EXTENT)
     if box_drag is None:
         return bound
-    return max(bound, float(np.max(body_drag(model.half_extents_np, k, box_drag) / model.inertia_diag_np)))
+    parts = ~model.massless_np
+    return max(bound, float(np.max(body_drag(model.half_extents_np[parts], k, box_drag) / model.inertia_diag_np[parts])))

@@ -37,9 +37,11 @@ def _off_list(c):
             return f"{w}.size = {list(n.size)}; sizes come from {list(g.SIZES)}"
         if not _near(n.force, g.FORCES):
             return f"{w}.force = {n.force!r}; forces come from {list(g.FORCES)}"
-        lims = g.REVOLUTE_LIMITS if n.joint_type == "revolute" else g.PRISMATIC_LIMITS
-        if not (_near(-n.limits[0], lims) and _near(n.limits[1], lims)):
-            return f"{w}.limits = {list(n.limits)}; {n.joint_type} limits are ±values from {list(lims)}"
+        for k, lim in enumerate(n.dof_limits):  # every DOF of a multi-DOF joint draws from its list
+            lims = g.limit_values(n.joint_type, k)
+            if not (_near(-lim[0], lims) and _near(lim[1], lims)):
+                field = "limits" if k == 0 else f"extra_limits[{k - 1}]"
+                return f"{w}.{field} = {list(lim)}; {n.joint_type} limits are ±values from {list(lims)}"
         if not any(np.allclose(n.joint_axis, a, atol=1e-9) for a in g.AXES):
             return f"{w}.joint_axis = {list(n.joint_axis)}; joint axes come from genotype.AXES"
         if not all(_near(v, g.COORDS) for v in n.joint_pos):
