@@ -74,10 +74,17 @@ STRENGTH_PER_AREA = 2.0
 SWEEPS_PER_SECOND = 8.0
 
 
+def _depths(parent: np.ndarray) -> np.ndarray:
+    """(B,) steps from the root along ``parent`` (pre-order: a parent comes before its children)."""
+    d = np.zeros(len(parent), dtype=np.int64)
+    for i in range(1, len(parent)):
+        d[i] = d[parent[i]] + 1
+    return d
+
 
 @dataclass
 class BodyTree:
-    """A tree of rigid boxes joined by 1-DOF joints; see the module docstring for conventions."""
+    """A tree of rigid boxes joined by 1-DOF joints (multi-DOF: several, via massless frames); see the module docstring."""
 
     parent: np.ndarray  # (B,) int, -1 for the root
     half_extents: np.ndarray  # (B, 3)
@@ -158,10 +165,12 @@ class BodyTree:
     @property
     def depth(self) -> np.ndarray:
         """(B,) depth of every body in the tree (root 0)."""
-        d = np.zeros(self.n_bodies, dtype=np.int64)
-        for i in range(1, self.n_bodies):
-            d[i] = d[self.parent[i]] + 1
-        return d
+        return _depths(self.parent)
+
+    @property
+    def part_depth(self) -> np.ndarray:
+        """(B,) depth of every body counted in parts (root 0; massless frames add none)."""
+        return _depths(self.part_parent())
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the field when the tree breaks the conventions."""

@@ -58,14 +58,6 @@ def _body_of(obj) -> BodyTree:
     raise TypeError(f"render: expected a Creature, Phenotype or BodyTree, got {type(obj).__name__}")
 
 
-def _part_depth(body: BodyTree) -> np.ndarray:
-    """(B,) depth of every body counted in parts (massless frames add none)."""
-    up, d = body.part_parent(), np.zeros(body.n_bodies, dtype=np.int64)
-    for i in range(1, body.n_bodies):
-        d[i] = d[up[i]] + 1
-    return d
-
-
 def box_corners(body: BodyTree, q: ArrayLike | None = None) -> np.ndarray:
     """(B, 8, 3) world corners of every part's box (root at the origin)."""
     R, t = part_poses(body, q)
@@ -207,9 +199,8 @@ class _Scene:
         # All parts are one mesh (one actor: the scene builds and draws in a fraction of the time
         # of an actor per part), coloured per face by the part's depth.
         self.boxes = pv.PolyData(np.zeros((len(self.parts) * P, 3)), faces=faces.ravel())
-        depth = _part_depth(body)[self.parts]
-        top = max(int(depth.max()), 1)
-        colours = matplotlib.colormaps["viridis"](0.15 + 0.75 * depth / top)[:, :3]
+        depth = body.part_depth[self.parts]
+        colours = matplotlib.colormaps["viridis"](0.15 + 0.75 * depth / max(int(depth.max()), 1))[:, :3]
         self.boxes.cell_data["colour"] = np.repeat((255 * colours).round().astype(np.uint8), len(quads), axis=0)
         self.pl.add_mesh(self.boxes, scalars="colour", rgb=True, show_edges=True, edge_color="black", line_width=1,
                          smooth_shading=False, render=False)
