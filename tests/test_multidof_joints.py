@@ -23,6 +23,7 @@ from coursekit.creatures.physics.contact import Contacts
 from coursekit.creatures.physics.limits import effective_inertia
 from coursekit.creatures.physics.model import Model
 from coursekit.creatures.physics.water import drag_matrix
+from tests.test_physics_limits import _square_waves
 from coursekit.creatures.physics.world import World
 from coursekit.creatures.render import world_poses
 from mujoco_oracle import mujoco_qacc
@@ -183,21 +184,8 @@ def test_limits_hold_on_every_axis_under_full_effort():
     # speed cap; with a spherical bend free to reach ±π/2 (gimbal lock) 7 in 16 were
     creatures = _creatures(8, 8, joint_types=MULTI, max_parts=16)
     bodies = _trees(creatures)
-    rng = np.random.default_rng(9)
-    M = sum(b.n_joints for b in bodies)
-    freq, phase = rng.uniform(0.5, 3, M), rng.uniform(0, 2 * np.pi, M)
-
-    class SquareWaves:  # every DOF's effector at full effort, switching at its own rate
-        t = 0.0
-
-        def reset(self):
-            self.t = 0.0
-
-        def step(self, q, qd, contact, dt):
-            self.t += dt
-            return 2.0 * np.sign(np.sin(2 * np.pi * freq * self.t + phase))
-
-    r = simulate(bodies, 2.0, controller=SquareWaves(), record_every=1)
+    # every DOF's effector at full effort, switching at its own rate
+    r = simulate(bodies, 2.0, controller=_square_waves(bodies, np.random.default_rng(9)), record_every=1)
     assert r.diverged.sum() <= 1
     for c in np.flatnonzero(~r.diverged):
         b = bodies[c]
