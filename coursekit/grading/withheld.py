@@ -58,8 +58,9 @@ def withhold(paths, out: Path) -> tuple[list[tuple[Path, str]], list[str]]:
         ``(replacements, compiled)``: ``(copy, module file)`` pairs to bind, and the module
         files' compiled ``__pycache__`` files to mask.
     Raises:
-        ValueError: a path names no coursekit module or no function defined in one (the
-            grader then refuses to grade rather than grade with the function reachable).
+        ValueError: a path names no coursekit module or no function defined in one (a check's
+            authoring error: grading stops there rather than go on with the function reachable;
+            ``tests/test_grading_withheld.py`` withholds every registered check's references).
     """
     wanted: dict[str, list[str]] = {}
     for path in paths:

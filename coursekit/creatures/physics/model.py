@@ -128,7 +128,7 @@ class Model:
         cat = lambda name: np.concatenate([getattr(t, name) for t in trees])[order]  # noqa: E731
         self.half_extents_np = cat("half_extents")
         self.massless_np = cat("massless")  # massless frames of multi-DOF joints (no water, no contacts)
-        part_parent = np.concatenate([np.where(t.part_parent() >= 0, t.part_parent() + f, -1) for t, f in zip(trees, first)])
+        part_parent = np.concatenate([np.where(p >= 0, p + f, -1) for p, f in zip((t.part_parent() for t in trees), first)])
         self.part_parent_np = np.where(part_parent[order] >= 0, new_pos[np.maximum(part_parent[order], 0)], -1)
         mass = np.concatenate([t.mass for t in trees])[order]
         inertia = np.concatenate([t.inertia for t in trees])[order]
