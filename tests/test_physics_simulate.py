@@ -88,6 +88,27 @@ def test_simulate_is_deterministic_and_feeds_the_controller():
     assert np.all(a.fitness > 0)
 
 
+def test_world_sensors_read_the_state_in_user_joint_order_with_hinges_wrapped():
+    rng = np.random.default_rng(3)
+    trees = [random_body_tree(rng, (3, 6)) for _ in range(2)]
+    w = World(trees, contacts=False)
+    qpos, qvel = w.get_state()
+    for c, t in enumerate(trees):  # joint angles past +-pi, and distinct joint rates
+        qpos[c][7:] = np.linspace(-7.0, 7.0, t.n_joints)
+        qvel[c][6:] = np.arange(t.n_joints) + 10.0 * c
+    w.set_state(qpos, qvel)
+    q, qd, contact = w.sensors()
+    angles = np.concatenate([qp[7:] for qp in qpos])
+    hinge = np.concatenate([t.joint_type[1:] == REVOLUTE for t in trees])
+    assert hinge.any()
+    np.testing.assert_allclose(np.cos(q), np.cos(angles), atol=1e-12)  # the same angle, wrapped
+    np.testing.assert_allclose(np.sin(q), np.sin(angles), atol=1e-12)
+    assert np.all(q[hinge] >= -np.pi) and np.all(q[hinge] < np.pi)
+    np.testing.assert_array_equal(q[~hinge], angles[~hinge])
+    np.testing.assert_array_equal(qd, np.concatenate([qv[6:] for qv in qvel]))
+    assert contact.shape == (sum(t.n_bodies for t in trees), 6) and np.all(contact == -1.0)
+
+
 def test_passive_body_at_rest_stays_at_rest():
     tree = random_body_tree(np.random.default_rng(1), 2)
     r = simulate([tree], 1.0, settle=0.0)

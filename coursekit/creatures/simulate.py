@@ -4,7 +4,7 @@
 lets them settle passively in the water for ``settle`` seconds (effectors off, so that residual
 motion from the initial pose does not count), resets the brains (so oscillator phase does not
 depend on the settle length), then runs ``seconds`` of swimming. The brains tick twice per
-physics step on the sensors (joint angles, wrapped to (-pi, pi] for revolute joints; joint
+physics step on the sensors (joint angles, wrapped to [-pi, pi) for revolute joints; joint
 rates; per-face contact sensors) and the last tick's effector outputs become joint forces
 ``strength * clip(gain * e, -1, 1)``. The centre of mass of every creature is recorded after
 every step and scored with :func:`coursekit.creatures.fitness.swimming_fitness`. Creatures are
@@ -21,7 +21,6 @@ from typing import Any
 
 import numpy as np
 
-from coursekit.creatures.body import REVOLUTE
 from coursekit.creatures.fitness import swimming_fitness
 from coursekit.creatures.physics import backend as bk
 from coursekit.creatures.physics.limits import MAX_EXCESS
@@ -137,19 +136,6 @@ def simulate(
     if initial_state is not None:
         world.set_state(*initial_state)
     tick = getattr(controller, "step", controller)
-    revolute = m.joint_type_np[m.joint_order] == REVOLUTE
-    user_joint = bk.index(world.xp, m.joint_order, device=m.device)
-
-    def sense():
-        s = world.state
-        q = bk.to_numpy(s.q[user_joint])
-        q = np.where(revolute, np.mod(q + np.pi, 2 * np.pi) - np.pi, q)
-        qd = bk.to_numpy(s.qd[user_joint])
-        contact = -np.ones((m.n_bodies, 6))
-        if world.contact_sensors is not None:
-            contact[m.order] = bk.to_numpy(world.contact_sensors)
-        return q, qd, contact
-
     if not (isinstance(record_every, (int, np.integer)) and record_every >= 0):
         raise ValueError(f"record_every: must be an integer >= 0 (steps), got {record_every!r}")
     n_settle = int(round(settle / dt))
@@ -177,7 +163,7 @@ def simulate(
     for i in range(n_steps):
         if controller is not None:
             for _ in range(2):  # two brain ticks per physics step (Sims 1994 section 3)
-                effector = tick(*sense(), dt / 2)
+                effector = tick(*world.sensors(), dt / 2)
             world.set_effectors(np.asarray(bk.to_numpy(effector), dtype=np.float64))
         world.step()
         q = world.state.q

@@ -23,6 +23,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from coursekit.creatures.body import REVOLUTE
+
 from . import backend as bk
 from . import spatial as sp
 from .aba import aba, articulated_inertias, body_velocities, impulse
@@ -121,6 +123,7 @@ class World:
         self.active_contacts = None
         self._inertia_q = self._inertia = self._poses_q = self._poses = None
         self.contact_sensors = None
+        self._sensed = None  # (user joint order, which of them are hinges), on the first sensors()
         self._joint_creature = bk.index(xp, m.joint_creature, device=m.device)
         self._total_mass = f(m.total_mass[:, None])
 
@@ -170,6 +173,25 @@ class World:
             self._force = force  # the step's last evaluation is what the limits remember
         lin_acc = sp.mv(R, a0[:, 3:] + sp.cross3(xp, omega, vb))
         return lin_acc, a0[:, :3], qdd
+
+    def sensors(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What the creatures' sensors read now, in the layout controllers take (numpy arrays).
+
+        Returns ``(joint_angle, joint_velocity, contact)``: angles (M,) in user joint order, a
+        hinge's wrapped to [-pi, pi); joint rates (M,); contact (total_bodies, 6) in {-1, +1} per
+        box face -x, +x, -y, +y, -z, +z, as the last step's contact pass saw them (-1 everywhere
+        with contacts off or before the first step).
+        """
+        m, s = self.model, self.state
+        if self._sensed is None:
+            self._sensed = (bk.index(self.xp, m.joint_order, device=m.device), m.joint_type_np[m.joint_order] == REVOLUTE)
+        user, revolute = self._sensed
+        q = bk.to_numpy(s.q[user])
+        q = np.where(revolute, np.mod(q + np.pi, 2 * np.pi) - np.pi, q)
+        contact = -np.ones((m.n_bodies, 6))
+        if self.contact_sensors is not None:
+            contact[m.order] = bk.to_numpy(self.contact_sensors)
+        return q, bk.to_numpy(s.qd[user]), contact
 
     def set_effectors(self, effector: ArrayLike) -> None:
         """Joint forces from effector outputs (M,) in user joint order: ``strength * clip(gain * e, -1, 1)``.
