@@ -108,15 +108,27 @@ def _check_torch():
 CHECKS = {"3D rendering": _check_rendering, "widgets": _check_widgets, "torch": _check_torch}
 
 
-def setup_check(file: TextIO | None = None) -> dict:
+def setup_check(file: TextIO | None = None, progress: bool = False) -> dict:
     """Check 3D rendering, widgets and torch; print one line each (with the fix when one fails).
+
+    Args:
+        file: where the lines go (default: standard output).
+        progress: a tqdm bar over the checks, naming the one running (the first imports take
+            seconds, so a notebook shows it is working).
 
     Returns:
         ``{item: (ok, detail)}`` for ``"3D rendering"``, ``"widgets"`` and ``"torch"``.
     """
     file = sys.stdout if file is None else file
     results = {}
-    for item, fn in CHECKS.items():  # each line as soon as its check is done (the first imports take seconds)
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(CHECKS), desc="checking", unit="check", leave=True)
+    for item, fn in CHECKS.items():  # each line as soon as its check is done
+        if bar is not None:
+            bar.set_postfix_str(item)
         try:
             results[item] = (True, fn())
         except Exception as exc:  # any failure is reported, never raised: this is a diagnosis
@@ -124,4 +136,9 @@ def setup_check(file: TextIO | None = None) -> dict:
         ok, detail = results[item]
         line = f"✔ {item}: works ({detail})" if ok else f"✘ {item}: does not work ({detail}). To fix: {_FIX[item]}"
         print(line, file=file, flush=True)
+        if bar is not None:
+            bar.update()
+    if bar is not None:
+        bar.set_postfix_str("done")
+        bar.close()
     return results

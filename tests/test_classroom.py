@@ -65,3 +65,17 @@ def test_the_real_setup_check_passes_where_the_test_suite_runs():
     out = io.StringIO()
     results = classroom.setup_check(file=out)
     assert all(ok for ok, _ in results.values()), out.getvalue()
+
+
+def test_the_setup_check_bar_ends_full_even_when_a_check_fails(monkeypatch, capsys):
+    """Lesson 00 runs it with a bar: saved with the notebook, the bar must read 3/3, not stop short."""
+    def broken():
+        raise RuntimeError("no EGL")
+
+    monkeypatch.setitem(classroom.CHECKS, "3D rendering", broken)
+    monkeypatch.setitem(classroom.CHECKS, "widgets", lambda: "ipywidgets y")
+    monkeypatch.setitem(classroom.CHECKS, "torch", lambda: "torch z")
+    results = classroom.setup_check(file=io.StringIO(), progress=True)
+    bar = capsys.readouterr().err.replace("\r", "\n").splitlines()
+    assert results["3D rendering"][0] is False
+    assert any("3/3" in line and "done" in line for line in bar), bar
