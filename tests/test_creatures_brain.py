@@ -218,3 +218,45 @@ def test_snake_travelling_wave_from_recursive_relative_ids():
     # joints 0..2 are segments 1..3; segment k has phase -1.5 (k + 1)
     want = [math.sin(2 * math.pi * 3.0 * t - 1.5 * (k + 1)) for k in (1, 2, 3)]  # 3 Hz oscillators
     np.testing.assert_allclose(eff[:3], want, atol=1e-12)
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_the_brain_on_torch_equals_the_brain_on_numpy(seed):
+    """The brain runs on the simulator's backend: every function of Sims' 23, state included, gives
+    the numpy brain's outputs tick by tick, and its arrays stay torch tensors."""
+    torch = pytest.importorskip("torch")
+    rng = np.random.default_rng(seed)
+    creatures = [Creature.random(rng, neurons=(2, 6), brain_neurons=(1, 4)) for _ in range(5)]
+    phs = [c.expand() for c in creatures]
+    cpu, dev = BrainBatch(phs), BrainBatch(phs, backend="torch", device="cpu")
+    for _ in range(8):
+        ja, jv = rng.normal(size=(2, cpu.total_joints)) * 3
+        ct = rng.choice([-1.0, 1.0], size=(cpu.total_bodies, 6))
+        want = cpu.step(ja, jv, ct, 0.02)
+        got = dev.step(*(torch.as_tensor(a) for a in (ja, jv, ct)), 0.02)
+        assert isinstance(got, torch.Tensor) and isinstance(dev.neuron_outputs(), torch.Tensor)
+        np.testing.assert_allclose(got.numpy(), want, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(dev.neuron_outputs().numpy(), cpu.neuron_outputs(), rtol=1e-12, atol=1e-12)
+
+
+def test_every_function_evaluates_alike_on_torch():
+    """Each of the 23 functions with 1, 2 and 3 inputs, at awkward values (zeros, huge, negative)."""
+    torch = pytest.importorskip("torch")
+    from coursekit.creatures.physics.backend import namespace
+
+    xt = namespace("torch")
+    rng = np.random.default_rng(0)
+    values = np.array([0.0, -0.0, 1e-7, -3.0, 2.5, 50.0, -1e4, np.pi])
+    for name in FUNCTION_NAMES:
+        n = 24
+        code = np.full(n, FUNCTION_CODE[name])
+        x = rng.choice(values, size=(n, 3))
+        k = np.tile([1, 2, 3], n // 3)
+        p, y0, s0 = rng.choice(values, size=(3, n))
+        for first in (True, False):
+            want = evaluate(code, x, k, p, y0, s0, first, 0.7, 0.01)
+            got = evaluate(code, *(torch.as_tensor(a) for a in (x, k, p, y0, s0)), first, 0.7, 0.01,
+                           groups=[(FUNCTION_CODE[name], torch.arange(n))], xp=xt)
+            for g, w in zip(got, want):
+                np.testing.assert_allclose(g.numpy(), w, rtol=1e-12, atol=1e-12, err_msg=name)

@@ -332,3 +332,22 @@ def test_a_fitness_that_returns_the_wrong_thing_is_named(returns, message):
     trees = [random_body_tree(np.random.default_rng(i), (2, 3)) for i in range(2)]
     with pytest.raises(ValueError, match=rf"fitness: <lambda>\(com, times\) returned .*{message.replace('(', '[(]').replace(')', '[)]')}"):
         simulate(trees, 0.5, fitness=returns)
+
+
+def test_creatures_swim_alike_on_torch_with_their_brains_on_torch(monkeypatch):
+    """simulate's default brains run on the world's backend: a torch run of brained creatures with
+    contacts equals the numpy run, and the brain never reads the sensors through the host."""
+    torch = pytest.importorskip("torch")
+    from coursekit.creatures import Creature
+    from coursekit.creatures.physics import world as world_module
+
+    rng = np.random.default_rng(5)
+    creatures = [Creature.random(rng, max_parts=8) for _ in range(3)] + [Creature.figure1_snake()]
+    want = simulate(creatures, 0.5, settle=0.1)
+    host = []
+    original = world_module.World.sensors
+    monkeypatch.setattr(world_module.World, "sensors", lambda self, native=False: host.append(native) or original(self, native))
+    got = simulate(creatures, 0.5, settle=0.1, backend="torch", device="cpu")
+    assert host and all(host)  # every read native: torch tensors straight into the torch brain
+    np.testing.assert_allclose(got.com, want.com, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(got.fitness, want.fitness, rtol=1e-9, atol=1e-12)

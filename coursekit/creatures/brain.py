@@ -21,12 +21,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from .neural import FUNCTION_CODE, FUNCTION_NAMES, MAX_INPUTS, MAX_NEURONS, N_SENSORS, SENSORS, evaluate, function_groups, sensor_dof
+from .physics import backend as bk
 
 if TYPE_CHECKING:
     from .phenotype import Phenotype
@@ -163,21 +164,27 @@ def build_brain(creature, node_of: list[int], parent_of: list[int], children: li
 
 
 class BrainBatch:
-    """Many creatures' brains evaluated together.
+    """Many creatures' brains evaluated together, on the simulator's array backend.
 
     Args:
         brains: :class:`Brain` objects (or phenotypes with ``.brain``), in creature order.
+        backend: ``"numpy"`` or ``"torch"`` (:func:`coursekit.creatures.physics.backend.namespace`):
+            the brain's arrays live there, so a torch simulation's sensors and effectors never
+            travel to the host and back.
+        device: torch device (ignored for numpy).
 
     ``step`` takes the joints of all creatures concatenated (within a creature, joints are parts
     1..B-1 in body order) and the parts of all creatures concatenated, and returns the effector
-    outputs per joint, before gain and strength clamping.
+    outputs per joint, before gain and strength clamping, as arrays of the backend.
     """
 
-    def __init__(self, brains: Sequence[Brain | Phenotype]) -> None:
+    def __init__(self, brains: Sequence[Brain | Phenotype], backend: str = "numpy", device: Any | None = None) -> None:
         brains = [getattr(b, "brain", b) for b in brains]
         if not brains or not all(isinstance(b, Brain) for b in brains):
             raise TypeError("BrainBatch.brains: expected a non-empty list of Brain (or Phenotype) objects")
         self.brains = brains
+        self.xp = xp = bk.namespace(backend)
+        self.device = device
         nb = np.array([b.n_bodies for b in brains], dtype=np.int64)
         nn = np.array([b.n_neurons for b in brains], dtype=np.int64)
         self.body_offset = np.concatenate([[0], np.cumsum(nb)])
@@ -186,7 +193,6 @@ class BrainBatch:
         self.total_bodies, self.total_neurons = TB, TN
         self.total_joints = TB - len(brains)
         base = N_CONST + N_SENSORS * TB
-        self.neuron_slot = np.arange(base, base + TN)
 
         def remap(local: np.ndarray, c: int) -> np.ndarray:
             B = brains[c].n_bodies
@@ -198,63 +204,66 @@ class BrainBatch:
             return out
 
         cat = lambda f: np.concatenate([f(c, b) for c, b in enumerate(brains)])  # noqa: E731
-        self.func = cat(lambda c, b: b.func)
-        self.param = cat(lambda c, b: b.param)
-        self.src = cat(lambda c, b: remap(b.src, c).reshape(-1, MAX_INPUTS))
-        self.weight = cat(lambda c, b: b.weight.reshape(-1, MAX_INPUTS))
-        self.n_inputs = cat(lambda c, b: b.n_inputs)
-        self.groups = function_groups(self.func)
+        real = lambda a: bk.asarray(xp, a, device=device)  # noqa: E731
+        index = lambda a: bk.index(xp, a, device=device)  # noqa: E731
+        self.func = cat(lambda c, b: b.func)  # the function codes stay on the host: they pick the branches
+        self.param = real(cat(lambda c, b: b.param))
+        self.src = index(cat(lambda c, b: remap(b.src, c).reshape(-1, MAX_INPUTS)))
+        self.weight = real(cat(lambda c, b: b.weight.reshape(-1, MAX_INPUTS)))
+        self.n_inputs = index(cat(lambda c, b: b.n_inputs))
+        self.groups = [(c, index(i)) for c, i in function_groups(self.func)]
         joint_rows = np.ones(TB, dtype=bool)
         joint_rows[self.body_offset[:-1]] = False  # drop every root
-        self.joint_body = np.nonzero(joint_rows)[0]  # global part index of every joint
-        self.effector_src = cat(lambda c, b: remap(b.effector_src, c))[joint_rows]
-        self.effector_weight = cat(lambda c, b: b.effector_weight)[joint_rows]
-        self.values = np.zeros(base + TN)
+        self.joint_body = index(np.nonzero(joint_rows)[0])  # global part index of every joint
+        self.effector_src = index(cat(lambda c, b: remap(b.effector_src, c))[joint_rows])
+        self.effector_weight = real(cat(lambda c, b: b.effector_weight)[joint_rows])
+        self._sensors = slice(N_CONST, base)
+        self._neurons = slice(base, base + TN)
+        self.values = real(np.zeros(base + TN))
         self.values[ONE] = 1.0
         self.reset()
 
     def reset(self) -> None:
         """Zero every neuron's output and state and the brain time."""
         self.values[N_CONST:] = 0.0
-        self._s_prev = np.zeros(self.total_neurons)
+        self._s_prev = bk.asarray(self.xp, np.zeros(self.total_neurons), device=self.device)
         self._first = True
         self.time = 0.0
 
-    def step(self, joint_angle: ArrayLike, joint_velocity: ArrayLike, contact: ArrayLike, dt: float) -> np.ndarray:
+    def step(self, joint_angle: ArrayLike, joint_velocity: ArrayLike, contact: ArrayLike, dt: float) -> Any:
         """One brain tick.
 
         Args:
-            joint_angle, joint_velocity: (total_joints,) float arrays.
+            joint_angle, joint_velocity: (total_joints,) float arrays (numpy, or of the backend).
             contact: (total_bodies, 6) in {-1, +1}, faces -x, +x, -y, +y, -z, +z.
             dt: tick length in seconds (> 0).
 
         Returns:
-            (total_joints,) effector outputs.
+            (total_joints,) effector outputs, an array of the backend.
         """
-        J, TB = self.total_joints, self.total_bodies
-        ja = np.asarray(joint_angle, dtype=np.float64)
-        jv = np.asarray(joint_velocity, dtype=np.float64)
-        ct = np.asarray(contact, dtype=np.float64)
-        if ja.shape != (J,) or jv.shape != (J,):
-            raise ValueError(f"BrainBatch.step: joint_angle and joint_velocity must be shaped ({J},), got {ja.shape}, {jv.shape}")
-        if ct.shape != (TB, 6):
-            raise ValueError(f"BrainBatch.step.contact: must be shaped ({TB}, 6), got {ct.shape}")
+        J, TB, xp = self.total_joints, self.total_bodies, self.xp
+        ja, jv, ct = (bk.asarray(xp, a, device=self.device) for a in (joint_angle, joint_velocity, contact))
+        if tuple(ja.shape) != (J,) or tuple(jv.shape) != (J,):
+            raise ValueError(f"BrainBatch.step: joint_angle and joint_velocity must be shaped ({J},), "
+                             f"got {tuple(ja.shape)}, {tuple(jv.shape)}")
+        if tuple(ct.shape) != (TB, 6):
+            raise ValueError(f"BrainBatch.step.contact: must be shaped ({TB}, 6), got {tuple(ct.shape)}")
         if not dt > 0:
             raise ValueError(f"BrainBatch.step.dt: must be > 0, got {dt!r}")
         v = self.values
-        sens = v[N_CONST:N_CONST + N_SENSORS * TB].reshape(TB, N_SENSORS)
+        sens = xp.reshape(v[self._sensors], (TB, N_SENSORS))  # a view: writing it writes the values
         sens[self.joint_body, 0] = ja
         sens[self.joint_body, 1] = jv
         sens[:, 2:] = ct
         x = v[self.src] * self.weight
-        y_prev = v[self.neuron_slot]
+        y_prev = v[self._neurons]
         out, self._s_prev = evaluate(self.func, x, self.n_inputs, self.param, y_prev, self._s_prev, self._first,
-                                     self.time, dt, self.groups)
-        v[self.neuron_slot] = out
+                                     self.time, dt, self.groups, xp=xp)
+        v[self._neurons] = out
         self._first = False
         self.time += dt
         return self.effector_weight * v[self.effector_src]
 
-    def neuron_outputs(self) -> np.ndarray:
+    def neuron_outputs(self) -> Any:
         """(total_neurons,) current neuron outputs (a view; copy to keep)."""
-        return self.values[self.neuron_slot]
+        return self.values[self._neurons]

@@ -56,7 +56,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
+import array_api_compat
 import numpy as np
 
 #: Sensor names of one part's network, in control-id order (a multi-DOF joint's further DOFs: :func:`dof_sensor`).
@@ -291,12 +293,16 @@ def function_groups(code: np.ndarray) -> list[tuple[int, np.ndarray]]:
     return [(int(c), np.nonzero(code == c)[0]) for c in np.unique(code)]
 
 
-def evaluate(code: np.ndarray, x: np.ndarray, n_inputs: np.ndarray, param: np.ndarray, y_prev: np.ndarray,
-             s_prev: np.ndarray, first: bool, t: float, dt: float, groups=None) -> tuple[np.ndarray, np.ndarray]:
+def _device(a):
+    return array_api_compat.device(a)
+
+
+def evaluate(code: np.ndarray, x: Any, n_inputs: Any, param: Any, y_prev: Any, s_prev: Any, first: bool,
+             t: float, dt: float, groups=None, xp: Any = np) -> tuple[Any, Any]:
     """Evaluate many neurons at once; one vectorised branch per function present.
 
     Args:
-        code: (N,) function codes (:data:`FUNCTION_CODE`).
+        code: (N,) function codes (:data:`FUNCTION_CODE`), a numpy array.
         x: (N, 3) weighted inputs (unused slots ignored).
         n_inputs: (N,) number of inputs, 1..3.
         param: (N,) parameters.
@@ -304,15 +310,19 @@ def evaluate(code: np.ndarray, x: np.ndarray, n_inputs: np.ndarray, param: np.nd
         s_prev: (N,) input sums of the previous tick (state of differentiate).
         first: True on the first tick after a reset.
         t: brain time of this tick; dt: tick length (> 0).
-        groups: :func:`function_groups` of ``code`` (computed here when omitted).
+        groups: :func:`function_groups` of ``code`` (computed here when omitted), its indices
+            arrays of ``xp``.
+        xp: the array namespace of ``x`` and the other arrays (numpy, or the simulator's torch
+            namespace, :func:`coursekit.creatures.physics.backend.namespace`): the brain runs
+            where the physics does.
 
     Returns:
         (outputs (N,), input sums (N,)) — the sums are the next call's ``s_prev``.
     """
-    mask = np.arange(MAX_INPUTS)[None, :] < n_inputs[:, None]
-    xm = np.where(mask, x, 0.0)
-    s = xm.sum(axis=1)
-    out = np.zeros_like(s)
+    mask = xp.arange(MAX_INPUTS, device=_device(x))[None, :] < n_inputs[:, None]
+    xm = xp.where(mask, x, 0.0)
+    s = xp.sum(xm, axis=1)
+    out = xp.zeros_like(s)
     for c, i in function_groups(code) if groups is None else groups:
         name = FUNCTION_NAMES[c]
         si, p = s[i], param[i]
@@ -320,57 +330,58 @@ def evaluate(code: np.ndarray, x: np.ndarray, n_inputs: np.ndarray, param: np.nd
         if defaults is not None:
             xi, ni = x[i], n_inputs[i]
             a = xi[:, 0]
-            b = np.where(ni >= 2, xi[:, 1], defaults[1])
-            cc = np.where(ni >= 3, xi[:, 2], defaults[2])
+            b = xp.where(ni >= 2, xi[:, 1], defaults[1])
+            cc = xp.where(ni >= 3, xi[:, 2], defaults[2])
         with np.errstate(all="ignore"):
             if name == "sum":
                 y = si
             elif name == "product":
-                y = np.where(mask[i], x[i], 1.0).prod(axis=1)
+                y = xp.prod(xp.where(mask[i], x[i], 1.0), axis=1)
             elif name == "divide":
-                y = np.where(np.abs(b) < 1e-6, 0.0, a / np.where(np.abs(b) < 1e-6, 1.0, b))
+                y = xp.where(xp.abs(b) < 1e-6, 0.0, a / xp.where(xp.abs(b) < 1e-6, 1.0, b))
             elif name == "sum_threshold":
-                y = np.where(si > p, 1.0, -1.0)
+                y = xp.where(si > p, 1.0, -xp.ones_like(si))  # one array operand: its dtype (float64 on torch too)
             elif name == "greater_than":
-                y = np.where(a > b, 1.0, -1.0)
+                y = xp.where(a > b, 1.0, -xp.ones_like(a))
             elif name == "sign_of":
-                y = np.sign(si)
+                y = xp.sign(si)
             elif name == "min":
-                y = np.where(mask[i], x[i], np.inf).min(axis=1)
+                y = xp.min(xp.where(mask[i], x[i], math.inf), axis=1)
             elif name == "max":
-                y = np.where(mask[i], x[i], -np.inf).max(axis=1)
+                y = xp.max(xp.where(mask[i], x[i], -math.inf), axis=1)
             elif name == "abs":
-                y = np.abs(si)
+                y = xp.abs(si)
             elif name == "if":
-                y = np.where(a > 0, b, cc)
+                y = xp.where(a > 0, b, cc)
             elif name == "interpolate":
-                y = b + (cc - b) * np.clip(a, 0.0, 1.0)
+                y = b + (cc - b) * xp.clip(a, 0.0, 1.0)
             elif name == "sin":
-                y = np.sin(si)
+                y = xp.sin(si)
             elif name == "cos":
-                y = np.cos(si)
+                y = xp.cos(si)
             elif name == "atan":
-                y = np.arctan(si)
+                y = xp.atan(si)
             elif name == "log":
-                y = np.log(np.maximum(np.abs(si), 1e-6))
+                y = xp.log(xp.maximum(xp.abs(si), 1e-6))
             elif name == "expt":
-                y = np.exp(np.minimum(si, 20.0))
+                y = xp.exp(xp.minimum(si, 20.0))
             elif name == "sigmoid":
-                y = 1.0 / (1.0 + np.exp(-si))
+                y = 1.0 / (1.0 + xp.exp(-si))
             elif name == "integrate":
                 y = y_prev[i] + dt * si
             elif name == "differentiate":
-                y = np.zeros_like(si) if first else (si - s_prev[i]) / dt
+                y = xp.zeros_like(si) if first else (si - s_prev[i]) / dt
             elif name == "smooth":
-                y = y_prev[i] + (1.0 - np.exp(-p * dt)) * (si - y_prev[i])
+                y = y_prev[i] + (1.0 - xp.exp(-p * dt)) * (si - y_prev[i])
             elif name == "memory":
-                y = np.where(b > 0, a, y_prev[i])
+                y = xp.where(b > 0, a, y_prev[i])
             elif name == "oscillate_wave":
-                y = np.sin(2.0 * np.pi * p * t + si)
+                y = xp.sin(2.0 * math.pi * p * t + si)
             elif name == "oscillate_saw":
-                y = 2.0 * np.mod(p * t + si / (2.0 * np.pi), 1.0) - 1.0
+                y = 2.0 * xp.remainder(p * t + si / (2.0 * math.pi), 1.0) - 1.0
             else:  # pragma: no cover - FUNCTIONS and this table are kept in step by the tests
                 raise AssertionError(name)
         out[i] = y
-    out = np.clip(np.nan_to_num(out, nan=0.0, posinf=OUTPUT_LIMIT, neginf=-OUTPUT_LIMIT), -OUTPUT_LIMIT, OUTPUT_LIMIT)
+    out = xp.where(xp.isnan(out), 0.0, out)  # NaN -> 0; +-inf and beyond are clipped to the limit
+    out = xp.clip(out, -OUTPUT_LIMIT, OUTPUT_LIMIT)
     return out, s

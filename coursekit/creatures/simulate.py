@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from coursekit.creatures.brain import BrainBatch
 from coursekit.creatures.fitness import swimming_fitness
 from coursekit.creatures.physics import backend as bk
 from coursekit.creatures.physics.limits import MAX_EXCESS
@@ -60,16 +61,12 @@ class SimulationResult:
 
 
 def _brains(creatures):
-    """A BrainBatch for creatures that have brains, if the brain module is available."""
-    try:
-        from coursekit.creatures.brain import BrainBatch  # provided by the genotype work
-    except ImportError:
-        return None, as_trees(creatures)
+    """The creatures' expanded brains and bodies (brains None for bare body trees)."""
     seq = creatures if isinstance(creatures, (list, tuple)) else [creatures]
     if not all(hasattr(c, "expand") for c in seq):
         return None, as_trees(creatures)
     phenotypes = [validated(c, i).expand() for i, c in enumerate(seq)]
-    return BrainBatch([p.brain for p in phenotypes]), [p.body for p in phenotypes]
+    return [p.brain for p in phenotypes], [p.body for p in phenotypes]
 
 
 def _scores(fitness, com, times) -> np.ndarray:
@@ -127,12 +124,14 @@ def simulate(
         raise ValueError(f"seconds: must be a positive number, got {seconds}")
     if not (np.isfinite(settle) and settle >= 0):
         raise ValueError(f"settle: must be >= 0 seconds, got {settle}")
-    if controller is None:
-        controller, bodies = _brains(creatures)
-    else:
-        bodies = as_trees(creatures)
+    brains, bodies = _brains(creatures) if controller is None else (None, as_trees(creatures))
     world = World(bodies, dt=dt, **options)
     m = world.model
+    # The creatures' own brains run on the world's backend and read its sensors where they are
+    # (no trip to the host on torch); a controller passed in gets numpy arrays, as documented.
+    native = brains is not None
+    if native:
+        controller = BrainBatch(brains, backend=m.backend, device=m.device)
     if initial_state is not None:
         world.set_state(*initial_state)
     tick = getattr(controller, "step", controller)
@@ -163,8 +162,8 @@ def simulate(
     for i in range(n_steps):
         if controller is not None:
             for _ in range(2):  # two brain ticks per physics step (Sims 1994 section 3)
-                effector = tick(*world.sensors(), dt / 2)
-            world.set_effectors(np.asarray(bk.to_numpy(effector), dtype=np.float64))
+                effector = tick(*world.sensors(native=native), dt / 2)
+            world.set_effectors(effector if native else np.asarray(bk.to_numpy(effector), dtype=np.float64))
         world.step()
         q = world.state.q
         beyond = world.xp.maximum(q - hi, lo - q) if world.overshoot is None else world.overshoot

@@ -174,24 +174,28 @@ class World:
         lin_acc = sp.mv(R, a0[:, 3:] + sp.cross3(xp, omega, vb))
         return lin_acc, a0[:, :3], qdd
 
-    def sensors(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """What the creatures' sensors read now, in the layout controllers take (numpy arrays).
+    def sensors(self, native: bool = False) -> tuple[Any, Any, Any]:
+        """What the creatures' sensors read now, in the layout controllers take.
 
         Returns ``(joint_angle, joint_velocity, contact)``: angles (M,) in user joint order, a
         hinge's wrapped to [-pi, pi); joint rates (M,); contact (total_bodies, 6) in {-1, +1} per
         box face -x, +x, -y, +y, -z, +z, as the last step's contact pass saw them (-1 everywhere
-        with contacts off or before the first step).
+        with contacts off or before the first step). numpy arrays; with ``native`` arrays of the
+        world's backend, left on its device (what the creatures' own brains read on torch).
         """
-        m, s = self.model, self.state
+        xp, m, s = self.xp, self.model, self.state
         if self._sensed is None:
-            self._sensed = (bk.index(self.xp, m.joint_order, device=m.device), m.joint_type_np[m.joint_order] == REVOLUTE)
-        user, revolute = self._sensed
-        q = bk.to_numpy(s.q[user])
-        q = np.where(revolute, np.mod(q + np.pi, 2 * np.pi) - np.pi, q)
-        contact = -np.ones((m.n_bodies, 6))
+            revolute = m.joint_type_np[m.joint_order] == REVOLUTE
+            self._sensed = (bk.index(xp, m.joint_order, device=m.device), bk.index(xp, m.order, device=m.device),
+                            bk.asarray(xp, revolute, dtype=xp.bool, device=m.device))
+        user, order, revolute = self._sensed
+        q = s.q[user]
+        q = xp.where(revolute, xp.remainder(q + math.pi, 2 * math.pi) - math.pi, q)
+        contact = xp.full((m.n_bodies, 6), -1.0, dtype=xp.float64, device=m.device)
         if self.contact_sensors is not None:
-            contact[m.order] = bk.to_numpy(self.contact_sensors)
-        return q, bk.to_numpy(s.qd[user]), contact
+            contact[order] = self.contact_sensors
+        sensed = (q, s.qd[user], contact)
+        return sensed if native else tuple(bk.to_numpy(a) for a in sensed)
 
     def set_effectors(self, effector: ArrayLike) -> None:
         """Joint forces from effector outputs (M,) in user joint order: ``strength * clip(gain * e, -1, 1)``.
