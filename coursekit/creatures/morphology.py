@@ -63,7 +63,7 @@ MAX_DOF = max(JOINT_DOF.values())
 assert MAX_DOF <= MAX_JOINT_DOF, "neural.MAX_JOINT_DOF bounds the DOF sensor ids"
 #: Every type but ``"prismatic"`` turns about its axes (limits in radians).
 ROTATIONAL_TYPES = tuple(t for t in JOINT_AXES if t != "prismatic")
-#: The largest |limit| of a spherical joint's middle (bend) DOF: three hinges in series lose a
+#: The largest ``|limit|`` of a spherical joint's middle (bend) DOF: three hinges in series lose a
 #: DOF where the first and the last axes line up, at a bend of ±π/2 (gimbal lock: the joint
 #: inertia becomes singular and a strong effector whips the part past any speed), so the bend
 #: stays well short of it.
@@ -71,7 +71,7 @@ SPHERICAL_BEND_BOUND = 1.0
 
 
 def limit_bound(joint_type: str, dof: int) -> float:
-    """The largest |limit| DOF ``dof`` of a ``joint_type`` joint may have (radians, or half
+    """The largest ``|limit|`` DOF ``dof`` of a ``joint_type`` joint may have (radians, or half
     widths for a prismatic joint).
 
     >>> limit_bound("revolute", 0), limit_bound("spherical", 1)

@@ -108,8 +108,8 @@ def read_results(data: bytes, checks: list, plan: dict) -> tuple[dict, dict | No
         checks: the notebook's checks.
         plan: ``{check name: {call id: (case id, call index, call)}}``, what the grader sent.
     Returns:
-        ``({check name: {(case id, index): clean call record}}, the execution report or None,
-        number of rejected lines)``. The first record of a call counts.
+        a tuple: ``{check name: {(case id, index): clean call record}}``, the execution report or
+        None, and the number of rejected lines. The first record of a call counts.
     """
     by_name = {c.name: c for c in checks}
     results: dict = {c.name: {} for c in checks}

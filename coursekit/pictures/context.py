@@ -165,7 +165,7 @@ def fmod(v: torch.Tensor, m) -> torch.Tensor:
 
 
 def fold(v: torch.Tensor) -> torch.Tensor:
-    """Mirror-repeat into [0, 1] with period 2: |v - 2 round(v / 2)| (= 1 - |(v mod 2) - 1|)."""
+    """Mirror-repeat into [0, 1] with period 2: ``|v - 2 round(v / 2)|`` (= ``1 - |(v mod 2) - 1|``)."""
     return torch.sub(v, (v * 0.5).round_(), alpha=2.0).abs_()
 
 

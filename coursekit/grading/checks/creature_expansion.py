@@ -40,7 +40,7 @@ def _expected_children(node, node_id, depth):
 
 def full_count(creature):
     """Parts of the uncapped expansion, by the recursion formula
-    N(i, d) = 1 + sum over applicable links (1 + symmetry copies) N(child, 0) + [d < limit] |recursion| N(i, d + 1)."""
+    N(i, d) = 1 + sum over applicable links (1 + symmetry copies) N(child, 0) + [d < limit] ``|recursion|`` N(i, d + 1)."""
     memo = {}
 
     def N(i, d):
