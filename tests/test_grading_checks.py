@@ -405,3 +405,17 @@ def test_chi_square_and_binomial_reject_clear_deviations():
     assert not stats.binomial_ok(400, 1000, 0.271)[0]
     with pytest.raises(ValueError, match="sum to 1"):
         stats.chi_square([1, 2], [0.5, 0.6])
+
+
+def test_the_report_gives_one_note_per_distinct_cell_error_and_keeps_skipped_cells_as_problems():
+    """Five demo cells that all hit the same withheld function make one note naming them all, not
+    five copies; a skipped cell stays a problem (the notebook is then not graded)."""
+    from coursekit.grading.channel import read_report
+
+    withheld = "error: RuntimeError: coursekit's own Creature.figure1_snake is withheld while this notebook is graded"
+    cells = [{"index": i, "status": withheld} for i in (4, 6, 8)] + [
+        {"index": 10, "status": "error: ValueError: bad"}, {"index": 11, "status": "ok"},
+        {"index": 12, "status": "skipped: the notebook's time ran out"}]
+    notes, problems = read_report({"format": "coursekit.execution/1", "harvested": True, "cells": cells})
+    assert notes == [f"cells 5, 7, 9: {withheld}", "cell 11: error: ValueError: bad"]
+    assert problems == ["cell 13: skipped: the notebook's time ran out"]

@@ -152,10 +152,13 @@ def read_report(rep) -> tuple[list, list]:
     if type(rep.get("harvest_problem")) is str:
         problems.append(rep["harvest_problem"][:300])
     cells = rep.get("cells") if type(rep.get("cells")) is list else []
+    failed: dict[str, list[int]] = {}  # status -> cells, in the order first seen: one line per distinct status
     for c in cells[:200]:
         if type(c) is dict and type(c.get("status")) is str and type(c.get("index")) is int and c["status"] != "ok":
-            line = f"cell {c['index'] + 1}: {c['status'][:200]}"
-            (problems if c["status"].startswith(("skipped", "not run")) else notes).append(line)
+            failed.setdefault(c["status"][:200], []).append(c["index"] + 1)
+    for status, where in failed.items():
+        line = f"cell {where[0]}: {status}" if len(where) == 1 else f"cells {', '.join(map(str, where))}: {status}"
+        (problems if status.startswith(("skipped", "not run")) else notes).append(line)
     return notes, problems
 
 
