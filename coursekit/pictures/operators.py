@@ -107,8 +107,20 @@ TRIES = 8
 """Draws an operator makes, at most, until its result's coding part differs from the inputs'."""
 
 
-def _expressed(node):
-    return (node.chromosome, tuple(_expressed(c) for c in node.children))
+def _expressed(node, strings=None):
+    """``(chromosome, (children's values ...))`` of the tree ``node``; with the genome's
+    ``strings``, a string's part is kept with the string (a child shares most of its strings
+    with its parent, and their decoded trees: :meth:`Genome.decode`)."""
+    k, i = node.site
+    if strings is not None and i == 0 and k != "pre":  # the root of string k
+        s = strings[k]
+        cached = s.__dict__.get("_expressed")
+        if cached is not None and cached[0] is node:
+            return cached[1]
+        value = _expressed(node)
+        object.__setattr__(s, "_expressed", (node, value))
+        return value
+    return (node.chromosome, tuple(_expressed(c, strings) for c in node.children))
 
 
 @functools.lru_cache(maxsize=4096)
@@ -116,8 +128,9 @@ def coding(genome: Genome) -> tuple:
     """The coding part of ``genome`` as a comparable value: equal for two genomes exactly when
     their expression trees are equal (same primitives, parameters and shape), whatever their
     non-coding chromosomes. (Kept for the last few thousand genomes: the gallery asks again
-    and again about the same parents.)"""
-    return _expressed(genome.decode())
+    and again about the same parents, and an operator repeating its draw makes the same
+    children again.)"""
+    return _expressed(genome.decode(), genome.strings)
 
 
 @functools.lru_cache(maxsize=4096)
@@ -291,16 +304,54 @@ def crossover(a: Genome, b: Genome, rng: np.random.Generator, splits: int = 1) -
     candidates = _first([k for k in keys if set(differ[k]) & (act_a[k] | act_b[k])],
                         [k for k in keys if differ[k]], keys)
 
+    def splits_of(d, n):
+        return _first(list(range(min(d) + 1, max(d) + 1)) if d else [], list(range(1, n)))
+    first = {k: splits_of(differ[k], len(_get(a, k)[0])) for k in candidates}  # the first split's choices
+
     def draw(a, b, rng):
         k = _pick(rng, candidates)
+        q = _pick(rng, first[k])
+        if splits == 1:  # the draw repeats: the same split, the same strings (pure, kept a while)
+            ka, kb = _crossed(a, b, k, q)
+            return _put_string(a, k, ka), _put_string(b, k, kb)
         sa, sb = _get(a, k)[0], _get(b, k)[0]
-        for _ in range(splits):
-            d = _differ(sa, sb)
-            q = _pick(rng, _first(list(range(min(d) + 1, max(d) + 1)) if d else [],
-                                  list(range(1, len(sa)))))
+        sa, sb = sa[:q] + sb[q:], sb[:q] + sa[q:]
+        for _ in range(splits - 1):
+            q = _pick(rng, splits_of(_differ(sa, sb), len(sa)))
             sa, sb = sa[:q] + sb[q:], sb[:q] + sa[q:]
         return _put(a, k, sa), _put(b, k, sb)
     return _recombined(a, b, rng, draw)
+
+
+_CROSSED: dict = {}  # (id(string a), id(string b), q) -> (string a, string b, child a, child b)
+
+
+def _crossed(a: Genome, b: Genome, k, q: int) -> tuple:
+    """Strings ``k`` of ``a`` and ``b`` crossed at ``q``: the children's strings (or PreHeader
+    chromosomes). An operator repeats its draw (:func:`_recombined`), and the gallery crosses
+    the same parents again and again: the same split gives the same strings (the same
+    objects, whose hash and decoded tree are kept), looked up by the parents' strings."""
+    xa = a.preheader if k == "pre" else a.strings[k]
+    xb = b.preheader if k == "pre" else b.strings[k]
+    key = (id(xa), id(xb), q)
+    hit = _CROSSED.get(key)
+    if hit is not None and hit[0] is xa and hit[1] is xb:
+        return hit[2], hit[3]
+    sa, sb = _get(a, k)[0], _get(b, k)[0]
+    sa, sb = sa[:q] + sb[q:], sb[:q] + sa[q:]
+    if k == "pre":
+        ca, cb = tuple(sa), tuple(sb)
+    else:
+        ca, cb = xa.replace(sa), xb.replace(sb)
+    if len(_CROSSED) >= 4096:
+        _CROSSED.clear()
+    _CROSSED[key] = (xa, xb, ca, cb)
+    return ca, cb
+
+
+def _put_string(g: Genome, k, string) -> Genome:
+    """``g`` with string ``k`` (a :class:`ChromosomeString`, or the PreHeader's chromosomes) replaced."""
+    return g.replace_string(k, string)
 
 
 def random_copy(a: Genome, b: Genome, rng: np.random.Generator) -> tuple[Genome, Genome]:
