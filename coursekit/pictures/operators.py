@@ -77,10 +77,28 @@ def _get(g: Genome, k) -> tuple[list[Chromosome], int]:
     return list(s.chromosomes), s.head_length
 
 
+_EDITED: dict = {}  # (id(string), ids of the new chromosomes) -> (string, new string)
+_EDITED_MAX = 2048
+
+
 def _put(g: Genome, k, chroms) -> Genome:
+    """``g`` with the chromosomes of string ``k`` (or the PreHeader) replaced by ``chroms``.
+
+    An operator repeats its draw (:data:`TRIES`) and the gallery applies it to the same
+    parents again and again, so the same edit of the same string comes back: the new string
+    is looked up by the identity of the old one and of the new chromosomes (an entry holds
+    them all, so their ids stay theirs) and shared, with its hash and decoded tree. The
+    genome is a new one every time: a session tells its children apart by identity."""
     if k == "pre":
         return g.replace_string("pre", chroms)
-    return g.replace_string(k, g.strings[k].replace(chroms))
+    old = g.strings[k]
+    key = (id(old), *map(id, chroms))
+    hit = _EDITED.get(key)
+    if hit is None or hit[0] is not old:
+        if len(_EDITED) >= _EDITED_MAX:
+            _EDITED.clear()
+        hit = _EDITED[key] = (old, old.replace(chroms))
+    return g.replace_string(k, hit[1])
 
 
 def _regions(g: Genome, k, with_root: bool) -> list[range]:
@@ -166,10 +184,19 @@ def _recombined(a, b, rng, draw) -> tuple[Genome, Genome]:
 
 # ---- mutations (section 3.3.1) ------------------------------------------------------------
 
-def _transposition(genome: Genome, rng: np.random.Generator) -> Genome:
+# Where a mutation may act depends on the genome only: worked out once per genome (a mutation
+# repeats its draw on the same genome, and the gallery mutates the same parents again and again).
+
+@functools.lru_cache(maxsize=1024)
+def _transposition_spots(genome: Genome) -> list:
     act = _active(genome)
     spots = [(k, r) for k in _keys(genome) for r in _regions(genome, k, with_root=False)]
-    k, region = _pick(rng, _first([(k, r) for k, r in spots if act[k] & set(r)], spots))
+    return _first([(k, r) for k, r in spots if act[k] & set(r)], spots)
+
+
+def _transposition(genome: Genome, rng: np.random.Generator) -> Genome:
+    act = _active(genome)
+    k, region = _pick(rng, _transposition_spots(genome))
     chroms, _ = _get(genome, k)
     i = _pick(rng, _first([i for i in region if i in act[k]], list(region)))
     others = [j for j in region if j != i]
@@ -192,10 +219,15 @@ def transposition(genome: Genome, rng: np.random.Generator) -> Genome:
     return _mutated(genome, rng, _transposition)
 
 
-def _root_transposition(genome: Genome, rng: np.random.Generator) -> Genome:
+@functools.lru_cache(maxsize=1024)
+def _root_keys(genome: Genome) -> list:
     act = _active(genome)
     keys = [k for k in _keys(genome) if _get(genome, k)[1] >= 2]
-    k = _pick(rng, _first([k for k in keys if 0 in act[k]], keys))
+    return _first([k for k in keys if 0 in act[k]], keys)
+
+
+def _root_transposition(genome: Genome, rng: np.random.Generator) -> Genome:
+    k = _pick(rng, _root_keys(genome))
     chroms, h = _get(genome, k)
     j = _pick(rng, _first([j for j in range(1, h) if chroms[j] != chroms[0]], list(range(1, h))))
     if rng.random() < 0.5:
@@ -218,6 +250,14 @@ def root_transposition(genome: Genome, rng: np.random.Generator) -> Genome:
     return _mutated(genome, rng, _root_transposition)
 
 
+@functools.lru_cache(maxsize=1024)
+def _substitution_sites(genome: Genome) -> tuple[list, dict]:
+    act = _active(genome)
+    keys = _keys(genome)
+    return (_first([k for k in keys if act[k]], keys),
+            {k: _first(sorted(act[k]), list(range(len(_get(genome, k)[0])))) for k in keys})
+
+
 def substitution(genome: Genome, rng: np.random.Generator, symbols: Sequence[str] | None = None) -> Genome:
     """A chromosome is replaced by a new random one valid for its place (head or tail).
 
@@ -230,25 +270,29 @@ def substitution(genome: Genome, rng: np.random.Generator, symbols: Sequence[str
     _check(genome)
 
     def draw(genome, rng):
-        act = _active(genome)
-        keys = _keys(genome)
-        k = _pick(rng, _first([k for k in keys if act[k]], keys))
+        keys, sites = _substitution_sites(genome)
+        k = _pick(rng, keys)
         chroms, h = _get(genome, k)
-        i = _pick(rng, _first(sorted(act[k]), list(range(len(chroms)))))
+        i = _pick(rng, sites[k])
         chroms[i] = random_chromosome(rng, "head" if i < h else "tail", symbols)
         return _put(genome, k, chroms)
     return _mutated(genome, rng, draw)
 
 
-def _head_tail_rotation(genome: Genome, rng: np.random.Generator) -> Genome:
+@functools.lru_cache(maxsize=1024)
+def _rotation_spots(genome: Genome) -> list:
     act = _active(genome)
     spots = [(k, r) for k in _keys(genome) for r in _regions(genome, k, with_root=True)]
 
     def varied(k, r):
         part = _get(genome, k)[0][r.start:r.stop]
         return any(c != part[0] for c in part)
-    k, region = _pick(rng, _first([(k, r) for k, r in spots if act[k] & set(r) and varied(k, r)],
-                                  [(k, r) for k, r in spots if varied(k, r)], spots))
+    return _first([(k, r) for k, r in spots if act[k] & set(r) and varied(k, r)],
+                  [(k, r) for k, r in spots if varied(k, r)], spots)
+
+
+def _head_tail_rotation(genome: Genome, rng: np.random.Generator) -> Genome:
+    k, region = _pick(rng, _rotation_spots(genome))
     chroms, _ = _get(genome, k)
     part = chroms[region.start:region.stop]
     steps = int(rng.integers(1, len(part)))
@@ -311,9 +355,6 @@ def crossover(a: Genome, b: Genome, rng: np.random.Generator, splits: int = 1) -
     def draw(a, b, rng):
         k = _pick(rng, candidates)
         q = _pick(rng, first[k])
-        if splits == 1:  # the draw repeats: the same split, the same strings (pure, kept a while)
-            ka, kb = _crossed(a, b, k, q)
-            return _put_string(a, k, ka), _put_string(b, k, kb)
         sa, sb = _get(a, k)[0], _get(b, k)[0]
         sa, sb = sa[:q] + sb[q:], sb[:q] + sa[q:]
         for _ in range(splits - 1):
@@ -321,37 +362,6 @@ def crossover(a: Genome, b: Genome, rng: np.random.Generator, splits: int = 1) -
             sa, sb = sa[:q] + sb[q:], sb[:q] + sa[q:]
         return _put(a, k, sa), _put(b, k, sb)
     return _recombined(a, b, rng, draw)
-
-
-_CROSSED: dict = {}  # (id(string a), id(string b), q) -> (string a, string b, child a, child b)
-
-
-def _crossed(a: Genome, b: Genome, k, q: int) -> tuple:
-    """Strings ``k`` of ``a`` and ``b`` crossed at ``q``: the children's strings (or PreHeader
-    chromosomes). An operator repeats its draw (:func:`_recombined`), and the gallery crosses
-    the same parents again and again: the same split gives the same strings (the same
-    objects, whose hash and decoded tree are kept), looked up by the parents' strings."""
-    xa = a.preheader if k == "pre" else a.strings[k]
-    xb = b.preheader if k == "pre" else b.strings[k]
-    key = (id(xa), id(xb), q)
-    hit = _CROSSED.get(key)
-    if hit is not None and hit[0] is xa and hit[1] is xb:
-        return hit[2], hit[3]
-    sa, sb = _get(a, k)[0], _get(b, k)[0]
-    sa, sb = sa[:q] + sb[q:], sb[:q] + sa[q:]
-    if k == "pre":
-        ca, cb = tuple(sa), tuple(sb)
-    else:
-        ca, cb = xa.replace(sa), xb.replace(sb)
-    if len(_CROSSED) >= 4096:
-        _CROSSED.clear()
-    _CROSSED[key] = (xa, xb, ca, cb)
-    return ca, cb
-
-
-def _put_string(g: Genome, k, string) -> Genome:
-    """``g`` with string ``k`` (a :class:`ChromosomeString`, or the PreHeader's chromosomes) replaced."""
-    return g.replace_string(k, string)
 
 
 def random_copy(a: Genome, b: Genome, rng: np.random.Generator) -> tuple[Genome, Genome]:
