@@ -377,3 +377,42 @@ def test_a_session_of_the_first_format_still_loads(tmp_path):
     assert resumed.state.population == g.state.population and resumed.state.selected == [2]
     assert resumed.apply("undo") == "back to generation 0"
     assert json.loads((tmp_path / "old.json").read_text())["format"] == "coursekit.gallery/2"
+
+
+# ---- what a click costs (issue 12: gallery click p95) ----------------------------------------
+
+def test_a_gallery_decodes_the_stock_pictures_when_it_starts():
+    from coursekit.pictures import textures as T
+    from coursekit.pictures.primitives import PIXMAPS
+
+    T.pixmap.cache_clear()
+    Gallery(np.random.default_rng(0), n=4, size=12, genome_params=SMALL)
+    assert T.pixmap.cache_info().currsize == len(PIXMAPS)
+
+
+class _Cycle:
+    def __init__(self):
+        self.me = self
+
+
+def test_a_gallery_freezes_the_heap_it_starts_with_and_the_next_one_frees_what_was_dropped():
+    import gc
+    import weakref
+
+    try:
+        dropped = _Cycle()
+        first = Gallery(np.random.default_rng(0), n=4, size=12, genome_params=SMALL)
+        assert gc.get_freeze_count() > 0
+        walked = {id(o) for o in gc.get_objects()}  # generations 0-2: what a collection walks
+        assert id(first) not in walked and not any(id(g) in walked for g in first.state.population)
+        assert id(dropped) not in walked
+        gone = weakref.ref(dropped)
+        del dropped
+        gc.collect()
+        assert gone() is not None  # frozen: the collector no longer looks at it
+        Gallery(np.random.default_rng(1), n=4, size=12, genome_params=SMALL)
+        assert gone() is None  # a new gallery unfreezes and collects before freezing again
+        first.apply("new random")  # a gallery keeps working with a frozen heap
+        assert first.state.generation == 1
+    finally:
+        gc.unfreeze()

@@ -181,3 +181,29 @@ def test_render_sizes_above_the_cap_get_a_clear_message():
     g = Genome.random(np.random.default_rng(1))
     with pytest.raises(ValueError, match=r"size: 4097 x 4096 is 16,781,312 pixels; a picture has at most 16,777,216"):
         render(g, (4097, 4096))
+
+
+def test_a_genome_decodes_once_and_shares_the_trees_of_the_strings_it_shares():
+    import pickle
+
+    g = Genome.random(np.random.default_rng(5), n_strings=3, head_length=4)
+    tree = g.decode()
+    assert g.decode() is tree
+    fresh = Genome.from_json(g.to_json())  # equal, never decoded
+    assert fresh.decode() == tree and fresh.decode() is not tree
+    s = g.strings[1]
+    chroms = list(s.chromosomes)
+    chroms[0] = Chromosome("x") if chroms[0].symbol != "x" else Chromosome("y")
+    child = g.replace_string(1, s.replace(chroms))
+    roots = {node.site[0]: node for node in tree.walk() if node.site[1] == 0}
+    child_roots = {node.site[0]: node for node in child.decode().walk() if node.site[1] == 0}
+    for k in (0, 2):
+        if k in roots:
+            assert child_roots[k] is roots[k]  # the same string, the same subtree
+    if 1 in roots:
+        assert child_roots.get(1) is not roots[1]
+    assert child.decode() == Genome.from_json(child.to_json()).decode()
+    # what is kept with a genome never travels in a pickle
+    back = pickle.loads(pickle.dumps(g))
+    assert back == g and not any(k.startswith("_") for k in vars(back))
+    assert not any(k.startswith("_") for s in back.strings for k in vars(s))

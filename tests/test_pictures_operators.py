@@ -208,3 +208,35 @@ def test_recombination_refuses_incompatible_parents():
     one = Genome((ChromosomeString(1, (Chromosome("sin"), Chromosome("x"), Chromosome("y"))),))
     with pytest.raises(ValueError, match="head length >= 2"):
         O.root_transposition(one, rng)
+
+
+def test_crossing_the_same_parents_again_gives_new_genomes_that_share_the_crossed_strings():
+    rng = np.random.default_rng(8)
+    a, b = (Genome.random(rng, n_strings=3, head_length=4) for _ in range(2))
+    first = O.crossover(a, b, np.random.default_rng(1))
+    again = O.crossover(a, b, np.random.default_rng(1))
+    assert first == again
+    assert all(x is not y for x, y in zip(first, again))  # a session tells its children apart by identity
+    for x, y in zip(first, again):
+        assert all(s is t for s, t in zip(x.strings, y.strings)) and x.preheader == y.preheader
+    # the same children as the crossover written out, at the split it drew
+    rows_a, rows_b, rows_ca, rows_cb = rows(a), rows(b), rows(first[0]), rows(first[1])
+    (k,) = [k for k in rows_a if rows_ca[k] != rows_a[k]]
+    q = next(i for i, (c, p) in enumerate(zip(rows_ca[k], rows_a[k])) if c is not p)
+    sa, sb = rows_a[k], rows_b[k]
+    assert rows_ca[k] == sa[:q] + sb[q:] and rows_cb[k] == sb[:q] + sa[q:]
+
+
+@pytest.mark.parametrize("name", sorted(ALL))
+def test_an_operator_drawn_again_gives_equal_children_as_new_genomes(name):
+    rng = np.random.default_rng(8)
+    a, b = (Genome.random(rng, n_strings=3, head_length=4) for _ in range(2))
+    op = ALL[name]
+    args = (a,) if name in O.MUTATIONS else (a, b)
+    first, again = (op(*args, np.random.default_rng(3)) for _ in range(2))
+    first, again = ((first,), (again,)) if name in O.MUTATIONS else (first, again)
+    assert first == again
+    assert all(x is not y for x, y in zip(first, again))  # a session tells its children apart by identity
+    if name not in ("substitution", "random_interpolation"):  # these make new chromosomes
+        for x, y in zip(first, again):  # the same edit of the same string: one string
+            assert all(s is t for s, t in zip(x.strings, y.strings))

@@ -123,3 +123,11 @@ def test_a_population_with_a_primitive_registered_at_run_time_renders_in_process
     # the built-in population alone still goes to the workers
     assert np.array_equal(render(pop[:-1], size, workers=2), pics[:-1])
     assert Wk._pool is not None
+
+
+def test_a_primitive_redefined_with_another_arity_is_read_anew_by_decoded_genomes(registry):
+    register_primitive(Primitive("probe", 1, (), "its argument"), image=lambda ctx, p, a: a)
+    g = one(Chromosome("probe"), Chromosome("y"), h=2)
+    assert g.expression() == "(probe y)"
+    register_primitive(Primitive("probe", 2, (), "the sum of its arguments"), image=lambda ctx, p, a, b: a + b, replace=True)
+    assert g.expression() == "(probe y x)"

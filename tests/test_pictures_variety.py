@@ -139,6 +139,37 @@ def test_distinct_children_redraws_copies_and_stops_after_its_tries():
     assert weird == ["not a genome"] * 3             # left for the gallery to report
 
 
+def test_distinct_children_previews_each_expression_once(monkeypatch):
+    from coursekit.pictures import variety as V
+
+    rng = np.random.default_rng(4)
+    parent = random_population(rng, 1)[0]
+    few = [O.substitution(parent, rng) for _ in range(3)]
+    # same expression, other non-coding chromosomes: a copy the preview need not draw again
+    string = parent.strings[0]
+    idle = next(i for i in range(len(string)) if i not in parent.active[0])
+    chroms = list(string.chromosomes)
+    chroms[idle] = Genome.random(np.random.default_rng(9)).strings[0].chromosomes[-1]
+    twin = parent.replace_string(0, string.replace(chroms))
+    assert twin != parent and O.coding(twin) == O.coding(parent)
+
+    def children():  # fewer distinct children than slots: copies come back round after round
+        while True:
+            yield from [parent, twin, *few]
+    drawn = []
+
+    def counting(genomes, size=V.PREVIEW):
+        drawn.extend(O.coding(g) for g in genomes)
+        return preview(genomes, size)
+    monkeypatch.setattr(V, "preview", counting)
+    kids = distinct_children([parent], children(), 6, tries=4, draws=2)
+    assert len(kids) == 6 and {O.coding(k) for k in kids} <= {O.coding(g) for g in [parent, *few]}
+    assert len(drawn) == len(set(drawn)) == 4  # the parent and the three children, once each
+    # the same children as with every candidate previewed
+    monkeypatch.setattr(V, "_previews", lambda genomes, known, size: preview(genomes, size))
+    assert distinct_children([parent], children(), 6, tries=4, draws=2) == kids
+
+
 def test_children_breed_the_same_way_from_the_same_seed():
     def run():
         rng = np.random.default_rng(21)

@@ -49,6 +49,23 @@ def test_pool_renders_the_in_process_pictures_in_population_order(batch):
     assert np.array_equal(again, alone[::-1])
 
 
+def test_workers_decode_the_stock_pictures_when_they_start():
+    from coursekit.pictures.primitives import PIXMAPS
+
+    pop = population(5, 12)
+    render(pop, (128, 176), workers=2)  # starts the pool
+    if Wk._pool is None:
+        pytest.skip("no worker processes here")
+    sizes = [job.result() for job in [Wk._pool.executor.submit(_decoded_pictures) for _ in range(4)]]
+    assert sizes == [len(PIXMAPS)] * 4
+
+
+def _decoded_pictures():  # in a worker
+    from coursekit.pictures import textures as T
+
+    return T.pixmap.cache_info().currsize
+
+
 def test_chunks_balance_costs_and_keep_every_unit_once():
     costs = [9.0, 1.0, 1.0, 4.0, 4.0, 3.0, 2.0, 8.0]
     chunks = Wk._chunks(costs, 3)

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import json
 import math
+import operator
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any, ClassVar, Iterable, Sequence
@@ -45,20 +46,23 @@ MAX_DEPTH = 100  # levels of an expression tree (deeper ones would exhaust Pytho
 
 class _CachedHash:
     """Hashes an immutable value once (genomes are dictionary keys again and again: the
-    operators' caches, the gallery's); the cached hash never travels in a pickle, since
-    string hashes differ between processes."""
+    operators' caches, the gallery's). What is cached on the object (the hash, decoded trees:
+    attributes starting with ``_``) never travels in a pickle: string hashes differ between
+    processes, and the rest is made again where needed."""
 
     __slots__ = ()
+    _FIELDS: ClassVar[Callable]  # operator.attrgetter of the dataclass fields, in their order
 
     def __hash__(self):
-        h = self.__dict__.get("_hash")
-        if h is None:
-            h = hash(tuple(getattr(self, f) for f in self.__dataclass_fields__))
+        try:
+            return self.__dict__["_hash"]
+        except KeyError:
+            h = hash(self._FIELDS(self))
             object.__setattr__(self, "_hash", h)
-        return h
+            return h
 
     def __getstate__(self):
-        return {k: v for k, v in self.__dict__.items() if k != "_hash"}
+        return {k: v for k, v in self.__dict__.items() if not k.startswith("_")}
 
 
 @dataclass(frozen=True)
@@ -66,6 +70,7 @@ class Chromosome(_CachedHash):
     """One primitive and its parameter values (floats, in the primitive's declared order)."""
 
     __hash__ = _CachedHash.__hash__  # in the body, so that dataclass keeps it
+    _FIELDS = operator.attrgetter("symbol", "params")
 
     symbol: str
     params: tuple[float, ...] = ()
@@ -129,6 +134,7 @@ class ChromosomeString(_CachedHash):
     """A string of ``head_length + tail_length`` chromosomes; the tail holds terminals only."""
 
     __hash__ = _CachedHash.__hash__  # in the body, so that dataclass keeps it
+    _FIELDS = operator.attrgetter("head_length", "chromosomes")
 
     head_length: int
     chromosomes: tuple[Chromosome, ...]
@@ -314,6 +320,7 @@ class Genome(_CachedHash):
     """Chromosome strings linked by a PreHeader. Immutable: operators build new genomes."""
 
     __hash__ = _CachedHash.__hash__  # in the body, so that dataclass keeps it
+    _FIELDS = operator.attrgetter("strings", "preheader")
 
     strings: tuple[ChromosomeString, ...]
     preheader: tuple[Chromosome, ...] = ()
@@ -396,14 +403,29 @@ class Genome(_CachedHash):
     # ---- decoding -----------------------------------------------------------------------
     def _string_tree(self, k: int) -> Node:
         s = self.strings[k]
-        kids, _ = karva(s.chromosomes, lambda c: c.arity)
+        # kept with the string: a child shares most of its strings with its parent
+        trees = s.__dict__.get("_trees")
+        if trees is None or trees[0] != P.REDEFINED:
+            trees = (P.REDEFINED, {})
+            object.__setattr__(s, "_trees", trees)
+        tree = trees[1].get(k)
+        if tree is None:
+            kids, _ = karva(s.chromosomes, lambda c: c.arity)
 
-        def build(i):
-            return Node(s.chromosomes[i], tuple(build(j) for j in kids[i]), (k, i))
-        return build(0)
+            def build(i):
+                return Node(s.chromosomes[i], tuple(build(j) for j in kids[i]), (k, i))
+            tree = trees[1][k] = build(0)
+        return tree
 
     def decode(self) -> Node:
-        """The expression tree (PreHeader read first, then the string roots as its tail)."""
+        """The expression tree (PreHeader read first, then the string roots as its tail).
+
+        Decoded once (trees are immutable): the genome keeps its tree, and each string the
+        tree of it (shared by the genomes that hold the string), until a primitive is
+        redefined (:func:`~.primitives.register_primitive` with ``replace=True``)."""
+        cached = self.__dict__.get("_tree")
+        if cached is not None and cached[0] == P.REDEFINED:
+            return cached[1]
         items = list(self.preheader) + list(range(len(self.strings)))
         kids, _ = karva(items, lambda it: 0 if isinstance(it, int) else it.arity)
 
@@ -412,7 +434,9 @@ class Genome(_CachedHash):
             if isinstance(it, int):
                 return self._string_tree(it)
             return Node(it, tuple(build(j) for j in kids[i]), ("pre", i))
-        return build(0)
+        tree = build(0)
+        object.__setattr__(self, "_tree", (P.REDEFINED, tree))
+        return tree
 
     @property
     def active(self) -> dict:
@@ -528,5 +552,15 @@ class Genome(_CachedHash):
         if k == "pre":
             return Genome(self.strings, tuple(string))
         strings = list(self.strings)
+        old = strings[k] if isinstance(k, int) and -len(strings) <= k < len(strings) else None
         strings[k] = string
+        if (type(string) is ChromosomeString and old is not None and string.head_length == old.head_length
+                and type(self) is Genome and len(self.preheader) + old.head_length + 1 <= MAX_DEPTH):
+            # the operators' case (thousands per gallery click): this genome is valid, and a
+            # valid string of the same head length keeps it valid (the same shape, and no
+            # tree can be too deep), so only the new string needed checking (it was, when made)
+            g = object.__new__(Genome)
+            object.__setattr__(g, "strings", tuple(strings))
+            object.__setattr__(g, "preheader", self.preheader)
+            return g
         return Genome(tuple(strings), self.preheader)

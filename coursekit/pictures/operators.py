@@ -77,10 +77,28 @@ def _get(g: Genome, k) -> tuple[list[Chromosome], int]:
     return list(s.chromosomes), s.head_length
 
 
+_EDITED: dict = {}  # (id(string), ids of the new chromosomes) -> (string, new string)
+_EDITED_MAX = 2048
+
+
 def _put(g: Genome, k, chroms) -> Genome:
+    """``g`` with the chromosomes of string ``k`` (or the PreHeader) replaced by ``chroms``.
+
+    An operator repeats its draw (:data:`TRIES`) and the gallery applies it to the same
+    parents again and again, so the same edit of the same string comes back: the new string
+    is looked up by the identity of the old one and of the new chromosomes (an entry holds
+    them all, so their ids stay theirs) and shared, with its hash and decoded tree. The
+    genome is a new one every time: a session tells its children apart by identity."""
     if k == "pre":
         return g.replace_string("pre", chroms)
-    return g.replace_string(k, g.strings[k].replace(chroms))
+    old = g.strings[k]
+    key = (id(old), *map(id, chroms))
+    hit = _EDITED.get(key)
+    if hit is None or hit[0] is not old:
+        if len(_EDITED) >= _EDITED_MAX:
+            _EDITED.clear()
+        hit = _EDITED[key] = (old, old.replace(chroms))
+    return g.replace_string(k, hit[1])
 
 
 def _regions(g: Genome, k, with_root: bool) -> list[range]:
@@ -107,8 +125,20 @@ TRIES = 8
 """Draws an operator makes, at most, until its result's coding part differs from the inputs'."""
 
 
-def _expressed(node):
-    return (node.chromosome, tuple(_expressed(c) for c in node.children))
+def _expressed(node, strings=None):
+    """``(chromosome, (children's values ...))`` of the tree ``node``; with the genome's
+    ``strings``, a string's part is kept with the string (a child shares most of its strings
+    with its parent, and their decoded trees: :meth:`Genome.decode`)."""
+    k, i = node.site
+    if strings is not None and i == 0 and k != "pre":  # the root of string k
+        s = strings[k]
+        cached = s.__dict__.get("_expressed")
+        if cached is not None and cached[0] is node:
+            return cached[1]
+        value = _expressed(node)
+        object.__setattr__(s, "_expressed", (node, value))
+        return value
+    return (node.chromosome, tuple(_expressed(c, strings) for c in node.children))
 
 
 @functools.lru_cache(maxsize=4096)
@@ -116,8 +146,9 @@ def coding(genome: Genome) -> tuple:
     """The coding part of ``genome`` as a comparable value: equal for two genomes exactly when
     their expression trees are equal (same primitives, parameters and shape), whatever their
     non-coding chromosomes. (Kept for the last few thousand genomes: the gallery asks again
-    and again about the same parents.)"""
-    return _expressed(genome.decode())
+    and again about the same parents, and an operator repeating its draw makes the same
+    children again.)"""
+    return _expressed(genome.decode(), genome.strings)
 
 
 @functools.lru_cache(maxsize=4096)
@@ -153,10 +184,19 @@ def _recombined(a, b, rng, draw) -> tuple[Genome, Genome]:
 
 # ---- mutations (section 3.3.1) ------------------------------------------------------------
 
-def _transposition(genome: Genome, rng: np.random.Generator) -> Genome:
+# Where a mutation may act depends on the genome only: worked out once per genome (a mutation
+# repeats its draw on the same genome, and the gallery mutates the same parents again and again).
+
+@functools.lru_cache(maxsize=1024)
+def _transposition_spots(genome: Genome) -> list:
     act = _active(genome)
     spots = [(k, r) for k in _keys(genome) for r in _regions(genome, k, with_root=False)]
-    k, region = _pick(rng, _first([(k, r) for k, r in spots if act[k] & set(r)], spots))
+    return _first([(k, r) for k, r in spots if act[k] & set(r)], spots)
+
+
+def _transposition(genome: Genome, rng: np.random.Generator) -> Genome:
+    act = _active(genome)
+    k, region = _pick(rng, _transposition_spots(genome))
     chroms, _ = _get(genome, k)
     i = _pick(rng, _first([i for i in region if i in act[k]], list(region)))
     others = [j for j in region if j != i]
@@ -179,10 +219,15 @@ def transposition(genome: Genome, rng: np.random.Generator) -> Genome:
     return _mutated(genome, rng, _transposition)
 
 
-def _root_transposition(genome: Genome, rng: np.random.Generator) -> Genome:
+@functools.lru_cache(maxsize=1024)
+def _root_keys(genome: Genome) -> list:
     act = _active(genome)
     keys = [k for k in _keys(genome) if _get(genome, k)[1] >= 2]
-    k = _pick(rng, _first([k for k in keys if 0 in act[k]], keys))
+    return _first([k for k in keys if 0 in act[k]], keys)
+
+
+def _root_transposition(genome: Genome, rng: np.random.Generator) -> Genome:
+    k = _pick(rng, _root_keys(genome))
     chroms, h = _get(genome, k)
     j = _pick(rng, _first([j for j in range(1, h) if chroms[j] != chroms[0]], list(range(1, h))))
     if rng.random() < 0.5:
@@ -205,6 +250,14 @@ def root_transposition(genome: Genome, rng: np.random.Generator) -> Genome:
     return _mutated(genome, rng, _root_transposition)
 
 
+@functools.lru_cache(maxsize=1024)
+def _substitution_sites(genome: Genome) -> tuple[list, dict]:
+    act = _active(genome)
+    keys = _keys(genome)
+    return (_first([k for k in keys if act[k]], keys),
+            {k: _first(sorted(act[k]), list(range(len(_get(genome, k)[0])))) for k in keys})
+
+
 def substitution(genome: Genome, rng: np.random.Generator, symbols: Sequence[str] | None = None) -> Genome:
     """A chromosome is replaced by a new random one valid for its place (head or tail).
 
@@ -217,25 +270,29 @@ def substitution(genome: Genome, rng: np.random.Generator, symbols: Sequence[str
     _check(genome)
 
     def draw(genome, rng):
-        act = _active(genome)
-        keys = _keys(genome)
-        k = _pick(rng, _first([k for k in keys if act[k]], keys))
+        keys, sites = _substitution_sites(genome)
+        k = _pick(rng, keys)
         chroms, h = _get(genome, k)
-        i = _pick(rng, _first(sorted(act[k]), list(range(len(chroms)))))
+        i = _pick(rng, sites[k])
         chroms[i] = random_chromosome(rng, "head" if i < h else "tail", symbols)
         return _put(genome, k, chroms)
     return _mutated(genome, rng, draw)
 
 
-def _head_tail_rotation(genome: Genome, rng: np.random.Generator) -> Genome:
+@functools.lru_cache(maxsize=1024)
+def _rotation_spots(genome: Genome) -> list:
     act = _active(genome)
     spots = [(k, r) for k in _keys(genome) for r in _regions(genome, k, with_root=True)]
 
     def varied(k, r):
         part = _get(genome, k)[0][r.start:r.stop]
         return any(c != part[0] for c in part)
-    k, region = _pick(rng, _first([(k, r) for k, r in spots if act[k] & set(r) and varied(k, r)],
-                                  [(k, r) for k, r in spots if varied(k, r)], spots))
+    return _first([(k, r) for k, r in spots if act[k] & set(r) and varied(k, r)],
+                  [(k, r) for k, r in spots if varied(k, r)], spots)
+
+
+def _head_tail_rotation(genome: Genome, rng: np.random.Generator) -> Genome:
+    k, region = _pick(rng, _rotation_spots(genome))
     chroms, _ = _get(genome, k)
     part = chroms[region.start:region.stop]
     steps = int(rng.integers(1, len(part)))
@@ -291,13 +348,17 @@ def crossover(a: Genome, b: Genome, rng: np.random.Generator, splits: int = 1) -
     candidates = _first([k for k in keys if set(differ[k]) & (act_a[k] | act_b[k])],
                         [k for k in keys if differ[k]], keys)
 
+    def splits_of(d, n):
+        return _first(list(range(min(d) + 1, max(d) + 1)) if d else [], list(range(1, n)))
+    first = {k: splits_of(differ[k], len(_get(a, k)[0])) for k in candidates}  # the first split's choices
+
     def draw(a, b, rng):
         k = _pick(rng, candidates)
+        q = _pick(rng, first[k])
         sa, sb = _get(a, k)[0], _get(b, k)[0]
-        for _ in range(splits):
-            d = _differ(sa, sb)
-            q = _pick(rng, _first(list(range(min(d) + 1, max(d) + 1)) if d else [],
-                                  list(range(1, len(sa)))))
+        sa, sb = sa[:q] + sb[q:], sb[:q] + sa[q:]
+        for _ in range(splits - 1):
+            q = _pick(rng, splits_of(_differ(sa, sb), len(sa)))
             sa, sb = sa[:q] + sb[q:], sb[:q] + sa[q:]
         return _put(a, k, sa), _put(b, k, sb)
     return _recombined(a, b, rng, draw)

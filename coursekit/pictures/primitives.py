@@ -187,6 +187,9 @@ PIXEL_KERNELS: dict = {}
 #: Names given to :func:`register_primitive` in this process: worker processes (:mod:`.workers`)
 #: import the built-ins only, so genomes using these render in-process.
 REGISTERED: set[str] = set()
+#: Counts registrations that redefined a primitive (``replace=True``): trees decoded before one
+#: may read a changed arity, so genomes decode again (:meth:`~.genome.Genome.decode`).
+REDEFINED = 0
 
 
 def register_primitive(primitive: Primitive, *, image: Callable | None = None, pixel: Callable | None = None,
@@ -236,6 +239,9 @@ def register_primitive(primitive: Primitive, *, image: Callable | None = None, p
     for where, fn in (("image", image), ("pixel", pixel)):
         if fn is not None and not callable(fn):
             raise TypeError(f"{where}: expected a function, got {type(fn).__name__}")
+    global REDEFINED
+    if primitive.name in PRIMITIVES:
+        REDEFINED += 1
     PRIMITIVES[primitive.name] = primitive
     REGISTERED.add(primitive.name)
     for table, fn in ((IMAGE_KERNELS, image), (PIXEL_KERNELS, pixel)):

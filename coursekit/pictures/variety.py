@@ -66,6 +66,19 @@ def _distance(pic: np.ndarray, refs: list[np.ndarray]) -> float:
     return float(np.abs(np.stack(refs) - pic[None]).mean(axis=(1, 2, 3)).min())
 
 
+def _previews(genomes: list[Genome], known: dict, size: int) -> np.ndarray:
+    """Previews of ``genomes`` through ``known`` (expression -> preview): those of
+    expressions not in it are rendered (each once) and added."""
+    keys = [coding(g) for g in genomes]
+    todo = {}
+    for k, g in zip(keys, genomes):
+        if k not in known:
+            todo.setdefault(k, g)
+    if todo:
+        known.update(zip(todo, preview(list(todo.values()), size)))
+    return np.stack([known[k] for k in keys]) if keys else np.empty((0, size, size, 3), np.float32)
+
+
 def random_population(rng: np.random.Generator, n: int, *, tries: int = 8, size: int = PREVIEW,
                       min_nodes: int = MIN_NODES, **genome_params: Any) -> list[Genome]:
     """``n`` random genomes whose pictures are worth a look.
@@ -121,7 +134,8 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     slot, one within :data:`SAME` (mean absolute difference) of a parent or of an already
     accepted child, or one that is dull (:func:`dull`: flat or black) while not every parent
     is, is drawn again the same way, at most ``tries`` rounds (what is left then
-    stays). From round ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is
+    stays); each distinct expression is previewed once (a picture depends on nothing
+    else). From round ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is
     replaced by ``again(c, accepted)`` instead (``accepted``: the children kept so far): the
     operator applied once more to it, for when the parents have fewer distinct children than
     there are slots (two relatives, a small coding part). The gallery crosses ``c`` with a
@@ -154,10 +168,13 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
         return kids
     refs = list(preview(parents, size)) if parents else []
     lively = not parents or not dull(np.asarray(refs)).all()  # a child of a lively parent is not flat
+    # a picture depends on the expression only: each distinct one is previewed once (a child
+    # drawn again may repeat a rejected expression, or a parent's)
+    previews = {coding(p): pic for p, pic in zip(parents, refs)}
     accepted: list[Genome] = []
     pending = list(range(n))
     for attempt in range(tries + 1):
-        pics = preview([kids[i] for i in pending], size)
+        pics = _previews([kids[i] for i in pending], previews, size)
         flat = dull(pics) & lively
         still = []
         for i, pic, bad in zip(pending, pics, flat):

@@ -164,12 +164,16 @@ def render_parts(units: list[tuple[list[int], list]], costs: list[float], shape:
 def _init_worker() -> None:
     """Workers leave Ctrl-C (and a Jupyter kernel's interrupt, sent to its process group) to the
     parent, which stops them cleanly. Each is one thread for good: torch's and BLAS's thread
-    pools would only compete with the other workers for the cores."""
+    pools would only compete with the other workers for the cores. The stock pictures are
+    decoded now (:func:`~.textures.preload`), not in the first render that shows one."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     torch.set_num_threads(1)
     from threadpoolctl import threadpool_limits
 
+    from .textures import preload
+
     threadpool_limits(1)
+    preload()
 
 
 _attached: dict = {}
