@@ -170,7 +170,7 @@ def main(argv=None) -> int:
         "results": results,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(args.out, json.dumps(doc, indent=1))
+    atomic_write(args.out, json.dumps(doc, separators=(",", ":")))
     print(f"{len(flat)} runs in {wall:.0f} s wall; wrote {args.out}")
     return 0
 
