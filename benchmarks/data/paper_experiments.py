@@ -18,7 +18,9 @@ the ratio and rate settings of one seed start from the same random population. F
 and seed it records the best fitness of every generation (m/s, and body lengths per second of that
 creature) and the final champion's straight-line speed over Sims' 10 s test (m/s and body lengths/s).
 Elitism (the best fifth copied unchanged, not re-evaluated) makes each best-fitness curve
-non-decreasing. The file holds the command, the coursekit commit and the settings.
+non-decreasing. ``max_parts`` bounds the random first generation (``random_options``); grafting and
+mutation grow bodies beyond it. The file holds the command, the coursekit commit (``+dirty`` when
+tracked files differed from it) and the settings.
 
     python benchmarks/data/paper_experiments.py [--out coursekit/data/paper_experiments.json]
         [--workers 2] [--seeds 3] [--generations 6] [--population 16] [--seconds 2] [--quick]
@@ -124,6 +126,7 @@ def main(argv=None) -> int:
     if bad:
         raise ValueError(f"--only: unknown setting(s) {bad}; allowed: {list(SETTINGS)}")
 
+    commit = _commit()  # the code the runs use, before anything can change under them
     t0 = time.perf_counter()
     pool = ProcessPoolExecutor(args.workers) if args.workers > 1 else None
     runs = {}
@@ -158,7 +161,7 @@ def main(argv=None) -> int:
     doc = {
         "format": FORMAT,
         "command": "python benchmarks/data/paper_experiments.py" + "".join(" " + shlex.quote(a) for a in argv_used),
-        "coursekit_commit": _commit(),
+        "coursekit_commit": commit,
         "description": "the paper's section 4.1 experiments: evolve_swimmers per setting and seed; best fitness of "
                        "every generation (m/s and body lengths/s) and the final champion's straight-line speed",
         "sizes": sizes,
