@@ -10,7 +10,9 @@
 - :mod:`.mjcf`, :mod:`.physics`, :mod:`.simulate`, :mod:`.fitness` — MuJoCo export and the
   swimming simulation (2.4);
 - :mod:`.evolution` — :func:`evolve_swimmers`, the GA of 2.2 driven by swimming speed;
-- :mod:`.champions` — :func:`champions`, the pre-evolved swimmers that ship with the kit.
+- :mod:`.champions` — :func:`champions`, the pre-evolved swimmers that ship with the kit;
+- :mod:`.experiments` — the paper's section 4.1 experiments (child ratios, mutation rate, joint
+  types), as shipped runs of :func:`evolve_swimmers`.
 """
 
 from typing import Any

@@ -1,7 +1,9 @@
 """Data files the lessons and tests share, installed with the package (not read from ``tests/``).
 
 - ``limit_exploit_creature.json`` -- the 3-box swimmer that evolution bred to push its prismatic
-  joints far past their limits before joint limits were constraints (lesson 08's exploit).
+  joints far past their limits before joint limits were constraints (lesson 08's exploit);
+- ``paper_experiments.json`` -- the paper's section 4.1 experiments, run per setting and seed
+  (``benchmarks/data/paper_experiments.py``; read with :func:`coursekit.creatures.experiments.paper_experiments`).
 """
 
 from __future__ import annotations
