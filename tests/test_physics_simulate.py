@@ -337,7 +337,7 @@ def test_a_fitness_that_returns_the_wrong_thing_is_named(returns, message):
 def test_creatures_swim_alike_on_torch_with_their_brains_on_torch(monkeypatch):
     """simulate's default brains run on the world's backend: a torch run of brained creatures with
     contacts equals the numpy run, and the brain never reads the sensors through the host."""
-    torch = pytest.importorskip("torch")
+    pytest.importorskip("torch")
     from coursekit.creatures import Creature
     from coursekit.creatures.physics import world as world_module
 
