@@ -15,7 +15,7 @@ printed with them, and the CPU times (what the click itself costs, whoever else 
 steadier comparison. The script runs the ``coursekit`` it imports: put another checkout first
 on ``PYTHONPATH`` to time that one with the same clicks.
 
-Usage: ``python benchmarks/gallery_click.py [--clicks 60] [--size 128] [--n 20]``
+Usage: ``python benchmarks/gallery_click.py [--clicks 60] [--size 128] [--n 20] [--buttons evolve ...]``
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from coursekit.pictures.gallery import Gallery
 BUTTONS = ["evolve", *O.MUTATIONS, *O.RECOMBINATIONS]
 
 
-def clicks(gallery: Gallery, count: int, seed: int = 0) -> tuple[np.ndarray, float, np.ndarray]:
+def clicks(gallery: Gallery, count: int, seed: int = 0, buttons: list[str] = BUTTONS) -> tuple[np.ndarray, float, np.ndarray]:
     """Wall-clock seconds of ``count`` button clicks (two pictures selected before each), the
     CPU seconds of this process over them, and its CPU seconds per click."""
     rng = np.random.default_rng(seed)
@@ -42,7 +42,7 @@ def clicks(gallery: Gallery, count: int, seed: int = 0) -> tuple[np.ndarray, flo
         for i in rng.choice(gallery.evolution.size, size=2, replace=False):
             gallery.click(int(i))
         start, start_cpu = time.perf_counter(), time.process_time()
-        msg = gallery.apply(BUTTONS[k % len(BUTTONS)])
+        msg = gallery.apply(buttons[k % len(buttons)])
         times.append(time.perf_counter() - start)
         cpus.append(time.process_time() - start_cpu)
         assert msg.startswith("generation"), msg
@@ -55,15 +55,18 @@ def main(argv=None):
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--n", type=int, default=20)
     ap.add_argument("--warmup", type=int, default=8)
+    ap.add_argument("--buttons", nargs="+", choices=BUTTONS, default=BUTTONS,
+                    help="the buttons clicked in turn (default: evolve and the seven operators; "
+                         "'--buttons evolve' times the issue's Evolve click alone)")
     args = ap.parse_args(argv)
-    print(f"{args.n} pictures at {args.size}^2, {args.clicks} clicks after {args.warmup} warm-up clicks; "
+    print(f"{args.n} pictures at {args.size}^2, {args.clicks} clicks of {', '.join(args.buttons)} after {args.warmup} warm-up clicks; "
           f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
     print(f"{'renders':24s} {'p50 ms':>8s} {'p95 ms':>8s} {'max ms':>8s} {'CPU ms/click':>13s} "
           f"{'CPU p95 ms':>11s}")
     for label, options in (("in this process", {"workers": 1}), ("worker processes", {})):
         gallery = Gallery(np.random.default_rng(1991), n=args.n, size=args.size, render_options=options)
-        clicks(gallery, args.warmup, seed=1)
-        t, cpu, per_click = clicks(gallery, args.clicks)
+        clicks(gallery, args.warmup, seed=1, buttons=args.buttons)
+        t, cpu, per_click = clicks(gallery, args.clicks, buttons=args.buttons)
         p50, p95 = np.percentile(t, [50, 95]) * 1000
         print(f"{label:24s} {p50:8.1f} {p95:8.1f} {t.max() * 1000:8.1f} {cpu / args.clicks * 1000:13.1f} "
               f"{np.percentile(per_click, 95) * 1000:11.1f}")
