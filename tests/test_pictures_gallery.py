@@ -416,3 +416,33 @@ def test_a_gallery_freezes_the_heap_it_starts_with_and_the_next_one_frees_what_w
         assert first.state.generation == 1
     finally:
         gc.unfreeze()
+
+
+def test_the_autosave_text_is_json_dumps_of_the_state_byte_for_byte(tmp_path):
+    """The autosave keeps each genome's text with the genome: the file must still be exactly
+    ``json.dumps(state.to_dict())`` -- after evolving, undoing (a future), branching and
+    selecting -- and a primitive redefined afterwards must show in it."""
+    from coursekit.pictures import primitives as P
+
+    g = Gallery(np.random.default_rng(11), n=6, size=16, autosave=tmp_path / "s.json")
+    moves = ["evolve", "substitution", "crossover", "evolve", "random_interpolation"]
+    for k, move in enumerate(moves):
+        for i in (k % 6, (k + 2) % 6):
+            g.click(i)
+        g.apply(move)
+        assert (tmp_path / "s.json").read_text() == json.dumps(g.evolution.state.to_dict())
+    g.apply("undo")
+    g.apply("undo")
+    g.click(1)
+    state = g.evolution.state
+    assert state.future and state.history
+    assert (tmp_path / "s.json").read_text() == json.dumps(state.to_dict())
+    assert GalleryState.from_dict(json.loads(state.to_json())).to_dict() == state.to_dict()
+    before = P.REDEFINED
+    P.REDEFINED += 1  # as register_primitive(..., replace=True) does: expressions are read anew
+    try:
+        first = state.population[0]
+        object.__setattr__(first, "_json", (before, '"stale"'))
+        assert state.to_json() == json.dumps(state.to_dict())
+    finally:
+        P.REDEFINED = before
