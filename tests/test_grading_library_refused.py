@@ -196,3 +196,17 @@ def test_inputs_unchanged_is_read_from_the_shared_memory_not_from_the_kernel(tmp
     assert verdict.passed == (fn is own), verdict.message
     if fn is not own:
         assert "the fitness argument was modified" in verdict.message
+
+
+def test_a_copy_hidden_by_a_gc_freeze_is_still_found():
+    """gc.freeze() (a gallery calls it once its first generation is drawn; a notebook can call it
+    too) hides objects from gc.get_referrers: a copy of the library's code made before it must
+    still be stubbed when the worker locks down."""
+    import gc
+
+    gc.freeze()
+    try:
+        recs = run_cases(copied_earlier, CASES, "indices", timeout=20, refuse=CHECK.reference)
+    finally:
+        gc.unfreeze()
+    assert recs[0]["status"] == "error" and "coursekit's own tournament is not available" in recs[0]["error"], recs[0]

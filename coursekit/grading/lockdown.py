@@ -94,6 +94,10 @@ class Refusing:
         holds their code (a copy made in a cell); then :func:`lock_down` the process."""
         import gc
 
+        # Objects moved to the permanent generation (gc.freeze: a gallery does it, and so can a
+        # notebook) are invisible to get_referrers: bring them back first, or a copy made
+        # before a freeze would keep the library's code.
+        gc.unfreeze()
         for obj, code, stub in self.saved:
             obj.__code__ = stub
             for holder in gc.get_referrers(code):
