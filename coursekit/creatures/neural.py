@@ -293,10 +293,6 @@ def function_groups(code: np.ndarray) -> list[tuple[int, np.ndarray]]:
     return [(int(c), np.nonzero(code == c)[0]) for c in np.unique(code)]
 
 
-def _device(a):
-    return array_api_compat.device(a)
-
-
 def evaluate(code: np.ndarray, x: Any, n_inputs: Any, param: Any, y_prev: Any, s_prev: Any, first: bool,
              t: float, dt: float, groups=None, xp: Any = np) -> tuple[Any, Any]:
     """Evaluate many neurons at once; one vectorised branch per function present.
@@ -319,7 +315,7 @@ def evaluate(code: np.ndarray, x: Any, n_inputs: Any, param: Any, y_prev: Any, s
     Returns:
         (outputs (N,), input sums (N,)) — the sums are the next call's ``s_prev``.
     """
-    mask = xp.arange(MAX_INPUTS, device=_device(x))[None, :] < n_inputs[:, None]
+    mask = xp.arange(MAX_INPUTS, device=array_api_compat.device(x))[None, :] < n_inputs[:, None]
     xm = xp.where(mask, x, 0.0)
     s = xp.sum(xm, axis=1)
     out = xp.zeros_like(s)
