@@ -8,8 +8,10 @@ thumbnails, breeds with a mutation and a recombination, undoes and redoes, selec
 from the keyboard, zooms, and branches from an ancestor in the lineage view. What the kernel saw
 is read from the autosaved session on disk, not from the page.
 
-It also measures what the issue asks of a click: **Evolve to screen**, from the mouse click to
-the moment every new thumbnail is decoded in the page, over :data:`EVOLVES` clicks; p50 and
+It also measures what the issue asks of a click: **Evolve to screen**, from the press of the
+mouse on the button (the page's ``pointerdown``) to the moment every new thumbnail is decoded
+in the page, over :data:`EVOLVES` clicks (also from Playwright's click call, its own checks
+before it clicks included); p50 and
 p95 are printed and written with the screenshots to the artefacts folder
 (``COURSEKIT_ARTEFACTS``, default ``test-artefacts/`` in the checkout, ignored by git). No
 limit is asserted on them (a shared machine is not a stopwatch: ``benchmarks/gallery_click.py``).
@@ -263,11 +265,16 @@ def test_real_clicks_and_keys_in_jupyterlab_breed_pictures(tmp_path, record_prop
             assert keyed["history"][-1]["selected"] == [2] and keyed["population"][0] == redone["population"][2]
 
             # Evolve to screen: click a picture, then evolve; timed until every new thumbnail is decoded.
+            requested = []  # from Playwright's click call: its own checks included
             for k in range(EVOLVES):
                 images.nth(k % N).click()
                 generation = keyed["generation"] + k
                 wait_for_session(session, lambda s: s["selected"] == [k % N], f"select #{k % N}")
-                page.evaluate("() => { window.__t0 = performance.now(); }")
+                # The clock starts when the button is pressed in the page (pointerdown), not when
+                # Playwright is asked to click: its checks before the click (the button found,
+                # visible, still, hit) took 20-80 ms here, which a student's click does not wait for.
+                page.evaluate("() => { window.__asked = performance.now(); document.addEventListener("
+                              "'pointerdown', () => { window.__t0 = performance.now(); }, {capture: true, once: true}); }")
                 button("evolve").click()
                 # The status line is set after the thumbnails, and the page applies the kernel's
                 # messages in order: the new generation's line means every new picture has arrived;
@@ -277,8 +284,11 @@ def test_real_clicks_and_keys_in_jupyterlab_breed_pictures(tmp_path, record_prop
                     ".some(h => h.textContent.startsWith('generation ' + g + ' '));"
                     " const ims = [...document.querySelectorAll('.widget-gridbox img.widget-image')];"
                     " return line && ims.every(im => im.complete && im.naturalWidth > 0)"
-                    " ? performance.now() - window.__t0 : false; }", arg=generation + 1, polling="raf")
-                latencies.append(float(handle.json_value()))
+                    " ? [performance.now() - window.__t0, performance.now() - window.__asked] : false; }",
+                    arg=generation + 1, polling="raf")
+                pressed, asked = handle.json_value()
+                latencies.append(float(pressed))
+                requested.append(float(asked))
                 session_step(session, generation, "evolve")
 
             # Zoom: every picture evaluated over a smaller window; reset brings them back.
@@ -322,11 +332,14 @@ def test_real_clicks_and_keys_in_jupyterlab_breed_pictures(tmp_path, record_prop
     assert pop != old, "the population did not change"
 
     p50, p95 = np.percentile(latencies, [50, 95])
+    r50, r95 = np.percentile(requested, [50, 95])
     figure = {"clicks": len(latencies), "pictures": N, "size": SIZE, "p50_ms": round(float(p50), 1),
               "p95_ms": round(float(p95), 1), "max_ms": round(max(latencies), 1),
+              "from_playwright_call_p50_ms": round(float(r50), 1), "from_playwright_call_p95_ms": round(float(r95), 1),
               "load_average": os.getloadavg()[0], "cores": os.cpu_count()}
     (ARTEFACTS / "latency.json").write_text(json.dumps(figure, indent=1))
     record_property("evolve_to_screen_ms", figure)
     print(f"\nEvolve to screen, {N} thumbnails at {SIZE}^2, {len(latencies)} clicks: p50 {p50:.0f} ms, "
-          f"p95 {p95:.0f} ms, max {max(latencies):.0f} ms (load average {figure['load_average']:.1f}); "
+          f"p95 {p95:.0f} ms, max {max(latencies):.0f} ms from the press (from Playwright's click call: "
+          f"p50 {r50:.0f}, p95 {r95:.0f} ms; load average {figure['load_average']:.1f}); "
           f"screenshots in {ARTEFACTS}")

@@ -23,8 +23,16 @@ def saved(tmp_path):
 
 
 def test_widgets_mirror_the_state(gallery):
+    import base64
+    import io
+
+    from PIL import Image
+
     assert len(gallery.images) == 6
-    assert all(bytes(im.value).startswith(b"\xff\xd8\xff") for im in gallery.images)  # JPEG thumbnails
+    for im in gallery.images:  # JPEG thumbnails of the gallery's size, as data: URLs the page shows as they come
+        assert im.format == "url" and bytes(im.value).startswith(b"data:image/jpeg;base64,")
+        jpeg = base64.b64decode(bytes(im.value).split(b",", 1)[1], validate=True)
+        assert jpeg.startswith(b"\xff\xd8\xff") and Image.open(io.BytesIO(jpeg)).size == (12, 12)
     gallery.toggles[2].value = True
     gallery.toggles[4].value = True
     assert gallery.state.selected == [2, 4]
@@ -239,13 +247,13 @@ def test_clicking_an_ancestor_in_the_lineage_view_branches_from_it(gallery, tmp_
 def test_zoom_and_pan_re_evaluate_the_genomes_and_reset_comes_back(gallery, tmp_path):
     from coursekit.pictures import render
     from coursekit.pictures.files import load_render_settings
-    from coursekit.pictures.gallery import thumbnail_bytes
+    from coursekit.pictures.gallery import thumbnail_url
 
     home = [bytes(im.value) for im in gallery.images]
     gallery.apply("zoom in")
     assert gallery.window == (0.25, 0.25, 0.75, 0.75)
     want = render(gallery.state.population, 12, window=gallery.window)
-    assert [bytes(im.value) for im in gallery.images] == [thumbnail_bytes(p) for p in want]
+    assert [bytes(im.value) for im in gallery.images] == [thumbnail_url(p) for p in want]
     gallery.key("ArrowRight", shift=True)   # shift + arrow pans a quarter of the view
     assert gallery.window == (0.375, 0.25, 0.875, 0.75) and "view 2x" in gallery.status_text()
     path = gallery.export(0, tmp_path / "zoomed.png", size=16)
@@ -446,3 +454,48 @@ def test_the_autosave_text_is_json_dumps_of_the_state_byte_for_byte(tmp_path):
         assert state.to_json() == json.dumps(state.to_dict())
     finally:
         P.REDEFINED = before
+
+
+def test_a_click_sends_each_widget_once_and_the_status_line_after_every_picture(gallery):
+    """What the page receives of an Evolve click (ipywidgets' messages, caught at each widget's
+    comm): one message per changed widget, its changes together, and the status line last, so
+    that a page showing the new generation's line has every new picture."""
+    import ipywidgets as W
+
+    sent = []
+
+    class Comm:  # stands in for the kernel's comm of each widget
+        kernel, comm_id = True, "test"
+
+        def __init__(self, widget):
+            self.widget = widget
+
+        def send(self, data=None, buffers=None, **kw):
+            sent.append((self.widget, set(data["state"]) | {p[0] for p in data.get("buffer_paths", [])}))
+
+        def on_msg(self, callback):
+            pass
+
+        def close(self, *args, **kw):
+            pass
+
+    def on(widget):
+        widget.comm = Comm(widget)
+        for child in getattr(widget, "children", ()):
+            on(child)
+        if isinstance(getattr(widget, "layout", None), W.Widget):
+            widget.layout.comm = Comm(widget.layout)
+
+    on(gallery.widget)
+    gallery.click(1)
+    sent.clear()
+    before = [im.value for im in gallery.images]
+    gallery.apply("evolve")
+    widgets = [w for w, _ in sent]
+    assert len(widgets) == len(set(map(id, widgets))), "a widget was sent more than once"
+    pictures = [i for i, (w, keys) in enumerate(sent) if "value" in keys and any(w is im for im in gallery.images)]
+    changed = [im for im, old in zip(gallery.images, before) if im.value != old]
+    assert len(pictures) == len(changed) >= gallery.evolution.size - 1  # every new picture (the parent moved to #0)
+    assert widgets[-1] is gallery.status and max(pictures) < len(sent) - 1
+    toggle = next(keys for w, keys in sent if w is gallery.toggles[1])
+    assert {"value", "button_style", "icon"} <= toggle  # the unselected parent's toggle: one message
