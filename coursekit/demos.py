@@ -52,7 +52,8 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
     Files: ``best.json``, ``best.png``, ``best.mp4`` and ``best.gif`` (the champion swimming, the
     camera following it), ``best-keyframes.png`` (Figure 3), ``fitness.png``, ``summary.json``,
     and for every shipped champion (:func:`coursekit.creatures.champions.hall_of_fame`) ``champion-K.*``
-    films and key frames.
+    films and key frames (a champion that is this run's best -- the demo's own run at its
+    defaults ships as one -- is shown with the best's films, not filmed twice).
 
     Sizes default by profile (classroom: 40 creatures, 8 generations, 10 s swims, Sims' own
     evaluation time -- in 5 s swims evolution bred creatures that unfold once and stop after the
@@ -96,11 +97,15 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
         audited = pool.submit(audit, [best], seconds) if pool is not None else None
         atomic_write(out / "best.json", best.to_json())
         render(best, out / "best.png")
-        replay = simulate([best, *champions], seconds, record_every=3)  # 20 frames per simulated second at dt = 1/60
+        # A champion that is this run's best (the demo's own seed ships as a champion) is filmed once.
+        text = best.to_json()
+        others = [k for k, c in enumerate(champions) if c.to_json() != text]
+        replay = simulate([best, *(champions[k] for k in others)], seconds, record_every=3)  # 20 frames per simulated second at dt = 1/60
         films = _film(best, replay.trajectory[0], replay.frame_times, out, "best")
         shown = [{"name": c.name, "parts": int(c.creature.expand().body.n_bodies), "speed": c.speed,
                   "body_lengths_per_second": c.body_lengths_per_second, "command": c.command,
-                  **_film(c.creature, replay.trajectory[k + 1], replay.frame_times, out, f"champion-{k}")}
+                  **(_film(c.creature, replay.trajectory[others.index(k) + 1], replay.frame_times, out, f"champion-{k}")
+                     if k in others else films)}
                  for k, c in enumerate(fame)]
         wall["films"] = time.perf_counter() - t
         report = (audited.result() if audited is not None else audit([best], seconds))[0]

@@ -197,3 +197,30 @@ def test_bench_says_what_a_benchmark_needs(monkeypatch, capsys):
     assert main(["bench", "swimmers"]) == 2
     err = capsys.readouterr().err
     assert "swimmers needs mujoco" in err and "pip install 'coursekit[mujoco]'" in err
+
+
+def test_the_swimmer_demo_films_a_champion_that_is_its_own_best_once(tmp_path, monkeypatch):
+    """At its defaults the demo's run is the one that shipped as a champion: that champion is
+    shown with the run's own films, not simulated and filmed a second time."""
+    import dataclasses
+    import importlib
+    import json
+
+    from coursekit import demos
+    from coursekit.creatures import Creature
+
+    C = importlib.import_module("coursekit.creatures.champions")
+    shipped = C.hall_of_fame()[0]
+    monkeypatch.setenv("COURSEKIT_PROFILE", "ci")
+    monkeypatch.setattr(C, "hall_of_fame", lambda: [])
+    first = demos.swimmers(tmp_path / "first", seed=3, workers=1, progress=False)
+    best = Creature.from_json((tmp_path / "first" / "best.json").read_text())
+    fame = [dataclasses.replace(shipped, name="this run", creature=best), shipped]
+    monkeypatch.setattr(C, "hall_of_fame", lambda: fame)
+    second = demos.swimmers(tmp_path / "second", seed=3, workers=1, progress=False)
+    assert second["best_fitness"] == first["best_fitness"]  # the same run again
+    own, theirs = second["champions"]
+    assert {own[k] for k in ("mp4", "gif", "keyframes")} == set(second["films"].values())
+    assert theirs["mp4"] == "champion-1.mp4" and (tmp_path / "second" / "champion-1.mp4").is_file()
+    assert not list((tmp_path / "second").glob("champion-0*"))
+    assert json.loads((tmp_path / "second" / "summary.json").read_text())["champions"][0]["mp4"] == "best.mp4"
