@@ -462,8 +462,8 @@ class Gallery:
         """Set every widget to the state (inside :meth:`_sync`'s held messages)."""
         s, ev = self.state, self.evolution
         if images:
-            for im, png in zip(self.images, self._thumbnails()):
-                im.value = png
+            for im, url in zip(self.images, self._thumbnails()):
+                im.value = url
         for i, t in enumerate(self.toggles):
             on = i in s.selected
             t.value = on
