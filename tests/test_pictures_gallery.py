@@ -458,8 +458,9 @@ def test_the_autosave_text_is_json_dumps_of_the_state_byte_for_byte(tmp_path):
 
 def test_a_click_sends_each_widget_once_and_the_status_line_after_every_picture(gallery):
     """What the page receives of an Evolve click (ipywidgets' messages, caught at each widget's
-    comm): one message per changed widget, its changes together, and the status line last, so
-    that a page showing the new generation's line has every new picture."""
+    comm): one message per changed widget, its changes together; the status line after every
+    picture, frame and toggle (a page showing the new generation's line shows the new grid),
+    then the buttons."""
     import ipywidgets as W
 
     sent = []
@@ -496,6 +497,11 @@ def test_a_click_sends_each_widget_once_and_the_status_line_after_every_picture(
     pictures = [i for i, (w, keys) in enumerate(sent) if "value" in keys and any(w is im for im in gallery.images)]
     changed = [im for im, old in zip(gallery.images, before) if im.value != old]
     assert len(pictures) == len(changed) >= gallery.evolution.size - 1  # every new picture (the parent moved to #0)
-    assert widgets[-1] is gallery.status and max(pictures) < len(sent) - 1
+    status = next(i for i, w in enumerate(widgets) if w is gallery.status)
+    grid = [i for i, w in enumerate(widgets) if any(w is x for x in gallery.toggles + gallery.images)
+            or any(w is im.layout for im in gallery.images)]
+    buttons = [i for i, w in enumerate(widgets) if any(w is b for b in gallery.buttons.values())]
+    assert max(grid) < status < min(buttons), "the status line is not between the grid and the buttons"
+    assert buttons and set(pictures) <= set(grid)
     toggle = next(keys for w, keys in sent if w is gallery.toggles[1])
     assert {"value", "button_style", "icon"} <= toggle  # the unselected parent's toggle: one message

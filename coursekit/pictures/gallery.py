@@ -446,12 +446,13 @@ class Gallery:
         """Mirror the state in the widgets.
 
         Each widget's changes go to the page as one message (``hold_sync``: a toggle's value,
-        style and icon, a border's four sides, a button's state and tooltip), sent when the
-        widget is done; the status line goes last, after every thumbnail."""
+        style and icon, a border's four sides, a button's state and tooltip), in the order a
+        student looks: the thumbnails, their frames and toggles, the status line, then the
+        buttons and the hint (the page handles the messages one by one, a few ms each)."""
         self._syncing = True
         try:
-            with ExitStack() as held:  # exits last-in first-out: the status line's message last
-                for w in [self.status, self.hint, *self.buttons.values(), *self.toggles,
+            with ExitStack() as held:  # exits last-in first-out
+                for w in [self.hint, *self.buttons.values(), self.status, *self.toggles,
                           *(im.layout for im in self.images), *self.images]:
                     held.enter_context(w.hold_sync())
                 self._mirror(message, images)
