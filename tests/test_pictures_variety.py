@@ -254,3 +254,24 @@ def test_evolving_on_from_a_child_keeps_giving_pictures_that_are_not_flat():
             flat += int(dull(kids).sum())
     assert checked == 5 * 4 * 19
     assert flat / checked <= 0.01, f"{flat} of {checked} children are flat or black"
+
+
+def test_a_slot_out_of_tries_keeps_its_best_draw_not_its_last():
+    """When every draw of a slot is rejected, the slot shows the best of them -- a lively
+    near-copy before a flat picture -- not whichever came last (a crossover of two alike
+    parents can give a flat child round after round)."""
+    rng = np.random.default_rng(4)
+    parent = random_population(rng, 1)[0]
+    string = parent.strings[0]
+    idle = next(i for i in range(len(string)) if i not in parent.active[0])
+    chroms = list(string.chromosomes)
+    chroms[idle] = Genome.random(np.random.default_rng(9)).strings[0].chromosomes[-1]
+    twin = parent.replace_string(0, string.replace(chroms))  # the parent's picture, other genes
+    flat = [Genome.random(np.random.default_rng(s), symbols=["const"], n_strings=1, head_length=1) for s in range(40)]
+    assert not dull(preview([parent]))[0] and dull(preview(flat)).all()
+
+    def children():
+        yield twin                     # rejected: the parent's own picture
+        yield from flat                # rejected: flat, while the parent is not
+    kid, = distinct_children([parent], children(), 1, tries=3, draws=1)
+    assert kid is twin and not dull(preview([kid]))[0]

@@ -133,8 +133,8 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     parent's or another child's. The ``n`` children are then previewed at ``size``; slot by
     slot, one within :data:`SAME` (mean absolute difference) of a parent or of an already
     accepted child, or one that is dull (:func:`dull`: flat or black) while not every parent
-    is, is drawn again the same way, at most ``tries`` rounds (what is left then
-    stays); each distinct expression is previewed once (a picture depends on nothing
+    is, is drawn again the same way, at most ``tries`` rounds (what is left then is the
+    slot's best draw: a lively one before a flat one, then the most different); each distinct expression is previewed once (a picture depends on nothing
     else). From round ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is
     replaced by ``again(c, accepted)`` instead (``accepted``: the children kept so far): the
     operator applied once more to it, for when the parents have fewer distinct children than
@@ -173,14 +173,25 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     previews = {coding(p): pic for p, pic in zip(parents, refs)}
     accepted: list[Genome] = []
     pending = list(range(n))
+    best: dict[int, tuple] = {}  # slot -> (lively, distance), child, preview: its best draw so far
     for attempt in range(tries + 1):
         pics = _previews([kids[i] for i in pending], previews, size)
         flat = dull(pics) & lively
         still = []
         for i, pic, bad in zip(pending, pics, flat):
-            if (bad or _distance(pic, refs) < SAME) and attempt < tries:
+            score = (not bad, min(_distance(pic, refs), SAME))
+            if score[0] and score[1] >= SAME:
+                refs.append(pic)
+                accepted.append(kids[i])
+            elif attempt < tries:
+                if i not in best or score > best[i][0]:
+                    best[i] = score, kids[i], pic
                 still.append(i)
-            else:
+            else:  # out of tries: the slot's best draw (a lively near-copy rather than a flat one)
+                if i in best:
+                    _, kid, old = best[i]
+                    if (not dull(old[None])[0] or not lively, min(_distance(old, refs), SAME)) > score:
+                        kids[i], pic = kid, old
                 refs.append(pic)
                 accepted.append(kids[i])
         if not still:
