@@ -99,13 +99,16 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
         render(best, out / "best.png")
         # A champion that is this run's best (the demo's own seed ships as a champion) is filmed once.
         text = best.to_json()
-        others = [k for k, c in enumerate(champions) if c.to_json() != text]
-        replay = simulate([best, *(champions[k] for k in others)], seconds, record_every=3)  # 20 frames per simulated second at dt = 1/60
+        row = {}  # champion -> its row of the replay (after the best's)
+        for k, c in enumerate(champions):
+            if c.to_json() != text:
+                row[k] = len(row) + 1
+        replay = simulate([best, *(champions[k] for k in row)], seconds, record_every=3)  # 20 frames per simulated second at dt = 1/60
         films = _film(best, replay.trajectory[0], replay.frame_times, out, "best")
         shown = [{"name": c.name, "parts": int(c.creature.expand().body.n_bodies), "speed": c.speed,
                   "body_lengths_per_second": c.body_lengths_per_second, "command": c.command,
-                  **(_film(c.creature, replay.trajectory[others.index(k) + 1], replay.frame_times, out, f"champion-{k}")
-                     if k in others else films)}
+                  **(_film(c.creature, replay.trajectory[row[k]], replay.frame_times, out, f"champion-{k}")
+                     if k in row else films)}
                  for k, c in enumerate(fame)]
         wall["films"] = time.perf_counter() - t
         report = (audited.result() if audited is not None else audit([best], seconds))[0]

@@ -134,8 +134,8 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     slot, one within :data:`SAME` (mean absolute difference) of a parent or of an already
     accepted child, or one that is dull (:func:`dull`: flat or black) while not every parent
     is, is drawn again the same way, at most ``tries`` rounds (what is left then is the
-    slot's best draw: a lively one before a flat one, then the most different); each distinct expression is previewed once (a picture depends on nothing
-    else). From round ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is
+    slot's best draw: a lively one before a flat one, then the most different); each
+    distinct expression is previewed once (a picture depends on nothing else). From round ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is
     replaced by ``again(c, accepted)`` instead (``accepted``: the children kept so far): the
     operator applied once more to it, for when the parents have fewer distinct children than
     there are slots (two relatives, a small coding part). The gallery crosses ``c`` with a
@@ -189,8 +189,8 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
                 still.append(i)
             else:  # out of tries: the slot's best draw (a lively near-copy rather than a flat one)
                 if i in best:
-                    _, kid, old = best[i]
-                    if (not dull(old[None])[0] or not lively, min(_distance(old, refs), SAME)) > score:
+                    (was_lively, _), kid, old = best[i]
+                    if (was_lively, min(_distance(old, refs), SAME)) > score:
                         kids[i], pic = kid, old
                 refs.append(pic)
                 accepted.append(kids[i])
