@@ -29,7 +29,7 @@ import torch
 from torch.utils._python_dispatch import TorchDispatchMode
 from torch.utils._pytree import tree_flatten
 
-__all__ = ["CountOperations"]
+__all__ = ["CountHostSyncs", "CountOperations"]
 
 _aten = torch.ops.aten
 #: Matrix products: the operation counts ``2 m n k`` (the last two operands are the factors).
@@ -62,3 +62,74 @@ class CountOperations(TorchDispatchMode):
                 self.flops += max((t.numel() for t in operands + results), default=0)
             self.bytes += sum(t.numel() * t.element_size() for t in operands + results)
         return out
+
+
+#: Operations whose result the host must wait for: a value read into Python (``.item()``,
+#: ``bool()``, ``int()``, ``float()`` all run ``_local_scalar_dense``), or an output whose size
+#: depends on the data (``nonzero``, boolean indexing, ``masked_select``, ``unique``).
+_SYNCING = {_aten._local_scalar_dense.default, _aten.nonzero.default, _aten.masked_select.default,
+            _aten._unique2.default, _aten.unique_consecutive.default, _aten.unique_dim.default,
+            _aten.repeat_interleave.Tensor}
+
+
+class CountHostSyncs(TorchDispatchMode):
+    """Context manager: ``count`` host synchronisations ran inside, on any device.
+
+    On a GPU the host waits for the device whenever Python reads a tensor's value or an
+    operation's output size depends on the data; on the CPU nothing waits, but the same calls
+    happen, so counting them on the CPU tells what a GPU will pay. Counted: the operations of
+    ``_SYNCING`` (boolean indexing included: it runs ``nonzero``), and every copy to numpy or to
+    Python (``Tensor.numpy``, ``Tensor.tolist``; ``.cpu()`` of a device tensor). ``calls`` names
+    each counted call, in order.
+
+        >>> import torch
+        >>> x = torch.arange(4.0)
+        >>> with CountHostSyncs() as syncs:
+        ...     y = x * 2           # stays on the device
+        ...     if bool(y.sum() > 3):   # read on the host: a synchronisation
+        ...         z = x[x > 1]    # a data-dependent size: another
+        >>> syncs.count, syncs.calls
+        (2, ['_local_scalar_dense', 'index'])
+    """
+
+    def __init__(self):
+        super().__init__()
+        self.count = 0
+        self.calls: list[str] = []
+        self._patched: list = []
+
+    def _hit(self, name: str) -> None:
+        self.count += 1
+        self.calls.append(name)
+
+    def __torch_dispatch__(self, func, types, args=(), kwargs=None):
+        kwargs = kwargs or {}
+        name = func.overloadpacket.__name__
+        if func in _SYNCING:
+            self._hit(name)
+        elif func is _aten.index.Tensor and any(isinstance(i, torch.Tensor) and i.dtype == torch.bool for i in args[1]):
+            self._hit(name)
+        elif func in (_aten._to_copy.default, _aten.copy_.default):
+            src = args[1] if func is _aten.copy_.default else args[0]
+            dst = args[0].device if func is _aten.copy_.default else kwargs.get("device", src.device)
+            if src.device.type != "cpu" and torch.device(dst).type == "cpu":
+                self._hit(name)
+        return func(*args, **kwargs)
+
+    def __enter__(self):
+        for method in ("numpy", "tolist"):
+            original = getattr(torch.Tensor, method)
+
+            def counted(t, *a, _original=original, _method=method, **k):
+                self._hit(_method)
+                return _original(t, *a, **k)
+
+            self._patched.append((method, original))
+            setattr(torch.Tensor, method, counted)
+        return super().__enter__()
+
+    def __exit__(self, *exc):
+        for method, original in self._patched:
+            setattr(torch.Tensor, method, original)
+        self._patched.clear()
+        return super().__exit__(*exc)

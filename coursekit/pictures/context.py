@@ -25,7 +25,7 @@ import torch
 from . import textures as T
 
 __all__ = ["BIG", "Context", "Resources", "CACHE_BYTES", "clear_cache", "default_device", "separable", "sane", "fmod",
-           "fold", "to_rgb"]
+           "fold", "to_rgb", "host", "upload"]
 
 BIG = 1e6  # values are clipped to +-BIG before indexing, integer operations and the final mapping
 
@@ -33,6 +33,24 @@ BIG = 1e6  # values are clipped to +-BIG before indexing, integer operations and
 def default_device() -> torch.device:
     """CUDA when present, else CPU."""
     return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+
+
+def upload(values, device, dtype=torch.float32) -> torch.Tensor:
+    """Host numbers as a tensor on ``device``; to a GPU through pinned memory without waiting (a
+    plain copy from pageable memory makes the host wait for the device)."""
+    t = torch.tensor(values, dtype=dtype)
+    if torch.device(device).type != "cuda":
+        return t.to(device)
+    return t.pin_memory().to(device, non_blocking=True)
+
+
+def host(p: torch.Tensor) -> list[float]:
+    """The values of a parameter ``p`` (B, 1, 1, 1) as Python floats, from the host copy that
+    :func:`~.tree.stack_trees` keeps beside the device tensor (``p.host``): a kernel that needs a
+    parameter as a number (a blur's radius, a pixel map's index, an octave count) reads no device
+    memory. A tensor without one (a kernel called directly) is read from the device."""
+    values = getattr(p, "host", None)
+    return list(values) if values is not None else [float(v) for v in p.reshape(-1).tolist()]
 
 
 def separable(x: torch.Tensor, y: torch.Tensor, *, shared: bool = False) -> bool:

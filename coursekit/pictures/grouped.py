@@ -138,7 +138,13 @@ class _Waves:
 
         ctx = c if isinstance(coords, int) else Context(stack([i.ctx.x for i in insts]), stack([i.ctx.y for i in insts]),
                                             c.H, c.W, c.px, c.py, c.time, c.res, Memo())
-        p = [stack([i.node.params[k] for i in insts]) for k in range(len(first.node.params))]
+        def stack_params(tensors):
+            out = stack(tensors)
+            if all(hasattr(t, "host") for t in tensors):  # and their host copies (context.host)
+                out.host = [v for t, b in zip(tensors, sizes) for v in (t.host * b if len(t.host) < b else t.host)]
+            return out
+
+        p = [stack_params([i.node.params[k] for i in insts]) for k in range(len(first.node.params))]
         inputs = [stack([i.inputs[k].value for i in insts], shapes[k]) for k in range(len(first.inputs))]
         if first.kind == "eval":
             value = apply_kernel(first.node, ctx, p, inputs)

@@ -14,11 +14,12 @@ import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
 import torch
 
 from . import kernels  # noqa: F401  (importing it binds the built-in kernels in the registry)
 from . import primitives as P
-from .context import Context
+from .context import Context, upload
 from .genome import Node
 
 __all__ = ["BNode", "Memo", "stack_trees", "evaluate", "evaluate_node", "apply_kernel", "full"]
@@ -89,8 +90,10 @@ def stack_trees(trees: Sequence[Node], device, shared: dict) -> BNode:
         return node
 
     root = build(list(trees))
-    values = {u: torch.tensor(c, dtype=torch.float32, device=device).reshape(len(c), -1, 1, 1, 1).unbind(0)
-              for u, c in columns.items() if c}
+    values = {u: upload(c, device).reshape(len(c), -1, 1, 1, 1).unbind(0) for u, c in columns.items() if c}
+    for u, c in columns.items():  # the host copy kernels read numbers from (context.host): float32, as on the device
+        for t, column in zip(values.get(u, ()), c):
+            t.host = np.asarray(column, dtype=np.float32).tolist()
     for node, start, count in pending:
         node.params = list(values[node.uniform][start:start + count])
     return root

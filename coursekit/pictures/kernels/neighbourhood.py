@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 
 from .. import textures as T
-from ..context import fmod, sane
+from ..context import fmod, host, sane
 from ..primitives import image_kernel
 from .fast import TWO_PI, atan2, cos, grey, matmul, sin, sqrt
 
@@ -30,15 +31,16 @@ def _box(v, r: int, dim: int):
     return out.to(v.dtype)
 
 
-def _blur_by(v, sigma: torch.Tensor, ctx):
-    """Three box passes per axis; radius per batch element from sigma (world units)."""
+def _blur_by(v, sigmas: list, ctx):
+    """Three box passes per axis; radius per batch element from ``sigmas`` (world units; host
+    numbers, :func:`~..context.host`)."""
     if v.shape[-1] == 1 and v.shape[-2] == 1:
         return v
-    B = max(sigma.shape[0], v.shape[0])  # a uniform blur may see per-genome inputs
+    B = max(len(sigmas), v.shape[0])  # a uniform blur may see per-genome inputs
     v = v.expand(B, *v.shape[1:])
     outs = []
     for b in range(B):
-        s = float(sigma[b if sigma.shape[0] > 1 else 0])
+        s = sigmas[b if len(sigmas) > 1 else 0]
         rx = T.box_radius(abs(s) / ctx.px, 4 * ctx.W)
         ry = T.box_radius(abs(s) / ctx.py, 4 * ctx.H)
         o = v[b:b + 1]
@@ -90,12 +92,14 @@ def _grad_dir(v, p, ctx):
 
 
 def _blur(ctx, p, a):
-    return _blur_by(a, p[0][:, 0, 0, 0], ctx)
+    return _blur_by(a, host(p[0]), ctx)
 
 
 def _band_pass(ctx, p, a):
-    sig = p[0][:, 0, 0, 0]
-    return 0.5 + _blur_by(a, sig, ctx) - _blur_by(a, 3.0 * sig, ctx)
+    sig = host(p[0])
+    with np.errstate(over="ignore"):  # a hostile sigma overflows to inf, as on the device
+        wide = (np.float32(3.0) * np.asarray(sig, dtype=np.float32)).tolist()  # as the device rounds 3 sigma
+    return 0.5 + _blur_by(a, sig, ctx) - _blur_by(a, wide, ctx)
 
 
 image_kernel("blur")(_blur)

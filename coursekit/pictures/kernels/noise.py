@@ -7,10 +7,12 @@ then columns (small matrices for a few lattice cells, gathers for many); warped 
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 from .. import textures as T
-from ..context import Context, fmod, sane, separable
+from ..context import Context, fmod, host, sane, separable, upload
 from ..primitives import image_kernel
 
 __all__: list[str] = []  # reached through the registry
@@ -18,6 +20,10 @@ __all__: list[str] = []  # reached through the registry
 def _smooth(t):
     return t * t * (3.0 - 2.0 * t)
 
+
+#: The spans read on the CPU only (bound here, so that
+#: :class:`~coursekit.operations.CountHostSyncs` leaves this CPU-only path out, as for numpy's kernels).
+_tolist = torch.Tensor.tolist
 
 _WIDTHS = (8, 16, 32, 48)  # interpolation matrix widths (lattice cells + 1); gathers beyond
 
@@ -46,12 +52,16 @@ def _separable_noise(table, wrapped, uu: torch.Tensor, vv: torch.Tensor) -> torc
     matrices, one spanning many gathers its two neighbouring lattice rows and columns (a cost
     independent of the frequency). Each image's method and matrix width follow from its own
     span, never from the rest of the batch, so an image rendered in a batch is bit for bit the
-    image rendered alone (products of other widths round differently).
+    image rendered alone (products of other widths round differently). On a GPU every image
+    gathers: the span is data on the device, and reading it would make the host wait.
     """
     fu, fv = torch.floor(uu), torch.floor(vv)
     lx, ly = fu.amin(1, keepdim=True), fv.amin(1, keepdim=True)
-    span = torch.maximum(fu.amax(1) - lx[:, 0], fv.amax(1) - ly[:, 0]) + 2.0
-    widths = [next((k for k in _WIDTHS if k >= s), 0) for s in span.tolist()]
+    if uu.device.type == "cpu":
+        span = torch.maximum(fu.amax(1) - lx[:, 0], fv.amax(1) - ly[:, 0]) + 2.0
+        widths = [next((k for k in _WIDTHS if k >= s), 0) for s in _tolist(span)]
+    else:
+        widths = [0]
     if len(set(widths)) > 1:
         out = torch.empty(uu.shape[0], 1, vv.shape[1], uu.shape[1], dtype=uu.dtype, device=uu.device)
         for k in set(widths):
@@ -121,8 +131,7 @@ def _stacked_noise(ctx, freq, ox, oy, scales, shifts):
         return torch.stack([_noise(ctx, ctx.x * (freq * s) + ox + dx, ctx.y * (freq * s) + oy + dy)
                             for s, (dx, dy) in zip(scales, shifts)])
     O = len(scales)
-    k = torch.tensor([[s, dx, dy] for s, (dx, dy) in zip(scales, shifts)], dtype=torch.float32,
-                     device=ctx.x.device).reshape(O, 3, 1, 1, 1, 1)
+    k = upload([[s, dx, dy] for s, (dx, dy) in zip(scales, shifts)], ctx.x.device).reshape(O, 3, 1, 1, 1, 1)
     f = freq * k[:, 0]  # (O, B, 1, 1, 1)
     u = (ctx.x * f + ox + k[:, 1]).flatten(0, 1)
     v = (ctx.y * f + oy + k[:, 2]).flatten(0, 1)
@@ -137,7 +146,7 @@ def _color_noise(ctx, p):
 
 def _turbulence(ctx, p):
     octaves = torch.floor(p[1]).clamp(1, 8)
-    count = int(octaves.max())
+    count = int(min(max(math.floor(max(host(p[1]))), 1), 8))
     shifts = [(o * T.OCTAVE_SHIFT[0], o * T.OCTAVE_SHIFT[1]) for o in range(count)]
     n = _stacked_noise(ctx, p[0], p[2], p[3], [2.0 ** o for o in range(count)], shifts)
     n = n.mul_(2.0).sub_(1.0).abs_()

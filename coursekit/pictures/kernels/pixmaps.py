@@ -10,7 +10,7 @@ from __future__ import annotations
 import torch
 
 from .. import textures as T
-from ..context import fold
+from ..context import fold, host
 from ..primitives import image_kernel
 
 __all__: list[str] = []  # reached through the registry
@@ -32,7 +32,7 @@ def _pixmap_separable(img: torch.Tensor, x: torch.Tensor, y: torch.Tensor) -> to
 
 
 def _pixmap(ctx, p):
-    idx = [T.pixmap_index(float(v)) for v in p[0].reshape(-1)]
+    idx = [T.pixmap_index(v) for v in host(p[0])]
     B = len(idx)
     if ctx.separable:
         # separable coordinates (an unwarped context): sample rows then columns, and keep the
