@@ -153,8 +153,7 @@ def simulate(
             bar.update()
     if controller is not None and hasattr(controller, "reset"):
         controller.reset()
-    com = np.empty((m.n_creatures, n_steps + 1, 3))
-    com[:, 0] = world.centre_of_mass()
+    centres = [world.centre_of_mass(native=True)]  # on the world's device until the end: no wait per step
     frames = [world.get_state()[0]] if record_every else None
     # every joint's worst excess beyond its limits, as a share of its range (limits on or off)
     lo, hi = (bk.asarray(world.xp, m.limits_np[:, k], device=m.device) for k in (0, 1))
@@ -168,13 +167,14 @@ def simulate(
         q = world.state.q
         beyond = world.xp.maximum(q - hi, lo - q) if world.overshoot is None else world.overshoot
         worst = world.xp.maximum(worst, beyond / (hi - lo))
-        com[:, i + 1] = world.centre_of_mass()
+        centres.append(world.centre_of_mass(native=True))
         if record_every and (i + 1) % record_every == 0:
             frames.append(world.get_state()[0])
         if bar:
             bar.update()
     if bar:
         bar.close()
+    com = np.asarray(bk.to_numpy(world.xp.stack(centres, axis=1)), dtype=np.float64)  # (C, steps + 1, 3)
     times = np.arange(n_steps + 1) * dt
     # a body cut off at the part cap is not the creature its genotype describes: it scores 0
     truncated = np.array([bool(b.meta.get("truncated", False)) for b in m.trees])

@@ -99,7 +99,7 @@ def body_velocities(model, X, v0, qd):
     return _outward_velocities(model, X, v0, model.S * qd[:, None])
 
 
-def articulated_inertias(model, q, lock=None):
+def articulated_inertias(model, q, lock=None, static=False):
     """The velocity-independent half of the ABA: ``(Xup, IA, U, d, W, Z, Yt, V)`` at ``q``.
 
     ``Xup`` (M, 6, 6) are the joint transforms; ``IA`` (L, 6, 6) the articulated inertias of the
@@ -118,6 +118,11 @@ def articulated_inertias(model, q, lock=None):
     Featherstone 2008 section 9.3; the joint limits of :mod:`limits`). A locked joint passes its
     whole articulated inertia to its parent (``Xup' IA Xup``: ``W = 0``, ``Z = Xup``), and
     ``V = Xup' U`` (M, 6) is returned for the bias sweep (``None`` without ``lock``).
+
+    ``static``: the graph-ready formulation (:class:`~coursekit.creatures.physics.world.World`
+    with ``graph=True``): every leaf's locked share is added, zero for the free ones, instead of
+    picking the locked leaves out (an output size that depends on the data, read on the host).
+    The sums are the same bit for bit: the added zeros are exact.
     """
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
@@ -138,8 +143,11 @@ def articulated_inertias(model, q, lock=None):
         Wl, dl = W[jl], d[jl]
         V[jl] = Wl * dl[:, None]
         # a locked leaf passes Xup' I Xup = (its free share) + d W W': a few leaves, added one by one
-        k = bk.nonzero(xp, lock[jl])
-        if k.shape[0]:
+        if static:
+            share = xp.where(lock[jl][:, None, None], sp.outer(xp, Wl * dl[:, None], Wl), 0.0)
+            bk.add_at(xp, IA, model.leaf_parent, share)
+            W[jl] = xp.where(lock[jl][:, None], 0.0, Wl)
+        elif (k := bk.nonzero(xp, lock[jl])).shape[0]:
             Wk = Wl[k]
             bk.add_at(xp, IA, xp.take(model.leaf_parent, k, axis=0), sp.outer(xp, Wk * dl[k][:, None], Wk))
             Wl[k] = 0.0  # a view of W
@@ -161,7 +169,7 @@ def articulated_inertias(model, q, lock=None):
     return Xup, IA, U, d, W, Z, Yt, V
 
 
-def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None, lock=None, prescribed=None):
+def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None, lock=None, prescribed=None, static=False):
     """Forward dynamics of the whole batch.
 
     The bias sweep uses ``u = tau - S'pA`` and ``pa = pA + Ia c + U u / d`` (``Ia = IA - U U'/d``),
@@ -183,6 +191,8 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None, 
             locked joints move with the ``prescribed`` accelerations (0 if ``None``: they keep
             their rates; their ``tau`` is ignored) and the rest of the tree responds;
             ``inertias`` must then be computed with this ``lock``.
+        static: the graph-ready formulation (:func:`articulated_inertias`); the root's 6 x 6
+            solve is then :func:`~.backend.solve_spd`, which reads nothing on the host.
 
     Returns:
         ``(a0, qdd, v)``: root spatial acceleration (C, 6) in root coordinates, joint
@@ -190,13 +200,13 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None, 
         returns the joint forces (M,) the locked joints need (``tau`` for the free ones).
     """
     with np.errstate(over="ignore", invalid="ignore"):  # a diverging creature is the guard's business
-        return _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed)
+        return _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed, static)
 
 
-def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed):
+def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed, static):
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
-    Xup, IA, U, d, W, Z, Yt, V = articulated_inertias(model, q, lock) if inertias is None else inertias
+    Xup, IA, U, d, W, Z, Yt, V = articulated_inertias(model, q, lock, static) if inertias is None else inertias
     ap = None  # locked joints' accelerations: qdd = ap where locked, 0 elsewhere; None: all 0
     if lock is not None and prescribed is not None:
         ap = xp.where(lock, prescribed, xp.zeros_like(prescribed))
@@ -230,7 +240,7 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed):
     if lock is not None:
         ud = xp.where(lock, 0.0 if ap is None else ap, ud)
 
-    a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
+    a0 = -bk.solve(xp, IA[:C], pA[:C], static)
     a = _outward(model, Z, xp.concat([a0, c[ji] + S[ji] * ud[ji][:, None]], axis=0))  # a = Z a_parent + c + S ud
     a_parent = xp.take(a, model.joint_parent, axis=0)
     qdd = ud - sp.dot(xp, W, a_parent)
@@ -245,7 +255,7 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed):
     return a0, qdd, v, force
 
 
-def impulse(model, inertias, lock, change):
+def impulse(model, inertias, lock, change, static=False):
     """The hybrid system's response to a change of the locked joints' rates, from rest.
 
     The sweeps of :func:`aba` with no velocities and no forces (no bias terms: ``c = 0``,
@@ -255,6 +265,7 @@ def impulse(model, inertias, lock, change):
 
     Args:
         inertias: :func:`articulated_inertias` at the state's ``q`` with this ``lock``.
+        static: the graph-ready root solve (:func:`aba`).
     Returns:
         ``(dv0, dqd)``: the root's velocity change (C, 6) in root coordinates and the joints' (M,).
     """
@@ -268,6 +279,6 @@ def impulse(model, inertias, lock, change):
     model.joint_segments.add_into(pA, V * ap[:, None])  # what each joint passes to its parent: Xup' U ap (locked), 0 (free)
     _inward(model, Z, pA)
     ud = xp.where(lock, ap, -sp.dot(xp, S, pA[C:]) / d)
-    a0 = -xp.linalg.solve(IA[:C], pA[:C][:, :, None])[:, :, 0]
+    a0 = -bk.solve(xp, IA[:C], pA[:C], static)
     a = _outward(model, Z, xp.concat([a0, S[ji] * ud[ji][:, None]], axis=0))
     return a0, ud - sp.dot(xp, W, xp.take(a, model.joint_parent, axis=0))

@@ -149,3 +149,23 @@ def add_at(xp, target, idx, values) -> None:
         target.index_put_((idx,), values, accumulate=True)
     else:
         np.add.at(target, idx, values)
+
+
+def solve(xp, A, b, static=False):
+    """``x`` with ``A x = b`` for stacks of small symmetric positive-definite matrices ``A`` (n, k, k)
+    and vectors ``b`` (n, k).
+
+    ``static``: Gauss-Jordan elimination without pivoting (a positive-definite matrix needs none),
+    ``k`` steps over the whole stack with no branch on the data. The library solvers check their
+    factorisation on the host (a synchronisation on a GPU, which a CUDA graph cannot capture);
+    this reads nothing there. Equal to the library's solve up to rounding.
+    """
+    if not static:
+        return xp.linalg.solve(A, b[:, :, None])[:, :, 0]
+    k = A.shape[1]
+    M = xp.concat([A, b[:, :, None]], axis=2)
+    for i in range(k):
+        row = M[:, i : i + 1, :] / M[:, i : i + 1, i : i + 1]
+        M = M - M[:, :, i : i + 1] * row
+        M[:, i : i + 1, :] = row
+    return M[:, :, k]

@@ -55,10 +55,16 @@ class Contacts:
         model: packed :class:`~coursekit.creatures.physics.model.Model`.
         stiffness: contact frequency ``w`` (rad/s); default ``CONTACT_STIFFNESS_PER_STEP / dt``.
         dt: the (sub)step the forces are held over.
+        static: the graph-ready formulation (:class:`~coursekit.creatures.physics.world.World`
+            with ``graph=True``): every candidate pair is tested and followed every step, with a
+            mask for those in contact, instead of the list of touching pairs, whose length is
+            data read on the host. The same contacts and forces, up to the order in which a
+            body's contact forces are summed.
     """
 
-    def __init__(self, model, *, stiffness: float | None = None, dt: float = 1.0 / 60.0):
+    def __init__(self, model, *, stiffness: float | None = None, dt: float = 1.0 / 60.0, static: bool = False):
         self.model = m = model
+        self.static = static
         xp = self.xp = m.xp
         w = CONTACT_STIFFNESS_PER_STEP / dt if stiffness is None else float(stiffness)
         if not (np.isfinite(w) and w > 0):
@@ -84,6 +90,7 @@ class Contacts:
         rows = (3 * I1 + J, 3 * I2 + J, 3 * I + J1, 3 * I + J2, I1, I2, J1, J2)
         self._edge_rows = tuple(bk.index(xp, k, device=m.device) for k in rows)
         self.held = None  # contacts touching at the end of the last step, with their anchors
+        self.anchor = None  # static: every pair's anchors and whether it touches (``on``)
         self._set_pairs(a, b, w)
         # Parts that interpenetrate in the creature's own rest pose are fused, not colliding: a
         # deep overlap has no meaningful normal (the axis of least overlap flips as the parts
@@ -99,6 +106,7 @@ class Contacts:
             self._set_pairs(a[~fused], b[~fused], w)
         else:
             self.n_fused = 0
+        self.reset()
 
     def _set_pairs(self, a, b, w):
         """Candidate pairs ``(a, b)`` (numpy body indices) and their spring gains at frequency ``w``."""
@@ -132,12 +140,20 @@ class Contacts:
     def _detect_rows(self, Rt, pt):
         """:meth:`detect` on component-major poses: ``Rt`` (9, N), ``Rt[3k + i]`` = component k of
         box axis i (``R[:, k, i]``), and ``pt`` (3, N). Component-major (k, n) rows throughout:
-        numpy gathers and multiplies contiguous rows fast."""
+        numpy gathers and multiplies contiguous rows fast.
+
+        ``static``: every candidate pair, returned with a mask of those in contact (``pair`` is
+        then that (P,) bool mask); the others' normals, depths and points are left as they come.
+        """
         xp = self.xp
         a, b = self.a, self.b
         d = xp.take(pt, b, axis=1) - xp.take(pt, a, axis=1)
-        sel = xp.nonzero(xp.sum(d * d, axis=0) < self.reach2)[0]  # bounding spheres overlap
-        a, b, d = a[sel], b[sel], xp.take(d, sel, axis=1)
+        spheres = xp.sum(d * d, axis=0) < self.reach2  # bounding spheres overlap
+        if self.static:
+            sel = None
+        else:
+            sel = xp.nonzero(spheres)[0]
+            a, b, d = a[sel], b[sel], xp.take(d, sel, axis=1)
         n = a.shape[0]
         A, B = xp.reshape(xp.take(Rt, a, axis=1), (3, 3, n)), xp.reshape(xp.take(Rt, b, axis=1), (3, 3, n))  # [component, axis]
         # the 15 axes in A's frame (Gottschalk et al. 1996): Rm[3i + j] = A_i . B_j, t = d in A's frame
@@ -150,9 +166,10 @@ class Contacts:
                            xp.sum(A3 * hA[:, None], axis=0) + hB - xp.abs(xp.sum(R3 * t[:, None], axis=0))], axis=0)
         # a face axis separates most pairs whose spheres overlap (about 3 in 4 in an evolved
         # population): the 9 edge axes, the dearer part, are tested on the others only
-        near = xp.nonzero(xp.min(faces, axis=0) > 0)[0]
-        a, b, sel = a[near], b[near], sel[near]
-        d, A, B, Rm, Am, t, hA, hB, faces = (xp.take(x, near, axis=-1) for x in (d, A, B, Rm, Am, t, hA, hB, faces))
+        if not self.static:
+            near = xp.nonzero(xp.min(faces, axis=0) > 0)[0]
+            a, b, sel = a[near], b[near], sel[near]
+            d, A, B, Rm, Am, t, hA, hB, faces = (xp.take(x, near, axis=-1) for x in (d, A, B, Rm, Am, t, hA, hB, faces))
         i1j, i2j, ij1, ij2, I1, I2, J1, J2 = self._edge_rows
         len_e = xp.sqrt(xp.clip(1.0 - Rm * Rm, 0.0, None))  # |A_i x B_j|
         valid = len_e > 1e-6  # parallel edges: the face axes already decide
@@ -162,10 +179,14 @@ class Contacts:
         ) / xp.where(valid, len_e, xp.ones_like(len_e))
         overlap = xp.concat([faces, xp.where(valid, over_e, xp.full_like(over_e, float("inf")))], axis=0)
         depth = xp.min(overlap, axis=0)
-        hit = xp.nonzero(depth > 0)[0]
-        best = xp.argmin(xp.take(overlap, hit, axis=1), axis=0)
-        a, b, d, depth = a[hit], b[hit], xp.take(d, hit, axis=1), depth[hit]
-        A, B, hA, hB = (xp.take(x, hit, axis=-1) for x in (A, B, hA, hB))
+        if self.static:
+            hit = spheres & (depth > 0)
+            best = xp.argmin(overlap, axis=0)
+        else:
+            hit = xp.nonzero(depth > 0)[0]
+            best = xp.argmin(xp.take(overlap, hit, axis=1), axis=0)
+            a, b, d, depth = a[hit], b[hit], xp.take(d, hit, axis=1), depth[hit]
+            A, B, hA, hB = (xp.take(x, hit, axis=-1) for x in (A, B, hA, hB))
         # the normal: A's axis best (< 3), B's axis best - 3 (< 6) or A_i x B_j (best = 6 + 3i + j)
         zero = xp.zeros_like(best)
         h = best.shape[0]
@@ -178,7 +199,7 @@ class Contacts:
         # deepest vertices: of A along +n, of B along -n
         vA = xp.take(pt, a, axis=1) + xp.sum(A * (hA * _sign(xp, xp.sum(A * nrm[:, None], axis=0)))[None], axis=1)
         vB = xp.take(pt, b, axis=1) - xp.sum(B * (hB * _sign(xp, xp.sum(B * nrm[:, None], axis=0)))[None], axis=1)
-        return sel[hit], a, b, bk.contiguous(xp, nrm.T), depth, bk.contiguous(xp, (0.5 * (vA + vB)).T)
+        return hit if self.static else sel[hit], a, b, bk.contiguous(xp, nrm.T), depth, bk.contiguous(xp, (0.5 * (vA + vB)).T)
 
     def begin(self, state, rows=None):
         """Detect the contacts of a step at its start and freeze their geometry.
@@ -208,6 +229,8 @@ class Contacts:
         Rr, pr = poses_rows(m, sp.quat_to_mat(xp, state.quat), state.pos, state.q) if rows is None else rows
         pair, a, b, n, depth, x = self._detect_rows(xp.reshape(Rr, (9, m.n_bodies)), pr)
         R, p = pose_stacks(xp, (Rr, pr))
+        if self.static:
+            return self._begin_static(pair, n, x, R, p, sensors)
         # a new contact's spring is relaxed at first touch (depth 0 there): the overlap it is found
         # with (at most what one step's approach covers) stays, and no energy comes from nowhere
         found = {"pair": pair, "depth": xp.zeros_like(depth), "xa": sp.mtv(R[a], x - p[a]),
@@ -236,14 +259,42 @@ class Contacts:
         active = dict(found, a=a, b=b, cap=self.depth_cap[pair], k=self.k[pair], c=self.c[pair])
         return active, sensors
 
+    def _begin_static(self, hit, n, x, R, p, sensors):
+        """:meth:`begin` over every candidate pair: the anchors of the pairs still touching are
+        kept, those of the new ones set, and ``on`` marks both (the others get no force)."""
+        xp = self.xp
+        a, b = self.a, self.b
+        Ra, Rb, pa, pb = xp.take(R, a, axis=0), xp.take(R, b, axis=0), xp.take(p, a, axis=0), xp.take(p, b, axis=0)
+        held = self.anchor
+        touching = held["on"] & (self._depth(dict(held, pair=None), R, p) > 0)
+        keep = touching[:, None]
+        anchor = {"on": touching | hit, "depth": xp.where(touching, held["depth"], 0.0),
+                  "xa": xp.where(keep, held["xa"], sp.mtv(Ra, x - pa)), "xb": xp.where(keep, held["xb"], sp.mtv(Rb, x - pb)),
+                  "n": xp.where(keep, held["n"], sp.mtv(Ra, n))}
+        self.anchor = anchor
+        n = sp.mv(Ra, anchor["n"])
+        touched = xp.astype(anchor["on"], sensors.dtype) * 2.0
+        flat = xp.reshape(sensors, (-1,))
+        for body, Rbody, direction in ((b, Rb, -n), (a, Ra, n)):
+            dl = sp.mtv(Rbody, direction)  # contact direction in the box frame
+            k = xp.argmax(xp.abs(dl), axis=1)
+            face = 2 * k + xp.astype(xp.take_along_axis(dl, k[:, None], axis=1)[:, 0] > 0, k.dtype)  # faces -x,+x,-y,+y,-z,+z
+            bk.scatter_add(xp, flat, 6 * body + face, touched)  # -1 + 2 per touch, then capped at +1
+        sensors = xp.minimum(xp.reshape(flat, sensors.shape), 1.0)
+        return dict(anchor, a=a, b=b, cap=self.depth_cap, k=self.k, c=self.c), sensors
+
     def reset(self) -> None:
         """Forget the contacts held since the last step (the state was set anew)."""
         self.held = None
+        if self.static:
+            xp, m, P = self.xp, self.model, self.n_pairs
+            z = lambda *s: xp.zeros(s, dtype=xp.float64, device=m.device)  # noqa: E731
+            self.anchor = {"on": xp.zeros((P,), dtype=xp.bool, device=m.device), "depth": z(P), "xa": z(P, 3), "xb": z(P, 3), "n": z(P, 3)}
 
     def _depth(self, held, R, p):
         """Penetration of the anchored contacts ``held`` at poses ``R, p`` (not capped)."""
         xp = self.xp
-        a, b = xp.take(self.a, held["pair"], axis=0), xp.take(self.b, held["pair"], axis=0)
+        a, b = (self.a, self.b) if held["pair"] is None else (xp.take(self.a, held["pair"], axis=0), xp.take(self.b, held["pair"], axis=0))
         Ra = xp.take(R, a, axis=0)
         xa = sp.mv(Ra, held["xa"]) + xp.take(p, a, axis=0)
         xb = sp.mv(xp.take(R, b, axis=0), held["xb"]) + xp.take(p, b, axis=0)
@@ -283,6 +334,8 @@ class Contacts:
         vb = sp.mv(Rb, v_b[:, 3:] + sp.cross3(xp, v_b[:, :3], active["xb"]))
         vn = xp.vecdot(vb - va, n)
         mag = xp.clip(active["k"] * depth - active["c"] * vn, 0.0, None)
+        if "on" in active:  # static: every pair, those not in contact pushing with nothing
+            mag = xp.where(active["on"], mag, 0.0)
         F = mag[:, None] * n
         f = xp.zeros((m.n_bodies, 6), dtype=xp.float64, device=m.device)
         body, Rw, Fw = xp.concat([b, a]), xp.concat([Rb, Ra]), xp.concat([F, -F])  # B pushed along +n

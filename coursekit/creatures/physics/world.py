@@ -12,6 +12,13 @@ Guards: after each step a creature whose state is not finite or whose root speed
 any joint rate exceeds its cap is flagged ``diverged`` and frozen at its last good state with zero
 velocity (and no forces); the rest of the batch goes on unaffected -- creatures never share
 arrays rows, so NaNs cannot leak between them.
+
+On a GPU the host waits for the device at every value Python reads and every output whose size
+depends on the data; ``World(graph=True)`` steps without either, so that a CUDA graph can record a
+step once and replay it (:meth:`World._graph_step`; :class:`~coursekit.operations.CountHostSyncs`
+counts the waits on any machine). Graph capture is hand-written here because what a step hands
+the next (state, locks, contact anchors, reused inertias) is this simulator's own; torch's
+``torch.cuda.graphs.make_graphed_callables`` is for autograd modules with fixed inputs and outputs.
 """
 
 from __future__ import annotations
@@ -61,6 +68,13 @@ class World:
             water's own sub-step -- so more sub-steps integrate the same system more finely: the
             audit's test that a speed is not integration error (:mod:`~coursekit.creatures.audit`).
         max_speed, max_angular_speed, max_joint_speed: divergence caps.
+        graph: the graph-ready step: static shapes and no read on the host -- the guards' flags
+            stay on the device (:attr:`diverged` reads them), every candidate pair of boxes is
+            tested and followed with a mask for those in contact, locked joints are masks, the
+            root's solve is an elimination. On CUDA the step is captured as a
+            ``torch.cuda.CUDAGraph`` after a few eager steps and replayed (a custom integrator then
+            sees the time of the capture; the forces do not depend on time); elsewhere it runs as
+            it is. The motion is the ordinary step's up to rounding.
     """
 
     def __init__(
@@ -80,6 +94,7 @@ class World:
         max_angular_speed: float = MAX_ANGULAR_SPEED,
         max_joint_speed: float = MAX_JOINT_SPEED,
         substeps: int = 1,
+        graph: bool = False,
     ):
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt: must be a positive number of seconds, got {dt!r}")
@@ -87,6 +102,8 @@ class World:
             raise ValueError(f"integrator: got {integrator!r}; allowed: {', '.join(INTEGRATORS)} or a function rkn_step(f, t, y, v, h)")
         if not (isinstance(drag, (bool, np.bool_)) or callable(drag)):
             raise TypeError(f"drag: must be True, False or a function box_drag(half_extents, k), got {type(drag).__name__}")
+        if not isinstance(graph, (bool, np.bool_)):
+            raise TypeError(f"graph: must be True or False, got {type(graph).__name__}")
         if not (isinstance(substeps, (int, np.integer)) and not isinstance(substeps, bool) and substeps >= 1):
             raise ValueError(f"substeps: must be an integer >= 1, got {substeps!r}")
         for name, cap in (("max_speed", max_speed), ("max_angular_speed", max_angular_speed), ("max_joint_speed", max_joint_speed)):
@@ -94,6 +111,7 @@ class World:
                 raise ValueError(f"{name}: must be > 0, got {cap}")
         self.model = m = creatures if isinstance(creatures, Model) else Model(creatures, backend=backend, device=device)
         self.xp = xp = m.xp
+        self.graph = bool(graph)
         self.dt = float(dt)
         self.integrator = integrator
         box_drag = drag if callable(drag) else None
@@ -110,9 +128,14 @@ class World:
         self.gain = f(m.gain_np)
         self.contacts = None
         if contacts:
-            self.contacts = Contacts(m, stiffness=contact_stiffness, dt=self.dt / water_steps)
+            self.contacts = Contacts(m, stiffness=contact_stiffness, dt=self.dt / water_steps, static=self.graph)
         self.caps = (float(max_speed), float(max_angular_speed), float(max_joint_speed))
-        self.diverged = np.zeros(m.n_creatures, dtype=bool)
+        self._graph = None  # the captured CUDA graph and its buffers (graph=True on CUDA)
+        self._eager_steps = 0  # graph-ready steps run eagerly (the warm-up before a capture)
+        self._diverged = np.zeros(m.n_creatures, dtype=bool)
+        if self.graph:
+            self._diverged = bk.asarray(xp, self._diverged, dtype=xp.bool, device=m.device)
+        self._eye3 = bk.asarray(xp, np.eye(3), device=m.device)[:, :, None]
         self.time = 0.0
         C, M = m.n_creatures, m.n_joints
         z = lambda *s: xp.zeros(s, dtype=xp.float64, device=m.device)  # noqa: E731
@@ -124,6 +147,7 @@ class World:
         self._inertia_q = self._inertia = self._poses_q = self._poses = None
         self.contact_sensors = None
         self._sensed = None  # (user joint order, which of them are hinges), on the first sensors()
+        self._user_order = None  # the joints' user order on the device, on the first set_effectors()
         self._joint_creature = bk.index(xp, m.joint_creature, device=m.device)
         self._total_mass = f(m.total_mass[:, None])
 
@@ -141,6 +165,7 @@ class World:
         if self.limits is not None:
             self.limits.reset(m)
             self._lock = None
+        self._graph = None  # the captured step reads the buffers the old state lived in
 
     def get_state(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """``(qpos, qvel)`` as lists of per-creature numpy vectors (MuJoCo layout)."""
@@ -158,7 +183,7 @@ class World:
         vb = sp.mv(R.mT, lin)
         tau = self.tau
         if q is not self._inertia_q:  # RKN stages 2 and 3 share positions, hence inertias
-            self._inertia_q, self._inertia = q, articulated_inertias(m, q, self._lock)
+            self._inertia_q, self._inertia = q, articulated_inertias(m, q, self._lock, self.graph)
         f_ext = v = None
         if self.active_contacts is not None:  # the step's contacts, followed through this stage
             if q is not self._poses_q:  # stages 2 and 3 share positions, hence poses
@@ -166,10 +191,10 @@ class World:
             v = body_velocities(m, self._inertia[0], xp.concat([omega, vb], axis=1), qd)  # [0]: Xup
             f_ext = self.contacts.wrench(self.active_contacts, *self._poses, v)
         if self._lock is None:
-            a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping, inertias=self._inertia, v=v)
+            a0, qdd, _ = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping, inertias=self._inertia, v=v, static=self.graph)
         else:
             a0, qdd, _, force = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping,
-                                    inertias=self._inertia, v=v, lock=self._lock)  # locked joints keep their rates
+                                    inertias=self._inertia, v=v, lock=self._lock, static=self.graph)  # locked joints keep their rates
             self._force = force  # the step's last evaluation is what the limits remember
         lin_acc = sp.mv(R, a0[:, 3:] + sp.cross3(xp, omega, vb))
         return lin_acc, a0[:, :3], qdd
@@ -208,15 +233,31 @@ class World:
         if tuple(e.shape) != (m.n_joints,):
             raise ValueError(f"effector: expected shape ({m.n_joints},), got {tuple(e.shape)}")
         e_int = xp.zeros_like(e)
-        e_int[bk.index(xp, m.joint_order, device=m.device)] = e
+        if self._user_order is None:
+            self._user_order = bk.index(xp, m.joint_order, device=m.device)
+        e_int[self._user_order] = e
         e_int = xp.where(xp.isfinite(e_int), e_int, xp.zeros_like(e_int))
         self.tau = self.strength * xp.clip(self.gain * e_int, -1.0, 1.0)
 
+    @property
+    def diverged(self) -> np.ndarray:
+        """(C,) bool: the creatures the guards froze (numpy; with ``graph`` read from the device)."""
+        return bk.to_numpy(self._diverged) if self.graph else self._diverged
+
     def step(self) -> None:
         """Advance the whole batch by ``dt``."""
+        if self.graph and bk.is_torch(self.xp) and self.model.device is not None and str(self.model.device).startswith("cuda"):
+            self._graph_step()
+        else:
+            self._advance()
+        self.time += self.dt
+
+    def _advance(self) -> None:
         xp, m = self.xp, self.model
-        if self.diverged.any():  # frozen creatures feel no joint forces
-            jfrozen = xp.take(bk.asarray(xp, self.diverged, dtype=xp.bool, device=m.device), self._joint_creature, axis=0)
+        if self.graph:  # frozen creatures feel no joint forces
+            self.tau = xp.where(xp.take(self._diverged, self._joint_creature, axis=0), 0.0, self.tau)
+        elif self._diverged.any():
+            jfrozen = xp.take(bk.asarray(xp, self._diverged, dtype=xp.bool, device=m.device), self._joint_creature, axis=0)
             self.tau = xp.where(jfrozen, xp.zeros_like(self.tau), self.tau)
         for i in range(self.substeps):
             if self.limits is not None and m.n_joints and self._lock is None:  # the first step, or a state set from outside
@@ -236,7 +277,74 @@ class World:
             self.state = new
         if self._lock is not None:
             self.overshoot = over
-        self.time += self.dt
+
+    # ------------------------------------------------------------------ the step as a CUDA graph
+    #: Graph-ready steps run eagerly, on a side stream, before the capture (as torch asks).
+    GRAPH_WARMUP = 3
+
+    def _carried(self) -> list:
+        """What a step hands the next, as ``(get, set)`` pairs: the state, the joint forces, the
+        guards' flags, the locks and what the limits remember, the inertias the next step reuses."""
+        slot = lambda owner, name: (lambda: getattr(owner, name), lambda v: setattr(owner, name, v))  # noqa: E731
+        slots = [slot(self.state, f) for f in ("pos", "quat", "q", "lin", "omega", "qd")]
+        slots += [slot(self, name) for name in ("tau", "_diverged", "_lock", "overshoot", "contact_sensors")]
+        if self.contacts is not None:  # the contacts held, with their anchors
+            slots += [(lambda k=k: self.contacts.anchor[k], lambda v, k=k: self.contacts.anchor.__setitem__(k, v))
+                      for k in ("on", "depth", "xa", "xb", "n")]
+        if self.limits is not None:  # with limits the next step's first stage reuses the inertias
+            slots += [slot(self.limits, name) for name in ("push", "lock", "target", "beyond", "up")]
+            slots += [(lambda k=k: self._inertia[k], lambda v, k=k: setattr(self, "_inertia", self._inertia[:k] + (v,) + self._inertia[k + 1 :]))
+                      for k, v in enumerate(self._inertia) if v is not None]
+        return [(get, put) for get, put in slots if get() is not None]
+
+    def _graph_step(self) -> None:
+        """One graph-ready step on CUDA: a few eager ones first, then one captured
+        ``torch.cuda.CUDAGraph`` replayed, its inputs and outputs fixed buffers.
+
+        Before each replay, a buffer whose attribute was set from outside (``set_effectors``
+        gives ``tau`` a new tensor) takes the new value; the captured step copies what it hands
+        the next step back into the buffers it read them from.
+        """
+        import torch
+
+        if self._graph is not None:
+            graph, slots, buffers = self._graph
+            for (get, put), buf in zip(slots, buffers):
+                value = get()
+                if value is not buf:
+                    buf.copy_(value)
+                    put(buf)
+            graph.replay()
+            return
+        limits = self.limits is not None
+        if self._eager_steps < self.GRAPH_WARMUP or (limits and (self._lock is None or self.state.q is not self._inertia_q)):
+            side = torch.cuda.Stream(device=self.model.device)
+            side.wait_stream(torch.cuda.current_stream(self.model.device))
+            with torch.cuda.stream(side):
+                self._advance()
+            torch.cuda.current_stream(self.model.device).wait_stream(side)
+            self._eager_steps += 1
+            return
+        slots = self._carried()
+        buffers = [get().clone() for get, _ in slots]  # fresh buffers: no carried tensor may alias a constant
+        for (_, put), buf in zip(slots, buffers):
+            put(buf)
+        self._inertia_q = self.state.q if limits else None  # without limits the first stage computes them
+        graph = torch.cuda.CUDAGraph()
+        with torch.cuda.graph(graph):
+            self._advance()
+            outs = [get() for get, _ in self._carried()]
+            mine = {id(b) for b in buffers}
+            outs = [o.clone() if id(o) in mine and o is not b else o for o, b in zip(outs, buffers)]
+            for o, b in zip(outs, buffers):
+                if o is not b:
+                    b.copy_(o)
+        slots = self._carried()  # the capture bound the attributes to its own outputs: back to the buffers
+        for (_, put), buf in zip(slots, buffers):
+            put(buf)
+        self._inertia_q = self.state.q if limits else None
+        self._graph = (graph, self._carried(), buffers)
+        graph.replay()  # a capture records the step without running it
 
     def _stop_at_limits(self, s: State) -> State:
         """Lock the joints at their limits for the next step, stop them there, and put those
@@ -253,12 +361,12 @@ class World:
         """
         xp, m = self.xp, self.model
         self._lock, at = self.limits.begin(s.q, s.qd, self.tau)
-        self._inertia = articulated_inertias(m, s.q, self._lock)
+        self._inertia = articulated_inertias(m, s.q, self._lock, self.graph)
         rate = self.limits.rate(at, s.qd)
-        dv0, dqd = impulse(m, self._inertia, self._lock, rate - s.qd)
+        dv0, dqd = impulse(m, self._inertia, self._lock, rate - s.qd, self.graph)
         R = sp.quat_to_mat(xp, s.quat)
         new = State(s.pos, s.quat, s.q, s.lin + sp.mv(R, dv0[:, 3:]), s.omega + dv0[:, :3], xp.where(self._lock, rate, s.qd + dqd))
-        if bool(xp.any(at != s.q)):  # a joint to put back; with none the sweep would move nothing, bit for bit
+        if self.graph or bool(xp.any(at != s.q)):  # a joint to put back; with none the sweep would move nothing, bit for bit
             new = self._put_back(s, R, at, new)
         self._inertia_q = new.q
         return new
@@ -276,7 +384,7 @@ class World:
         creature's motion does not depend on its batch.
         """
         xp, m = self.xp, self.model
-        dx0, dq = impulse(m, self._inertia, self._lock, at - s.q)
+        dx0, dq = impulse(m, self._inertia, self._lock, at - s.q, self.graph)
         q = xp.where(self._lock, at, self.limits.within(s.q, s.q + dq))
         pos, quat = s.pos + sp.mv(R, dx0[:, 3:]), sp.quat_mul(xp, s.quat, sp.quat_exp(xp, dx0[:, :3]))  # the next step normalises
         R1 = sp.quat_to_mat(xp, quat)
@@ -292,7 +400,7 @@ class World:
         dh = h0 - h1
         dP = dh[:, :3]
         dL = dh[:, 3:] - sp.cross3(xp, com, dP)  # about the centre of mass (com is the same before and after)
-        w = xp.linalg.solve(self._composite_inertia(after, com), dL[:, :, None])[:, :, 0]
+        w = bk.solve(xp, self._composite_inertia(after, com), dL, self.graph)
         lin = stopped.lin + dP / self._total_mass + sp.cross3(xp, w, pos - com)
         omega = stopped.omega + sp.mv(R1.mT, w)
         moved = self._per_creature_any(at != s.q)
@@ -318,11 +426,14 @@ class World:
         jbad = ~(xp.isfinite(new.q) & (xp.abs(new.qd) <= qmax))
         if m.n_joints:
             ok = ok & ~self._per_creature_any(jbad)
-        bad = bk.to_numpy(~ok)
-        if not bad.any():
-            return new
-        self.diverged |= bad
         badC = ~ok
+        if self.graph:  # no look at the host: the picks below keep the good creatures' rows as they are
+            self._diverged = self._diverged | badC
+        else:
+            bad = bk.to_numpy(badC)
+            if not bad.any():
+                return new
+            self._diverged |= bad
         badJ = badC[self._joint_creature]
         pick = lambda mask, a, b: xp.where(mask[:, None] if a.ndim > 1 else mask, b, a)  # noqa: E731
         zc, zj = xp.zeros_like(new.lin), xp.zeros_like(new.qd)
@@ -348,10 +459,12 @@ class World:
         E, r = joint_transforms(m, s.q)
         return body_velocities(m, sp.transform_matrix(xp, E, r), xp.concat([s.omega, sp.mv(R0.mT, s.lin)], axis=1), s.qd)
 
-    def centre_of_mass(self) -> np.ndarray:
-        """(C, 3) centre of mass of every creature (numpy)."""
+    def centre_of_mass(self, native: bool = False) -> Any:
+        """(C, 3) centre of mass of every creature (numpy; with ``native`` an array of the
+        world's backend, left on its device)."""
         s = self.state
-        return bk.to_numpy(self._com(sp.quat_to_mat(self.xp, s.quat), s.pos, s.q))
+        com = self._com(sp.quat_to_mat(self.xp, s.quat), s.pos, s.q)
+        return com if native else bk.to_numpy(com)
 
     def _com(self, R0, p0, q):
         """(C, 3) centre of mass of every creature at root pose ``(R0, p0)`` and joints ``q`` (backend array)."""
@@ -380,8 +493,7 @@ class World:
         d = p - xp.take(com, m.body_creature, axis=0).T  # (3, N)
         RI = R * m.inertia_diag.T[:3][None]  # R diag(I)
         Ib = xp.sum(RI[:, None] * R[None], axis=2)  # (3, 3, N): R diag(I) R'
-        eye = bk.asarray(xp, np.eye(3), device=m.device)[:, :, None]
-        Ib = Ib + m.mass * (xp.sum(d * d, axis=0) * eye - d[:, None] * d[None])  # parallel axes
+        Ib = Ib + m.mass * (xp.sum(d * d, axis=0) * self._eye3 - d[:, None] * d[None])  # parallel axes
         return xp.reshape(m.segment_sum(xp.reshape(Ib, (9, -1)).T), (-1, 3, 3))
 
     def kinetic_energy(self) -> np.ndarray:

@@ -1,0 +1,180 @@
+"""The graph-ready swimmer step and host-synchronisation counts, proved on the CPU (issue #16).
+
+On a GPU the host waits for the device at every value Python reads and at every output whose size
+depends on the data, and a CUDA graph can capture none of them. ``World(graph=True)`` steps with
+static shapes and reads nothing on the host; here it must equal the ordinary step, and a counter of
+the synchronising calls must find none in it (nor in a picture render), while it does find those
+of the ordinary step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from coursekit.creatures import Creature, simulate
+from coursekit.creatures.physics import backend as bk
+from coursekit.creatures.physics import random_body_tree, random_state
+from coursekit.creatures.physics.world import World
+from coursekit.operations import CountHostSyncs
+from coursekit.pictures import Genome, render
+from coursekit.pictures.context import Context, host
+
+FIELDS = ("pos", "quat", "q", "lin", "omega", "qd")
+
+
+def _worlds(seed, n=6, contacts=True, backend="torch", speed=1.0, **options):
+    """An ordinary and a graph-ready world of the same random creatures in the same state."""
+    rng = np.random.default_rng(seed)
+    trees = [random_body_tree(rng, (4, 12)) for _ in range(n)]
+    states = [random_state(rng, t, speed=speed, inside=0.9) for t in trees]
+    worlds = [World(trees, backend=backend, contacts=contacts, graph=g, **options) for g in (False, True)]
+    for w in worlds:
+        w.set_state([s[0] for s in states], [s[1] for s in states])
+    return worlds, rng
+
+
+def _largest_relative_difference(a, b) -> float:
+    n = bk.to_numpy
+    return max(float(np.max(np.abs(n(getattr(a, f)) - n(getattr(b, f)))) / max(float(np.max(np.abs(n(getattr(a, f))))), 1e-300))
+               for f in FIELDS)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "torch"])
+@pytest.mark.parametrize("contacts", [False, True])
+def test_the_graph_ready_step_equals_the_ordinary_one(backend, contacts):
+    # 100 steps with random effectors every step and the state set anew half way (the limits and
+    # the contacts forget their history), as the CUDA graph must reproduce the CPU to 1e-10
+    (plain, ready), rng = _worlds(3, contacts=contacts, backend=backend)
+    touched = 0
+    for i in range(100):
+        if i == 50:
+            qpos, qvel = plain.get_state()
+            for w in (plain, ready):
+                w.set_state(qpos, qvel)
+        e = rng.uniform(-1.0, 1.0, plain.model.n_joints)
+        for w in (plain, ready):
+            w.set_effectors(e)
+            w.step()
+        sensed, sensed_ready = plain.sensors(), ready.sensors()
+        assert np.array_equal(sensed[2], sensed_ready[2]), f"contact sensors differ at step {i}"
+        touched += int(np.sum(sensed[2] > 0))
+        assert np.array_equal(plain.diverged, ready.diverged)
+    assert _largest_relative_difference(plain.state, ready.state) < 1e-10
+    np.testing.assert_allclose(bk.to_numpy(ready.overshoot), bk.to_numpy(plain.overshoot), rtol=1e-9, atol=1e-12)
+    if contacts:  # the creatures did touch themselves: the contact path was exercised
+        assert touched > 0
+
+
+def test_a_diverging_creature_is_frozen_the_same_way_in_the_graph_ready_step():
+    # a speed cap that some creatures break and others keep: the graph-ready guard freezes the same
+    # creatures at the same states without reading the flags on the host
+    (plain, ready), rng = _worlds(5, n=8, contacts=False, max_speed=0.6)
+    for _ in range(30):
+        e = rng.uniform(-1.0, 1.0, plain.model.n_joints)
+        for w in (plain, ready):
+            w.set_effectors(e)
+            w.step()
+    assert 0 < plain.diverged.sum() < len(plain.diverged)
+    assert np.array_equal(plain.diverged, ready.diverged)
+    assert _largest_relative_difference(plain.state, ready.state) < 1e-10
+
+
+@pytest.mark.parametrize("contacts", [False, True])
+def test_the_graph_ready_step_synchronises_with_the_host_never(contacts):
+    (plain, ready), _ = _worlds(11, contacts=contacts)
+    for w in (plain, ready):
+        for _ in range(3):
+            w.step()
+    with CountHostSyncs() as ordinary:
+        plain.step()
+    with CountHostSyncs() as graph_ready:
+        ready.step()
+    assert ordinary.count > 0, "the counter must see the ordinary step's reads (the guard's flags, the locked leaves)"
+    assert graph_ready.count == 0, graph_ready.calls
+
+
+def test_simulate_with_brains_gives_the_same_fitness_with_the_graph_ready_step():
+    rng = np.random.default_rng(2)
+    creatures = [Creature.random(rng) for _ in range(5)]
+    a, b = (simulate(creatures, seconds=0.4, settle=0.1, backend="torch", device="cpu", graph=g) for g in (False, True))
+    np.testing.assert_allclose(b.com, a.com, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(b.fitness, a.fitness, rtol=1e-10, atol=1e-14)
+    assert np.array_equal(a.diverged, b.diverged)
+
+
+def test_graph_must_be_a_boolean():
+    rng = np.random.default_rng(0)
+    with pytest.raises(TypeError, match="graph"):
+        World([random_body_tree(rng, 3)], graph="yes")
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([3, 6]))
+def test_the_static_solve_equals_the_library_solve(seed, k):
+    rng = np.random.default_rng(seed)
+    G = rng.normal(size=(5, k, k))
+    A = G @ np.swapaxes(G, 1, 2) + 0.1 * np.eye(k)  # symmetric positive definite
+    b = rng.normal(size=(5, k))
+    for xp, f in ((np, np.asarray), (bk.namespace("torch"), torch.as_tensor)):
+        x = bk.to_numpy(bk.solve(xp, f(A), f(b), static=True))
+        np.testing.assert_allclose(x, np.linalg.solve(A, b[:, :, None])[:, :, 0], rtol=1e-8, atol=1e-10)
+
+
+def _population(n, seed=4):
+    """Random genomes, among them the primitives whose parameters are numbers on the host."""
+    rng = np.random.default_rng(seed)
+    return [Genome.random(rng, n_strings=4, head_length=8) for _ in range(n)]
+
+
+@pytest.mark.parametrize("group", [False, True])
+def test_a_render_synchronises_with_the_host_never(group):
+    genomes = _population(64)
+    text = " ".join(g.expression() for g in genomes)
+    for symbol in ("blur", "band-pass", "pixmap", "turbulence", "noise", "warp"):  # the kernels that read numbers
+        assert symbol in text, symbol
+    render(genomes, 32, device="cpu", workers=1, group=group)
+    with CountHostSyncs() as syncs:
+        render(genomes, 48, device="cpu", workers=1, group=group, as_tensor=True)
+    assert syncs.count == 0, syncs.calls[:10]
+
+
+def test_the_host_copy_of_every_parameter_equals_its_device_tensor():
+    # what a kernel reads as numbers is what the device computes with, bit for bit (float32)
+    from coursekit.pictures.tree import stack_trees
+
+    seen = 0
+    genomes = _population(40, seed=9)
+    roots = [stack_trees([g.decode()], "cpu", {}) for g in genomes] + [stack_trees([g.decode() for g in genomes[:1] * 3], "cpu", {})]
+    nodes = list(roots)
+    while nodes:
+        n = nodes.pop()
+        nodes.extend(n.children)
+        for p in n.params:
+            assert host(p) == p.reshape(-1).tolist()
+            seen += 1
+    assert seen > 100
+
+
+def test_host_reads_the_device_when_a_tensor_has_no_host_copy():
+    p = torch.tensor([0.25, 3.5], dtype=torch.float32).reshape(2, 1, 1, 1)
+    assert host(p) == [0.25, 3.5]
+    assert Context  # the kernels' context module exports host beside Context
+
+
+def test_count_host_syncs_counts_reads_and_data_dependent_sizes_only():
+    x = torch.arange(6.0)
+    with CountHostSyncs() as syncs:
+        y = (x * 2).reshape(2, 3)[:, 1:]  # arithmetic and views: nothing read
+        z = torch.where(x > 2, x, 0.0)
+    assert syncs.count == 0 and y.shape == (2, 2) and z.shape == (6,)
+    reads = [lambda: x.sum().item(), lambda: bool(x.any()), lambda: float(x[0]), lambda: x.tolist(), lambda: x.numpy(),
+             lambda: torch.nonzero(x > 2), lambda: x[x > 2], lambda: torch.unique(x)]
+    for read in reads:
+        with CountHostSyncs() as syncs:
+            read()
+        assert syncs.count >= 1, syncs.calls
+    assert x.numpy is not None and torch.Tensor.numpy.__name__ == "numpy"  # restored on exit
