@@ -20,6 +20,9 @@ coding nodes, fixed seed), images per second at 128^2 and 256^2 for:
 - tensorised on CUDA, and a population of 256 on CUDA (genome by genome and in waves), when a
   GPU is present.
 
+Measured on an NVIDIA H200 (2026-12-04, before the parameters were read on the host; see
+``benchmarks/gpu.py``): 256 genomes at 256^2, 120 pictures/s genome by genome, 353/s in waves.
+
 It also counts the tensor operations that compute (not views) for a population of 256, genome
 by genome and in waves: on a GPU each is a kernel launch, which bounds the speed there, so the
 count tells on any machine what a GPU will pay.

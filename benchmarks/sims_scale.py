@@ -31,8 +31,14 @@ from coursekit.creatures import evolve_swimmers, resume_swimmers, simulate
 from coursekit.creatures.audit import audit, body_length
 
 
-def run(seed: int, population: int, generations: int, seconds: float, workers: int, checkpoint: Path | None = None):
-    """One seed's run; with ``checkpoint`` it saves every generation and resumes a killed run."""
+def run(seed: int, population: int, generations: int, seconds: float, workers: int, checkpoint: Path | None = None,
+        torch_device: str | None = None):
+    """One seed's run; with ``checkpoint`` it saves every generation and resumes a killed run; with
+    ``torch_device`` the generation swims in this process on torch there, with the graph-ready step
+    (a CUDA graph on a GPU)."""
+    options = {} if torch_device is None else dict(backend="torch", device=torch_device, graph=True)
+    if torch_device is not None:
+        workers = 1
     rows, start = [], time.perf_counter()
 
     def record(result):
@@ -48,11 +54,11 @@ def run(seed: int, population: int, generations: int, seconds: float, workers: i
         if checkpoint is not None and checkpoint.exists():
             print(f"resuming {checkpoint}", flush=True)
             result = resume_swimmers(checkpoint, generations=generations, seconds=seconds, progress=False,
-                                     callback=record, executor=pool)
+                                     callback=record, executor=pool, **options)
         else:
             result = evolve_swimmers(generations=generations, rng=np.random.default_rng(seed), population_size=population,
                                      seconds=seconds, progress=False, callback=record, executor=pool,
-                                     checkpoint=checkpoint)
+                                     checkpoint=checkpoint, **options)
     finally:
         if pool is not None:
             pool.shutdown()
@@ -85,18 +91,22 @@ def main(argv=None) -> int:
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--quick", action="store_true", help="24 creatures x 3 generations x 2 s")
+    parser.add_argument("--torch-device", help="swim on torch on this device (e.g. cuda), in this process, "
+                                               "with the graph-ready step (World(graph=True)), instead of numpy in worker processes")
     parser.add_argument("--out", type=Path, help="folder for each seed's champion (JSON) and table")
     args = parser.parse_args(argv)
     if args.quick:
         args.population, args.generations, args.seconds = 24, 3, 2.0
     print(f"Sims' experiment: {args.population} creatures x {args.generations} generations x {args.seconds:g} s, "
-          f"{args.workers} worker process(es), seeds {args.seeds}")
+          + (f"torch on {args.torch_device} (graph-ready step)" if args.torch_device else f"{args.workers} worker process(es)")
+          + f", seeds {args.seeds}")
     summary = []
     for seed in args.seeds:
         checkpoint = args.out / f"checkpoint-seed{seed}.ckpt" if args.out else None
         if args.out:
             args.out.mkdir(parents=True, exist_ok=True)
-        result, rows, wall = run(seed, args.population, args.generations, args.seconds, args.workers, checkpoint)
+        result, rows, wall = run(seed, args.population, args.generations, args.seconds, args.workers, checkpoint,
+                                 args.torch_device)
         evaluations = sum(result.history.evaluations[len(result.history.evaluations) - len(rows):])  # this process's
         champ = champion(result.best, max(args.seconds, 10.0))
         g0, gN = result.history.best[0], result.history.best[-1]

@@ -39,7 +39,11 @@ share is also timed alone (two ticks and the sensors, on a fixed state).
 
 It also counts the computing tensor operations of one step: on a GPU each is a kernel launch,
 which bounds the speed there, so the count tells on any machine what a GPU will pay. On a GPU,
-``--cuda-batches`` (default 4096 and 16384) are timed on CUDA alone.
+``--cuda-batches`` (default 4096 and 16384) are timed on CUDA alone, eager and with the
+graph-ready step captured as a CUDA graph (``World(graph=True)``). Measured on an NVIDIA H200
+(2026-12-04, eager; ``benchmarks/gpu.py`` has the whole GPU run): 44.1 ms per step at batch 4,096
+(93,000 creature-steps/s) and 52.5 ms at 16,384 (312,000), without collisions; the graph rows have
+not run on a GPU yet.
 
     python benchmarks/swimmers.py [--batches 1 30 300] [--evolved-batches 1 300] [--seconds 2] [--warmup 2]
                                   [--cuda-batches 4096 16384]
@@ -103,9 +107,9 @@ def _timed(steps: dict, seconds: float, window: float = 0.25, clock=time.process
     return best
 
 
-def ours(trees, states, backend, device=None, contacts=False, limits=True):
+def ours(trees, states, backend, device=None, contacts=False, limits=True, graph=False):
     """One step of our simulator on the population (a function to time)."""
-    w = World(trees, dt=DT, backend=backend, device=device, contacts=contacts, limits=limits)
+    w = World(trees, dt=DT, backend=backend, device=device, contacts=contacts, limits=limits, graph=graph)
     w.set_state([s[0] for s in states], [s[1] for s in states])
     if device is not None and "cuda" in str(device):
         import torch
@@ -240,9 +244,10 @@ def evolved_engines(creatures, warmup: float) -> tuple[dict, int]:
     }, sum(t.n_bodies for t in trees)
 
 
-def _on_cuda(trees, states, warm: int, seconds: float) -> float:
-    """Wall seconds per step of our torch simulator on CUDA (after ``warm`` untimed steps)."""
-    step = ours(trees, states, "torch", device="cuda")
+def _on_cuda(trees, states, warm: int, seconds: float, graph: bool = False) -> float:
+    """Wall seconds per step of our torch simulator on CUDA (after ``warm`` untimed steps; with
+    ``graph`` the graph-ready step, captured in the first of them)."""
+    step = ours(trees, states, "torch", device="cuda", graph=graph)
     for _ in range(warm):
         step()
     return _timed({"cuda": step}, seconds, clock=time.perf_counter)["cuda"]
@@ -289,12 +294,14 @@ def main(argv=None) -> None:
         times = _timed(steps, args.seconds)
         if cuda:
             times["ours torch/cuda RKN"] = _on_cuda(trees, states, warm, args.seconds)
+            times["ours torch/cuda RKN, CUDA graph"] = _on_cuda(trees, states, warm, args.seconds, graph=True)
         ref = times["mujoco RK4 (1 thread)"]
         rows += [(batch, bodies, name, t, ref) for name, t in times.items()]
     for batch in args.cuda_batches if cuda else []:
         trees, states = _population(batch)
-        rows.append((batch, sum(t.n_bodies for t in trees), "ours torch/cuda RKN",
-                     _on_cuda(trees, states, warm, args.seconds), None))
+        for graph in (False, True):
+            rows.append((batch, sum(t.n_bodies for t in trees), f"ours torch/cuda RKN{', CUDA graph' if graph else ''}",
+                         _on_cuda(trees, states, warm, args.seconds, graph), None))
     evolved = []
     if args.evolved_batches and not EVOLVED.exists():  # a copy of the scripts without their data folder
         print(f"no {EVOLVED}: the evolved-population table needs the checkout's benchmarks/data/ "
