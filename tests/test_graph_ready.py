@@ -69,6 +69,86 @@ def test_the_graph_ready_step_equals_the_ordinary_one(backend, contacts):
         assert touched > 0
 
 
+class EmulatedGraph:
+    """CUDA graph semantics on the CPU: the step's Python runs once, at the capture; every replay
+    runs the same computation with every attribute of the world, its limits and its contacts as
+    they were after the capture, so only the buffers carry anything from one step to the next (a
+    step's hand-over that :meth:`World._carried` forgot would be lost, as on a GPU)."""
+
+    captures = 0
+
+    def __init__(self, world):
+        self.world, self.record, self.frozen = world, None, None
+
+    @staticmethod
+    def applies(world):
+        return True
+
+    @staticmethod
+    def warm(world, step):
+        step()
+
+    def capture(self, record):
+        self.record = record
+        EmulatedGraph.captures += 1
+
+    def _owners(self):
+        w = self.world
+        return [o for o in (w, w.limits, w.contacts) if o is not None]
+
+    def _restore(self):
+        for owner, attributes in self.frozen:
+            kept = {k: v for k, v in vars(owner).items() if owner is self.world and k in ("time", "_graph")}
+            vars(owner).clear()
+            vars(owner).update(attributes, **kept)
+
+    def replay(self):
+        if self.frozen is None:
+            self.frozen = [(o, dict(vars(o))) for o in self._owners()]
+        self._restore()
+        self.record()
+        self._restore()  # a replay runs no Python: the attributes stay the buffers
+
+
+def _steps(plain, ready, rng, n=100):
+    for i in range(n):
+        if i == n // 2:
+            qpos, qvel = plain.get_state()
+            for w in (plain, ready):
+                w.set_state(qpos, qvel)
+        e = rng.uniform(-1.0, 1.0, plain.model.n_joints)
+        for w in (plain, ready):
+            w.set_effectors(e)
+            w.step()
+        assert np.array_equal(plain.sensors()[2], ready.sensors()[2]), f"contact sensors differ at step {i}"
+
+
+@pytest.mark.parametrize("contacts", [False, True])
+def test_a_recorded_graph_replays_the_ordinary_steps(monkeypatch, contacts):
+    # what the CUDA graph does, emulated: captured after the warm-up, captured again after the
+    # state is set anew, replayed in between, with effectors set from outside before every replay
+    monkeypatch.setattr(World, "GRAPH", EmulatedGraph)
+    EmulatedGraph.captures = 0
+    (plain, ready), rng = _worlds(7, contacts=contacts)
+    _steps(plain, ready, rng)
+    assert EmulatedGraph.captures == 2 and ready._graph is not None
+    assert _largest_relative_difference(plain.state, ready.state) < 1e-10
+    assert np.array_equal(plain.diverged, ready.diverged)
+    np.testing.assert_allclose(bk.to_numpy(ready.overshoot), bk.to_numpy(plain.overshoot), rtol=1e-9, atol=1e-12)
+
+
+def test_the_graph_emulation_loses_what_the_step_does_not_hand_over(monkeypatch):
+    # the emulation is strict: a world that forgot to hand over its joint forces swims without
+    # the effectors set after the capture
+    monkeypatch.setattr(World, "GRAPH", EmulatedGraph)
+    carried = World._carried
+    monkeypatch.setattr(World, "_carried", lambda self: [(g, p) for g, p in carried(self) if g() is not self.tau])
+    (plain, ready), rng = _worlds(7, contacts=False)
+    with pytest.raises(AssertionError):
+        _steps(plain, ready, rng, n=40)
+        assert _largest_relative_difference(plain.state, ready.state) < 1e-10
+
+
 def test_a_diverging_creature_is_frozen_the_same_way_in_the_graph_ready_step():
     # a speed cap that some creatures break and others keep: the graph-ready guard freezes the same
     # creatures at the same states without reading the flags on the host

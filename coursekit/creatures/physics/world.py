@@ -49,6 +49,45 @@ MAX_ANGULAR_SPEED = 100.0
 MAX_JOINT_SPEED = 100.0
 
 
+class CudaGraph:
+    """How :class:`World` records its graph-ready step on CUDA: a ``torch.cuda.CUDAGraph``.
+
+    The interface :meth:`World._graph_step` uses (:attr:`World.GRAPH`): ``applies(world)``, ``warm(world,
+    step)`` for an eager step before the capture, ``CudaGraph(world)``, ``capture(record)`` and
+    ``replay()``.
+    """
+
+    def __init__(self, world: World):
+        import torch
+
+        self.graph = torch.cuda.CUDAGraph()
+
+    @staticmethod
+    def applies(world: World) -> bool:
+        return bk.is_torch(world.xp) and world.model.device is not None and str(world.model.device).startswith("cuda")
+
+    @staticmethod
+    def warm(world: World, step: Callable[[], None]) -> None:
+        """An eager step on a side stream (torch asks for a warm-up there before a capture)."""
+        import torch
+
+        device = world.model.device
+        side = torch.cuda.Stream(device=device)
+        side.wait_stream(torch.cuda.current_stream(device))
+        with torch.cuda.stream(side):
+            step()
+        torch.cuda.current_stream(device).wait_stream(side)
+
+    def capture(self, record: Callable[[], None]) -> None:
+        import torch
+
+        with torch.cuda.graph(self.graph):
+            record()
+
+    def replay(self) -> None:
+        self.graph.replay()
+
+
 class World:
     """A batch of creatures in water.
 
@@ -246,7 +285,7 @@ class World:
 
     def step(self) -> None:
         """Advance the whole batch by ``dt``."""
-        if self.graph and bk.is_torch(self.xp) and self.model.device is not None and str(self.model.device).startswith("cuda"):
+        if self.graph and self.GRAPH.applies(self):
             self._graph_step()
         else:
             self._advance()
@@ -281,6 +320,8 @@ class World:
     # ------------------------------------------------------------------ the step as a CUDA graph
     #: Graph-ready steps run eagerly, on a side stream, before the capture (as torch asks).
     GRAPH_WARMUP = 3
+    #: The recorder of graph-ready steps (a test puts an emulation of graph semantics in its place).
+    GRAPH = CudaGraph
 
     def _carried(self) -> list:
         """What a step hands the next, as ``(get, set)`` pairs: the state, the joint forces, the
@@ -298,15 +339,13 @@ class World:
         return [(get, put) for get, put in slots if get() is not None]
 
     def _graph_step(self) -> None:
-        """One graph-ready step on CUDA: a few eager ones first, then one captured
-        ``torch.cuda.CUDAGraph`` replayed, its inputs and outputs fixed buffers.
+        """One graph-ready step through a recorded graph (:attr:`GRAPH`): a few eager steps
+        first, then one capture, replayed; its inputs and outputs are fixed buffers.
 
         Before each replay, a buffer whose attribute was set from outside (``set_effectors``
         gives ``tau`` a new tensor) takes the new value; the captured step copies what it hands
         the next step back into the buffers it read them from.
         """
-        import torch
-
         if self._graph is not None:
             graph, slots, buffers = self._graph
             for (get, put), buf in zip(slots, buffers):
@@ -318,11 +357,7 @@ class World:
             return
         limits = self.limits is not None
         if self._eager_steps < self.GRAPH_WARMUP or (limits and (self._lock is None or self.state.q is not self._inertia_q)):
-            side = torch.cuda.Stream(device=self.model.device)
-            side.wait_stream(torch.cuda.current_stream(self.model.device))
-            with torch.cuda.stream(side):
-                self._advance()
-            torch.cuda.current_stream(self.model.device).wait_stream(side)
+            self.GRAPH.warm(self, self._advance)
             self._eager_steps += 1
             return
         slots = self._carried()
@@ -330,8 +365,8 @@ class World:
         for (_, put), buf in zip(slots, buffers):
             put(buf)
         self._inertia_q = self.state.q if limits else None  # without limits the first stage computes them
-        graph = torch.cuda.CUDAGraph()
-        with torch.cuda.graph(graph):
+
+        def record():
             self._advance()
             outs = [get() for get, _ in self._carried()]
             mine = {id(b) for b in buffers}
@@ -339,6 +374,9 @@ class World:
             for o, b in zip(outs, buffers):
                 if o is not b:
                     b.copy_(o)
+
+        graph = self.GRAPH(self)
+        graph.capture(record)
         slots = self._carried()  # the capture bound the attributes to its own outputs: back to the buffers
         for (_, put), buf in zip(slots, buffers):
             put(buf)
