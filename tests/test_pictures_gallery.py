@@ -505,3 +505,34 @@ def test_a_click_sends_each_widget_once_and_the_status_line_after_every_picture(
     assert buttons and set(pictures) <= set(grid)
     toggle = next(keys for w, keys in sent if w is gallery.toggles[1])
     assert {"value", "button_style", "icon"} <= toggle  # the unselected parent's toggle: one message
+
+
+def test_a_click_writes_the_session_once_after_its_pictures_are_on_the_widgets(gallery, tmp_path, monkeypatch):
+    # the pictures go to the screen first; the file follows, once per click, and holds the click
+    from coursekit.pictures import session
+
+    writes = []
+    original = session.atomic_write
+
+    def write(path, text):
+        writes.append([im.value for im in gallery.images])
+        original(path, text)
+
+    monkeypatch.setattr(session, "atomic_write", write)
+    gallery.click(0)
+    gallery.click(2)
+    assert len(writes) == 2  # a selection is saved too, once each
+    writes.clear()
+    gallery.apply("evolve")
+    assert len(writes) == 1
+    assert writes[0] == [im.value for im in gallery.images]  # written when the new pictures were set
+    assert saved(tmp_path).population == gallery.state.population
+    assert saved(tmp_path).generation == gallery.state.generation
+
+
+def test_a_click_that_fails_still_saves_what_changed(gallery, tmp_path, monkeypatch):
+    gallery.click(0)
+    monkeypatch.setattr(Gallery, "_sync", lambda self, *a, **k: (_ for _ in ()).throw(RuntimeError("page gone")))
+    with pytest.raises(RuntimeError, match="page gone"):
+        gallery.apply("evolve")
+    assert saved(tmp_path).generation == gallery.state.generation == 1

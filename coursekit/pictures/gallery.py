@@ -237,7 +237,8 @@ class Gallery:
 
     def _on_toggle(self, i, change):
         if not self._syncing:
-            self._sync(self.evolution.select(i, bool(change["new"])), images=False)
+            with self.evolution.saved_after():
+                self._sync(self.evolution.select(i, bool(change["new"])), images=False)
 
     def apply(self, name: str) -> str:
         """What the button ``name`` does (an operator's name, ``"evolve"``, ``"undo"``,
@@ -335,19 +336,20 @@ class Gallery:
         if name in views:
             views[name]()
             return self.status_text()
-        if name in ev.mutations:
-            msg = ev.mutate(name)
-        elif name in ev.recombinations:
-            msg = ev.recombine(name)
-        elif name == "evolve":
-            msg = ev.next_generation()
-        elif name == "undo":
-            msg = ev.undo()
-        elif name == "redo":
-            msg = ev.redo()
-        else:
-            msg = ev.randomize()
-        self._sync(msg)
+        with ev.saved_after():  # the pictures go to the screen before the session goes to its file
+            if name in ev.mutations:
+                msg = ev.mutate(name)
+            elif name in ev.recombinations:
+                msg = ev.recombine(name)
+            elif name == "evolve":
+                msg = ev.next_generation()
+            elif name == "undo":
+                msg = ev.undo()
+            elif name == "redo":
+                msg = ev.redo()
+            else:
+                msg = ev.randomize()
+            self._sync(msg)
         if self.lineage_box.children:
             self.lineage_box.children = ()
             self.lineage_tiles = []

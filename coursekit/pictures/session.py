@@ -24,6 +24,7 @@ whose preview looks like a parent's or another child's is bred again.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from dataclasses import dataclass, field
@@ -324,6 +325,7 @@ class Evolution:
         self.genome_params = dict(genome_params or {})
         self.autosave = Path(autosave) if autosave is not None else None
         self.max_history = max_history
+        self._held = None  # inside saved_after(): whether a save is waiting
         self.save()
 
     @property
@@ -331,10 +333,30 @@ class Evolution:
         return len(self.state.population)
 
     def save(self) -> None:
-        """Write the session (with the random state) to the autosave file, if one was given."""
+        """Write the session (with the random state) to the autosave file, if one was given
+        (inside :meth:`saved_after`, at its end)."""
+        if self._held is not None:
+            self._held = True
+            return
         self.state.rng_state = self.rng.bit_generator.state
         if self.autosave is not None:
             atomic_write(self.autosave, self.state.to_json())
+
+    @contextlib.contextmanager
+    def saved_after(self):
+        """The saves of the block made once, when it ends (also when it fails): the gallery puts a
+        click's pictures on screen first and writes the file after (a save of a long session takes
+        a few ms)."""
+        if self._held is not None:  # nested: the outer block saves
+            yield
+            return
+        self._held = False
+        try:
+            yield
+        finally:
+            waiting, self._held = self._held, None
+            if waiting:
+                self.save()
 
     # ---- selection ------------------------------------------------------------------------
     def select(self, i: int, on: bool | None = None) -> str:
