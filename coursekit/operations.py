@@ -78,9 +78,13 @@ class CountHostSyncs(TorchDispatchMode):
     On a GPU the host waits for the device whenever Python reads a tensor's value or an
     operation's output size depends on the data; on the CPU nothing waits, but the same calls
     happen, so counting them on the CPU tells what a GPU will pay. Counted: the operations of
-    ``_SYNCING`` (boolean indexing included: it runs ``nonzero``), and every copy to numpy or to
-    Python (``Tensor.numpy``, ``Tensor.tolist``; ``.cpu()`` of a device tensor). ``calls`` names
-    each counted call, in order.
+    ``_SYNCING`` (boolean indexing included: it runs ``nonzero``), every copy to numpy or to
+    Python (``Tensor.numpy``, ``Tensor.tolist``; ``.cpu()`` of a device tensor), and every tensor
+    made from host data (``torch.tensor``, ``torch.as_tensor``, ``torch.asarray`` of a number, a
+    list or a numpy array: on a GPU a copy from pageable memory, which the host waits for and a
+    CUDA graph cannot capture; ``array_api_compat`` makes one of a Python number passed to
+    ``maximum`` or ``minimum``). ``calls`` names each counted call, in order; a deliberate
+    non-blocking upload through pinned memory binds the original function and is not counted.
 
         >>> import torch
         >>> x = torch.arange(4.0)
@@ -117,19 +121,29 @@ class CountHostSyncs(TorchDispatchMode):
         return func(*args, **kwargs)
 
     def __enter__(self):
-        for method in ("numpy", "tolist"):
+        for method in ("numpy", "tolist"):  # device to host
             original = getattr(torch.Tensor, method)
 
             def counted(t, *a, _original=original, _method=method, **k):
                 self._hit(_method)
                 return _original(t, *a, **k)
 
-            self._patched.append((method, original))
+            self._patched.append((torch.Tensor, method, original))
             setattr(torch.Tensor, method, counted)
+        for function in ("tensor", "as_tensor", "asarray"):  # host to device: Python numbers, lists, numpy arrays
+            original = getattr(torch, function)
+
+            def uploaded(data, *a, _original=original, **k):
+                if not isinstance(data, torch.Tensor):
+                    self._hit("upload")
+                return _original(data, *a, **k)
+
+            self._patched.append((torch, function, original))
+            setattr(torch, function, uploaded)
         return super().__enter__()
 
     def __exit__(self, *exc):
-        for method, original in self._patched:
-            setattr(torch.Tensor, method, original)
+        for owner, name, original in self._patched:
+            setattr(owner, name, original)
         self._patched.clear()
         return super().__exit__(*exc)

@@ -149,10 +149,12 @@ def test_the_graph_emulation_loses_what_the_step_does_not_hand_over(monkeypatch)
         assert _largest_relative_difference(plain.state, ready.state) < 1e-10
 
 
-def test_a_diverging_creature_is_frozen_the_same_way_in_the_graph_ready_step():
+@pytest.mark.parametrize("contacts", [False, True])
+def test_a_diverging_creature_is_frozen_the_same_way_in_the_graph_ready_step(contacts):
     # a speed cap that some creatures break and others keep: the graph-ready guard freezes the same
-    # creatures at the same states without reading the flags on the host
-    (plain, ready), rng = _worlds(5, n=8, contacts=False, max_speed=0.6)
+    # creatures at the same states without reading the flags on the host, and the others swim on
+    # as in the ordinary step (with collisions, every pair of the frozen ones still tested)
+    (plain, ready), rng = _worlds(5, n=8, contacts=contacts, max_speed=0.6)
     for _ in range(30):
         e = rng.uniform(-1.0, 1.0, plain.model.n_joints)
         for w in (plain, ready):
@@ -175,6 +177,29 @@ def test_the_graph_ready_step_synchronises_with_the_host_never(contacts):
         ready.step()
     assert ordinary.count > 0, "the counter must see the ordinary step's reads (the guard's flags, the locked leaves)"
     assert graph_ready.count == 0, graph_ready.calls
+
+
+def test_a_swim_step_with_brains_synchronises_with_the_host_never():
+    # what simulate does per step: two brain ticks on the sensors, the effectors, the step
+    from coursekit.creatures import BrainBatch
+
+    rng = np.random.default_rng(4)
+    phenotypes = [Creature.random(rng).expand() for _ in range(6)]
+    world = World([p.body for p in phenotypes], backend="torch", graph=True)
+    brain = BrainBatch(phenotypes, backend="torch", device="cpu")
+
+    def swim():
+        for _ in range(2):
+            e = brain.step(*world.sensors(native=True), world.dt / 2)
+        world.set_effectors(e)
+        world.step()
+        return world.centre_of_mass(native=True)
+
+    for _ in range(3):
+        swim()
+    with CountHostSyncs() as syncs:
+        swim()
+    assert syncs.count == 0, syncs.calls
 
 
 def test_simulate_with_brains_gives_the_same_fitness_with_the_graph_ready_step():
@@ -252,9 +277,15 @@ def test_count_host_syncs_counts_reads_and_data_dependent_sizes_only():
         z = torch.where(x > 2, x, 0.0)
     assert syncs.count == 0 and y.shape == (2, 2) and z.shape == (6,)
     reads = [lambda: x.sum().item(), lambda: bool(x.any()), lambda: float(x[0]), lambda: x.tolist(), lambda: x.numpy(),
-             lambda: torch.nonzero(x > 2), lambda: x[x > 2], lambda: torch.unique(x)]
+             lambda: torch.nonzero(x > 2), lambda: x[x > 2], lambda: torch.unique(x),
+             lambda: torch.tensor([1.0, 2.0]), lambda: torch.asarray(0.5),  # host data made a tensor: an upload on a GPU
+             lambda: bk.namespace("torch").maximum(x, 0.0)]  # array_api_compat makes a tensor of the 0.0
     for read in reads:
         with CountHostSyncs() as syncs:
             read()
         assert syncs.count >= 1, syncs.calls
-    assert x.numpy is not None and torch.Tensor.numpy.__name__ == "numpy"  # restored on exit
+    with CountHostSyncs() as syncs:
+        bk.namespace("torch").clip(x, 0.0, None)  # a number passed as a number: nothing made
+    assert syncs.count == 0
+    assert torch.Tensor.numpy.__name__ == "numpy" and torch.tensor.__name__ == "tensor"  # restored on exit
+

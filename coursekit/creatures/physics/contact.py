@@ -280,7 +280,7 @@ class Contacts:
             k = xp.argmax(xp.abs(dl), axis=1)
             face = 2 * k + xp.astype(xp.take_along_axis(dl, k[:, None], axis=1)[:, 0] > 0, k.dtype)  # faces -x,+x,-y,+y,-z,+z
             bk.scatter_add(xp, flat, 6 * body + face, touched)  # -1 + 2 per touch, then capped at +1
-        sensors = xp.minimum(xp.reshape(flat, sensors.shape), 1.0)
+        sensors = xp.clip(xp.reshape(flat, sensors.shape), None, 1.0)
         return dict(anchor, a=a, b=b, cap=self.depth_cap, k=self.k, c=self.c), sensors
 
     def reset(self) -> None:
@@ -334,11 +334,13 @@ class Contacts:
         vb = sp.mv(Rb, v_b[:, 3:] + sp.cross3(xp, v_b[:, :3], active["xb"]))
         vn = xp.vecdot(vb - va, n)
         mag = xp.clip(active["k"] * depth - active["c"] * vn, 0.0, None)
-        if "on" in active:  # static: every pair, those not in contact pushing with nothing
-            mag = xp.where(active["on"], mag, 0.0)
         F = mag[:, None] * n
         f = xp.zeros((m.n_bodies, 6), dtype=xp.float64, device=m.device)
         body, Rw, Fw = xp.concat([b, a]), xp.concat([Rb, Ra]), xp.concat([F, -F])  # B pushed along +n
         moment = sp.cross3(xp, xp.concat([xb, xb]) - xp.concat([pb, pa]), Fw)
-        bk.scatter_add(xp, f, body, xp.concat([sp.mtv(Rw, moment), sp.mtv(Rw, Fw)], axis=1))
+        wrenches = xp.concat([sp.mtv(Rw, moment), sp.mtv(Rw, Fw)], axis=1)
+        if "on" in active:  # static: every pair; those not in contact push with exactly nothing, whatever their anchors hold
+            on = active["on"]
+            wrenches = xp.where(xp.concat([on, on])[:, None], wrenches, 0.0)
+        bk.scatter_add(xp, f, body, wrenches)
         return f

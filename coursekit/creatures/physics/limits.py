@@ -118,7 +118,7 @@ class Limits:
         # still pushes it outwards
         toward = xp.where(self.target == self.hi, 1.0, -1.0)
         held = self.lock & ((self.push * toward <= 0) | (tau * toward > 0))
-        self.beyond = xp.maximum(self.excess(q), 0.0)
+        self.beyond = xp.clip(self.excess(q), 0.0, None)  # clip: maximum would make a tensor of 0.0 (a GPU upload)
         out = self.beyond > self.tol
         self.lock = held | out | (self.excess(ahead) > self.tol)
         self.up = xp.where(held | out, q, ahead) > self.mid

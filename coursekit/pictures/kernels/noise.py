@@ -21,9 +21,9 @@ def _smooth(t):
     return t * t * (3.0 - 2.0 * t)
 
 
-#: The spans read on the CPU only (bound here, so that
+#: The spans read and the images picked on the CPU only (bound here, so that
 #: :class:`~coursekit.operations.CountHostSyncs` leaves this CPU-only path out, as for numpy's kernels).
-_tolist = torch.Tensor.tolist
+_tolist, _tensor = torch.Tensor.tolist, torch.tensor
 
 _WIDTHS = (8, 16, 32, 48)  # interpolation matrix widths (lattice cells + 1); gathers beyond
 
@@ -65,7 +65,7 @@ def _separable_noise(table, wrapped, uu: torch.Tensor, vv: torch.Tensor) -> torc
     if len(set(widths)) > 1:
         out = torch.empty(uu.shape[0], 1, vv.shape[1], uu.shape[1], dtype=uu.dtype, device=uu.device)
         for k in set(widths):
-            sel = torch.tensor([b for b, w in enumerate(widths) if w == k], device=uu.device)
+            sel = _tensor([b for b, w in enumerate(widths) if w == k])
             out[sel] = _separable_noise(table, wrapped, uu[sel], vv[sel])
         return out
     k = widths[0]
