@@ -260,3 +260,24 @@ def test_every_function_evaluates_alike_on_torch():
                            groups=[(FUNCTION_CODE[name], torch.arange(n))], xp=xt)
             for g, w in zip(got, want):
                 np.testing.assert_allclose(g.numpy(), w, rtol=1e-12, atol=1e-12, err_msg=name)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "torch"])
+def test_a_copied_brain_goes_on_as_the_original(backend):
+    # the realistic-workload benchmark starts every engine from one mid-swim brain (a deep copy);
+    # a pickled one reaches worker processes
+    import copy
+    import pickle
+
+    rng = np.random.default_rng(3)
+    creatures = [Creature.random(rng) for _ in range(4)]
+    brain = BrainBatch([c.expand() for c in creatures], backend=backend)
+    J, B = brain.total_joints, brain.total_bodies
+    sensed = lambda t: (np.sin(t + np.arange(J)), np.cos(t * np.arange(J)), np.where(np.arange(B * 6).reshape(B, 6) % 3, 1.0, -1.0))  # noqa: E731
+    for t in range(5):
+        brain.step(*sensed(t), 1 / 120)
+    copies = [copy.deepcopy(brain), pickle.loads(pickle.dumps(brain))]
+    for t in range(5, 15):
+        out = np.asarray(brain.step(*sensed(t), 1 / 120))
+        for c in copies:
+            assert np.array_equal(np.asarray(c.step(*sensed(t), 1 / 120)), out)

@@ -183,6 +183,7 @@ class BrainBatch:
         if not brains or not all(isinstance(b, Brain) for b in brains):
             raise TypeError("BrainBatch.brains: expected a non-empty list of Brain (or Phenotype) objects")
         self.brains = brains
+        self.backend = backend
         self.xp = xp = bk.namespace(backend)
         self.device = device
         nb = np.array([b.n_bodies for b in brains], dtype=np.int64)
@@ -222,6 +223,15 @@ class BrainBatch:
         self.values = real(np.zeros(base + TN))
         self.values[ONE] = 1.0
         self.reset()
+
+    def __getstate__(self) -> dict:
+        """Copies and pickles name the array backend instead of holding its module."""
+        state = dict(self.__dict__)
+        del state["xp"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state, xp=bk.namespace(state["backend"]))
 
     def reset(self) -> None:
         """Zero every neuron's output and state and the brain time."""
