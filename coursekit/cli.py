@@ -93,6 +93,17 @@ def _cmd_exercises(args: argparse.Namespace) -> int:
 BENCH_NEEDS = {"swimmers": [("mujoco", "pip install 'coursekit[mujoco]'")]}
 
 
+def _has_cuda() -> bool:
+    import torch
+
+    return torch.cuda.is_available()
+
+
+#: Benchmarks of hardware a machine may lack: (what, whether it is here). ``coursekit bench``
+#: with no names leaves them out where it is absent; named, they run and say so themselves.
+BENCH_HARDWARE = {"gpu": ("a CUDA GPU", _has_cuda)}
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     """Run ``benchmarks/NAME.py`` (from the checkout, or as installed with the wheel)."""
     import importlib.util
@@ -108,7 +119,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if not have:
         print(f"coursekit bench: no benchmark scripts in {bench_dir}; reinstall coursekit or run from a checkout", file=sys.stderr)
         return 2
-    names = args.names or have
+    names = list(args.names or have)
+    if not args.names:
+        for n, (what, present) in BENCH_HARDWARE.items():
+            if n in names and not present():
+                print(f"coursekit bench: leaving out {n}: it measures {what}, which this machine lacks", file=sys.stderr)
+                names.remove(n)
     unknown = [n for n in names if n not in have]
     if unknown:
         print(f"coursekit bench: no benchmark named {unknown[0]!r}; have {', '.join(have)}", file=sys.stderr)

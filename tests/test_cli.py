@@ -224,3 +224,33 @@ def test_the_swimmer_demo_films_a_champion_that_is_its_own_best_once(tmp_path, m
     assert theirs["mp4"] == "champion-1.mp4" and (tmp_path / "second" / "champion-1.mp4").is_file()
     assert not list((tmp_path / "second").glob("champion-0*"))
     assert json.loads((tmp_path / "second" / "summary.json").read_text())["champions"][0]["mp4"] == "best.mp4"
+
+
+
+def test_bench_runs_everything_but_what_this_machine_lacks(monkeypatch, capsys):
+    """`coursekit bench` with no names runs every script but the GPU one where there is no GPU
+    (named, it runs, and says itself that it has nothing to measure)."""
+    import subprocess as sp
+
+    from coursekit import cli
+
+    ran = []
+    monkeypatch.setitem(cli.BENCH_HARDWARE, "gpu", ("a CUDA GPU", lambda: False))
+    monkeypatch.setattr(sp, "call", lambda argv, *a, **k: ran.append(argv[1]) or 0)
+    assert cli.main(["bench"]) == 0
+    names = {p.rsplit("/", 1)[-1] for p in ran}
+    assert "gpu.py" not in names and {"swimmers.py", "pictures.py", "sims_scale.py"} <= names
+    assert "leaving out gpu: it measures a CUDA GPU" in capsys.readouterr().err
+    ran.clear()
+    assert cli.main(["bench", "gpu"]) == 0 and [p.rsplit("/", 1)[-1] for p in ran] == ["gpu.py"]
+
+
+def test_the_simulator_benchmark_runs_both_tables():
+    """The simulator benchmark, tiny: the random-creature table and the realistic workload (the
+    saved evolved population, every engine from one mid-swim state), each row next to MuJoCo."""
+    run = subprocess.run([sys.executable, "-m", "coursekit", "bench", "swimmers", "--batches", "1", "--evolved-batches", "1",
+                          "--seconds", "0.02", "--warmup", "0.02", "--cuda-batches"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-2000:]
+    for row in ("mujoco RK4 (1 thread)", "ours numpy RKN +collisions", "mujoco RK4 +collisions +brains",
+                "ours numpy RKN +collisions +brains", "our brains alone"):
+        assert row in run.stdout, row
