@@ -153,9 +153,11 @@ def _equal(batch, steps, contacts) -> dict:
         sensors_equal &= bool(np.array_equal(ref.sensors()[2], w.sensors()[2]))
     rel = _rel(ref.state, w.state)
     row = {"max_rel": max(rel.values()), "fields": rel, "contact_sensors_equal": sensors_equal,
-           "diverged_equal": bool((ref.diverged == w.diverged).all()), "captured": w._graph is not None}
+           "diverged_equal": bool((ref.diverged == w.diverged).all()), "captured": w._graph is not None,
+           "capture_failed": w._graph_failed}
     print(f"   collisions {'on ' if contacts else 'off'}: largest relative difference {row['max_rel']:.2e}, contact sensors "
-          f"equal every step: {sensors_equal}, captured: {row['captured']}", flush=True)
+          f"equal every step: {sensors_equal}, captured: {row['captured']}"
+          + (f" (the capture failed: {w._graph_failed})" if w._graph_failed else ""), flush=True)
     return row
 
 
@@ -238,7 +240,9 @@ def _speed(batch, model, contacts, graph, steps) -> dict:
     torch.cuda.synchronize()
     warm = time.perf_counter() - t0
     t = event_time(w.step, steps)
-    graph = graph and w._graph is not None  # a graph row that did not capture says so
+    if graph and w._graph is None:  # a graph row that did not capture says so
+        print(f"   batch {batch}: no CUDA graph ({w._graph_failed})")
+        graph = False
     print(f"   batch {batch:>6} bodies {bodies:>7} collisions {'on ' if contacts else 'off'} {'graph' if graph else 'eager'}: "
           f"{t * 1e3:8.3f} ms/step {batch / t:>12,.0f} creature-steps/s {bodies / t:>13,.0f} body-steps/s "
           f"(first 10 steps, capture included: {warm:.2f} s)", flush=True)

@@ -131,6 +131,22 @@ def test_a_recorded_graph_replays_the_ordinary_steps(monkeypatch, contacts):
     np.testing.assert_allclose(bk.to_numpy(ready.overshoot), bk.to_numpy(plain.overshoot), rtol=1e-9, atol=1e-12)
 
 
+def test_a_step_the_device_will_not_record_runs_eagerly_with_the_same_results(monkeypatch):
+    # a capture that fails half way through the step (an operation CUDA refuses to record) leaves
+    # no trace of the Python it ran: the world warns once and steps eagerly, as the ordinary step
+    class Refusing(EmulatedGraph):
+        def capture(self, record):
+            record()
+            raise RuntimeError("operation not permitted when stream is capturing")
+
+    monkeypatch.setattr(World, "GRAPH", Refusing)
+    (plain, ready), rng = _worlds(7, contacts=True)
+    with pytest.warns(RuntimeWarning, match="could not be captured as a CUDA graph"):
+        _steps(plain, ready, rng, n=40)
+    assert ready._graph is None and "not permitted" in ready._graph_failed
+    assert _largest_relative_difference(plain.state, ready.state) < 1e-10
+
+
 def test_the_graph_emulation_loses_what_the_step_does_not_hand_over(monkeypatch):
     # the emulation is strict: a world that forgot to hand over its joint forces swims without
     # the effectors set after the capture

@@ -24,6 +24,7 @@ the next (state, locks, contact anchors, reused inertias) is this simulator's ow
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -170,6 +171,7 @@ class World:
             self.contacts = Contacts(m, stiffness=contact_stiffness, dt=self.dt / water_steps, static=self.graph)
         self.caps = (float(max_speed), float(max_angular_speed), float(max_joint_speed))
         self._graph = None  # the captured CUDA graph and its buffers (graph=True on CUDA)
+        self._graph_failed = None  # why the step could not be captured (it then runs eagerly)
         self._eager_steps = 0  # graph-ready steps run eagerly (the warm-up before a capture)
         self._diverged = np.zeros(m.n_creatures, dtype=bool)
         if self.graph:
@@ -285,7 +287,7 @@ class World:
 
     def step(self) -> None:
         """Advance the whole batch by ``dt``."""
-        if self.graph and self.GRAPH.applies(self):
+        if self.graph and self._graph_failed is None and self.GRAPH.applies(self):
             self._graph_step()
         else:
             self._advance()
@@ -344,7 +346,9 @@ class World:
 
         Before each replay, a buffer whose attribute was set from outside (``set_effectors``
         gives ``tau`` a new tensor) takes the new value; the captured step copies what it hands
-        the next step back into the buffers it read them from.
+        the next step back into the buffers it read them from. A capture the device refuses (an
+        operation CUDA cannot record) is undone: the world warns and steps eagerly from then on
+        (``_graph_failed`` says why), with the same results.
         """
         if self._graph is not None:
             graph, slots, buffers = self._graph
@@ -361,7 +365,10 @@ class World:
             self._eager_steps += 1
             return
         slots = self._carried()
-        buffers = [get().clone() for get, _ in slots]  # fresh buffers: no carried tensor may alias a constant
+        owners = [o for o in (self, self.limits, self.contacts) if o is not None]
+        before = [(o, dict(vars(o))) for o in owners]  # to undo a capture that fails
+        originals = [get() for get, _ in slots]
+        buffers = [t.clone() for t in originals]  # fresh buffers: no carried tensor may alias a constant
         for (_, put), buf in zip(slots, buffers):
             put(buf)
         self._inertia_q = self.state.q if limits else None  # without limits the first stage computes them
@@ -376,7 +383,19 @@ class World:
                     b.copy_(o)
 
         graph = self.GRAPH(self)
-        graph.capture(record)
+        try:
+            graph.capture(record)
+        except RuntimeError as e:  # an operation the device would not record: step eagerly from now on
+            for o, attributes in before:  # the capture's Python ran part of a step that never happened
+                vars(o).clear()
+                vars(o).update(attributes)
+            for (_, put), t in zip(slots, originals):
+                put(t)
+            self._graph_failed = f"{type(e).__name__}: {e}"
+            warnings.warn(f"graph: the step could not be captured as a CUDA graph ({self._graph_failed}); "
+                          "it runs eagerly, with the same results", RuntimeWarning, stacklevel=3)
+            self._advance()
+            return
         slots = self._carried()  # the capture bound the attributes to its own outputs: back to the buffers
         for (_, put), buf in zip(slots, buffers):
             put(buf)
