@@ -192,7 +192,7 @@ def aba(model, q, qd, v0, tau, f_ext=None, damping=None, inertias=None, v=None, 
             their rates; their ``tau`` is ignored) and the rest of the tree responds;
             ``inertias`` must then be computed with this ``lock``.
         static: the graph-ready formulation (:func:`articulated_inertias`); the root's 6 x 6
-            solve is then :func:`~.backend.solve_spd`, which reads nothing on the host.
+            solve is then :func:`~.backend.solve`'s elimination, which reads nothing on the host.
 
     Returns:
         ``(a0, qdd, v)``: root spatial acceleration (C, 6) in root coordinates, joint

@@ -43,6 +43,14 @@ def _sign(xp, x, tol=1e-9):
     return xp.where(xp.abs(x) < tol, xp.zeros_like(x), xp.sign(x))
 
 
+def _face(xp, R, direction):
+    """The face of each box (rotations ``R``) whose outward normal is closest to ``direction``
+    (world): 0-5 for -x, +x, -y, +y, -z, +z (the contact sensors)."""
+    dl = sp.mtv(R, direction)  # the direction in the box frame
+    k = xp.argmax(xp.abs(dl), axis=1)
+    return 2 * k + xp.astype(xp.take_along_axis(dl, k[:, None], axis=1)[:, 0] > 0, k.dtype)
+
+
 #: The spring stretches at most this fraction of the thinner box's smallest half extent: parts
 #: that start deeply interpenetrated (overlapping siblings) are pushed apart with bounded force.
 DEPTH_CAP = 0.5
@@ -251,11 +259,7 @@ class Contacts:
         a, b = xp.take(self.a, pair, axis=0), xp.take(self.b, pair, axis=0)
         n = sp.mv(R[a], found["n"])
         for body, direction in ((b, -n), (a, n)):
-            dl = sp.mtv(R[body], direction)  # contact direction in the box frame
-            k = xp.argmax(xp.abs(dl), axis=1)
-            rows = xp.arange(dl.shape[0], device=m.device) if bk.is_torch(xp) else np.arange(dl.shape[0])
-            face = 2 * k + (dl[rows, k] > 0)  # faces -x,+x,-y,+y,-z,+z
-            sensors[body, face] = 1.0
+            sensors[body, _face(xp, R[body], direction)] = 1.0
         active = dict(found, a=a, b=b, cap=self.depth_cap[pair], k=self.k[pair], c=self.c[pair])
         return active, sensors
 
@@ -266,7 +270,7 @@ class Contacts:
         a, b = self.a, self.b
         Ra, Rb, pa, pb = xp.take(R, a, axis=0), xp.take(R, b, axis=0), xp.take(p, a, axis=0), xp.take(p, b, axis=0)
         held = self.anchor
-        touching = held["on"] & (self._depth(dict(held, pair=None), R, p) > 0)
+        touching = held["on"] & (self._depth(held, R, p) > 0)
         keep = touching[:, None]
         anchor = {"on": touching | hit, "depth": xp.where(touching, held["depth"], 0.0),
                   "xa": xp.where(keep, held["xa"], sp.mtv(Ra, x - pa)), "xb": xp.where(keep, held["xb"], sp.mtv(Rb, x - pb)),
@@ -276,10 +280,7 @@ class Contacts:
         touched = xp.astype(anchor["on"], sensors.dtype) * 2.0
         flat = xp.reshape(sensors, (-1,))
         for body, Rbody, direction in ((b, Rb, -n), (a, Ra, n)):
-            dl = sp.mtv(Rbody, direction)  # contact direction in the box frame
-            k = xp.argmax(xp.abs(dl), axis=1)
-            face = 2 * k + xp.astype(xp.take_along_axis(dl, k[:, None], axis=1)[:, 0] > 0, k.dtype)  # faces -x,+x,-y,+y,-z,+z
-            bk.scatter_add(xp, flat, 6 * body + face, touched)  # -1 + 2 per touch, then capped at +1
+            bk.scatter_add(xp, flat, 6 * body + _face(xp, Rbody, direction), touched)  # -1 + 2 per touch, then capped at +1
         sensors = xp.clip(xp.reshape(flat, sensors.shape), None, 1.0)
         return dict(anchor, a=a, b=b, cap=self.depth_cap, k=self.k, c=self.c), sensors
 
@@ -292,9 +293,11 @@ class Contacts:
             self.anchor = {"on": xp.zeros((P,), dtype=xp.bool, device=m.device), "depth": z(P), "xa": z(P, 3), "xb": z(P, 3), "n": z(P, 3)}
 
     def _depth(self, held, R, p):
-        """Penetration of the anchored contacts ``held`` at poses ``R, p`` (not capped)."""
+        """Penetration of the anchored contacts ``held`` at poses ``R, p`` (not capped); without
+        ``held["pair"]`` (static), of every candidate pair."""
         xp = self.xp
-        a, b = (self.a, self.b) if held["pair"] is None else (xp.take(self.a, held["pair"], axis=0), xp.take(self.b, held["pair"], axis=0))
+        pair = held.get("pair")
+        a, b = (self.a, self.b) if pair is None else (xp.take(self.a, pair, axis=0), xp.take(self.b, pair, axis=0))
         Ra = xp.take(R, a, axis=0)
         xa = sp.mv(Ra, held["xa"]) + xp.take(p, a, axis=0)
         xb = sp.mv(xp.take(R, b, axis=0), held["xb"]) + xp.take(p, b, axis=0)

@@ -400,7 +400,7 @@ class World:
         for (_, put), buf in zip(slots, buffers):
             put(buf)
         self._inertia_q = self.state.q if limits else None
-        self._graph = (graph, self._carried(), buffers)
+        self._graph = (graph, slots, buffers)
         graph.replay()  # a capture records the step without running it
 
     def _stop_at_limits(self, s: State) -> State:
