@@ -32,15 +32,19 @@ from coursekit.pictures.gallery import Gallery
 BUTTONS = ["evolve", *O.MUTATIONS, *O.RECOMBINATIONS]
 
 
-def clicks(gallery: Gallery, count: int, seed: int = 0, buttons: list[str] = BUTTONS) -> tuple[np.ndarray, float, np.ndarray]:
-    """Wall-clock seconds of ``count`` button clicks (two pictures selected before each), the
-    CPU seconds of this process over them, and its CPU seconds per click."""
+def clicks(gallery: Gallery, count: int, seed: int = 0, buttons: list[str] = BUTTONS,
+           think: float = 0.0) -> tuple[np.ndarray, float, np.ndarray]:
+    """Wall-clock seconds of ``count`` button clicks (two pictures selected before each, then
+    ``think`` seconds before the press), the CPU seconds of this process over them (pauses
+    included), and its CPU seconds per click."""
     rng = np.random.default_rng(seed)
     times, cpus = [], []
     cpu = time.process_time()
     for k in range(count):
         for i in rng.choice(gallery.evolution.size, size=2, replace=False):
             gallery.click(int(i))
+        if think:
+            time.sleep(think)
         start, start_cpu = time.perf_counter(), time.process_time()
         msg = gallery.apply(buttons[k % len(buttons)])
         times.append(time.perf_counter() - start)
@@ -55,21 +59,27 @@ def main(argv=None):
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--n", type=int, default=20)
     ap.add_argument("--warmup", type=int, default=8)
+    ap.add_argument("--think", type=float, default=0.5,
+                    help="seconds between the last pick and the press in the breeding-ahead rows (a student's pause)")
     ap.add_argument("--buttons", nargs="+", choices=BUTTONS, default=BUTTONS,
                     help="the buttons clicked in turn (default: evolve and the seven operators; "
                          "'--buttons evolve' times the issue's Evolve click alone)")
     args = ap.parse_args(argv)
     print(f"{args.n} pictures at {args.size}^2, {args.clicks} clicks of {', '.join(args.buttons)} after {args.warmup} warm-up clicks; "
           f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
-    print(f"{'renders':24s} {'p50 ms':>8s} {'p95 ms':>8s} {'max ms':>8s} {'CPU ms/click':>13s} "
+    print(f"{'renders':18s} {'breeding':34s} {'p50 ms':>8s} {'p95 ms':>8s} {'max ms':>8s} {'CPU ms/click':>13s} "
           f"{'CPU p95 ms':>11s}")
+    rows = (("when pressed", False, 0.0), ("ahead, pressed at once", True, 0.0),
+            (f"ahead, pressed {args.think:g} s after the pick", True, args.think))
     for label, options in (("in this process", {"workers": 1}), ("worker processes", {})):
-        gallery = Gallery(np.random.default_rng(1991), n=args.n, size=args.size, render_options=options)
-        clicks(gallery, args.warmup, seed=1, buttons=args.buttons)
-        t, cpu, per_click = clicks(gallery, args.clicks, buttons=args.buttons)
-        p50, p95 = np.percentile(t, [50, 95]) * 1000
-        print(f"{label:24s} {p50:8.1f} {p95:8.1f} {t.max() * 1000:8.1f} {cpu / args.clicks * 1000:13.1f} "
-              f"{np.percentile(per_click, 95) * 1000:11.1f}")
+        for breeding, ahead, think in rows:
+            gallery = Gallery(np.random.default_rng(1991), n=args.n, size=args.size, render_options=options,
+                              breed_ahead=ahead)
+            clicks(gallery, args.warmup, seed=1, buttons=args.buttons, think=think)
+            t, cpu, per_click = clicks(gallery, args.clicks, buttons=args.buttons, think=think)
+            p50, p95 = np.percentile(t, [50, 95]) * 1000
+            print(f"{label:18s} {breeding:34s} {p50:8.1f} {p95:8.1f} {t.max() * 1000:8.1f} "
+                  f"{cpu / args.clicks * 1000:13.1f} {np.percentile(per_click, 95) * 1000:11.1f}")
 
 
 if __name__ == "__main__":

@@ -2,6 +2,9 @@
 
 import json
 
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
 import numpy as np
 import pytest
 
@@ -536,3 +539,109 @@ def test_a_click_that_fails_still_saves_what_changed(gallery, tmp_path, monkeypa
     with pytest.raises(RuntimeError, match="page gone"):
         gallery.apply("evolve")
     assert saved(tmp_path).generation == gallery.state.generation == 1
+
+
+# ---- breeding ahead -------------------------------------------------------------------------
+
+
+def _seen(g):
+    """What a student has of a gallery: the session (random state included) and the pictures."""
+    g._settle()
+    return g.state.to_json(), g.evolution.rng.bit_generator.state, [bytes(im.value) for im in g.images]
+
+
+def test_prepare_changes_nothing_and_commit_is_the_action():
+    from coursekit.pictures.session import Evolution
+
+    def evolution():
+        return Evolution(GalleryState(Gallery(np.random.default_rng(5), n=6, size=8, genome_params=SMALL,
+                                              breed_ahead=False).state.population), np.random.default_rng(6))
+
+    a, b = evolution(), evolution()
+    for ev in (a, b):
+        ev.select(1)
+        ev.select(3)
+    before = a.state.to_json(), a.rng.bit_generator.state
+    prepared = a.prepare("crossover")
+    assert (a.state.to_json(), a.rng.bit_generator.state) == before  # nothing happened yet
+    assert a.commit(prepared) == b.recombine("crossover")
+    assert a.state.to_json() == b.state.to_json() and a.rng.bit_generator.state == b.rng.bit_generator.state
+    assert a.state.population[2] is prepared.outcome[0][2]  # the very children prepared
+
+
+def test_a_prepared_generation_of_another_state_is_refused():
+    g = Gallery(np.random.default_rng(5), n=6, size=8, genome_params=SMALL, breed_ahead=False)
+    ev = g.evolution
+    ev.select(1)
+    prepared = ev.prepare("evolve")
+    ev.select(2)  # the selection changed since
+    with pytest.raises(ValueError, match="prepared: it was bred from another state"):
+        ev.commit(prepared)
+    ev.select(2)
+    ev.rng.random()  # the random state moved on
+    with pytest.raises(ValueError, match="prepared"):
+        ev.commit(prepared)
+
+
+def test_a_generation_bred_ahead_is_the_one_the_button_breeds():
+    a = Gallery(np.random.default_rng(7), n=6, size=12, genome_params=SMALL, breed_ahead=False)
+    b = Gallery(np.random.default_rng(7), n=6, size=12, genome_params=SMALL)
+    hits = []
+    for picks, button in [([1], "evolve"), ([0, 4], "crossover"), ([2, 1], "crossover"), ([3], "transposition"),
+                          ([5], "transposition"), ([], "undo"), ([0], "evolve")]:
+        for g in (a, b):
+            for i in picks:
+                g.click(i)
+        b._settle()  # the student looked long enough for it to be bred
+        ahead = b._ahead
+        hit = ahead is not None and ahead[0].action == button and ahead[0].fits(b.evolution)
+        hits.append(hit)
+        if hit:  # its pictures too: the button only sends them
+            calls = []
+            b._cached = lambda cache, genomes, make, original=b._cached: original(cache, genomes, lambda todo: calls.append(todo) or make(todo))
+        assert a.apply(button) == b.apply(button)
+        if hit:
+            assert calls == [] and len(ahead[2]) == 6 - len(picks)
+            del b._cached
+        assert _seen(a) == _seen(b)
+    # ready whenever the button pressed is the last breeding button pressed (evolve at first)
+    assert hits == [True, False, True, False, True, False, False]
+
+
+def test_a_students_operator_runs_only_when_its_button_is_pressed():
+    calls = []
+
+    def mine(genome, rng):
+        calls.append(genome)
+        return O.substitution(genome, rng)
+
+    g = Gallery(np.random.default_rng(3), n=4, size=8, genome_params=SMALL, mutations={"mine": mine})
+    g.click(1)
+    g._settle()
+    assert calls == [] and g._ahead is None
+    g.apply("mine")
+    assert calls
+    calls.clear()
+    g.click(2)
+    g._settle()
+    assert calls == [] and g._ahead is None
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(st.lists(st.integers(0, 5), max_size=3),
+                          st.sampled_from(["evolve", "transposition", "substitution", "crossover", "random_copy",
+                                           "undo", "redo", "zoom in", "reset view", "new random"]),
+                          st.booleans()), min_size=1, max_size=6))
+def test_breeding_ahead_changes_nothing_but_the_wait(steps):
+    """Any picks, any buttons, pressed at once or after the thread has finished: the session,
+    its random state and the pictures are those of a gallery that breeds when pressed."""
+    a = Gallery(np.random.default_rng(11), n=6, size=10, genome_params=SMALL, breed_ahead=False)
+    b = Gallery(np.random.default_rng(11), n=6, size=10, genome_params=SMALL)
+    for picks, button, pause in steps:
+        for g in (a, b):
+            for i in picks:
+                g.click(i)
+        if pause:
+            b._settle()
+        assert a.apply(button) == b.apply(button)
+    assert _seen(a) == _seen(b)

@@ -19,6 +19,15 @@ widget-free session (:class:`~.session.Evolution`, :class:`~.session.GalleryStat
   shift + arrows pan, ``0`` resets the view, escape clears the selection;
 - a status line (generation, selection, view, what the last action did).
 
+**Breeding ahead.** While the student is still looking, the gallery breeds the next generation
+for the current selection in a background thread (with the last breeding button pressed,
+evolve at first), thumbnails included (:meth:`Evolution.prepare`: the random generator is
+copied, nothing in the session changes). Pressing that button then only commits it
+(:meth:`Evolution.commit`) and sends the pictures: the session is bit for bit the one the
+button would have bred (a test compares). Any other change (a pick, zoom, undo) makes the
+prepared generation stale, and it is bred again or not used. Only the library's own operators
+are run ahead: a student's operator runs when its button is pressed, and no other time.
+
 Every change is autosaved atomically to a JSON file (:mod:`.session`) when a path is given,
 with the random state, so a resumed session continues exactly as the original would have.
 
@@ -36,12 +45,14 @@ import io
 import os
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from . import operators as O
 from .evaluate import render
 from .genome import Genome
 from .session import GALLERY_FORMAT, Ancestor, Evolution, GalleryState, Generation, Origin
@@ -114,13 +125,16 @@ class Gallery:
         render_options: extra keyword arguments of :func:`render` (time, device); the window
             is the gallery's view (:meth:`zoom`, :meth:`pan`).
         lineage_size: thumbnail size in the lineage view.
+        breed_ahead: breed the next generation in a background thread while the student
+            chooses (see the module's docstring; the library's operators only). The session
+            is the same either way.
     """
 
     def __init__(self, rng: np.random.Generator | None = None, population: Sequence[Genome] | None = None, *,
                  n: int = 20, columns: int = 5, size: int = 96, mutations: Sequence[Callable] | None = None,
                  recombinations: Sequence[Callable] | None = None, genome_params: dict | None = None,
                  autosave: str | os.PathLike[str] | None = None, render_options: dict | None = None,
-                 lineage_size: int = 56) -> None:
+                 lineage_size: int = 56, breed_ahead: bool = True) -> None:
         import ipywidgets as W
         from ipyevents import Event
 
@@ -144,6 +158,12 @@ class Gallery:
         self._syncing = False
         self._pngs: OrderedDict = OrderedDict()  # id(genome) -> (genome, thumbnail data: URL), this view
         self._view = None
+        self.breed_ahead = bool(breed_ahead)
+        self._ahead = None  # (Prepared, view, [(child, thumbnail)]): bred while the student chooses
+        self._ahead_wanted = None  # what the last breeding ahead was asked for
+        self._ahead_ticket = 0  # the latest request: an older one still queued is skipped
+        self._ahead_pool = None  # one thread, started on the first request
+        self._ahead_action = "evolve"  # the last breeding button pressed
 
         self.images, self.toggles, self._clicks = [], [], []
         for i in range(self.evolution.size):
@@ -336,13 +356,10 @@ class Gallery:
         if name in views:
             views[name]()
             return self.status_text()
+        self._settle()
         with ev.saved_after():  # the pictures go to the screen before the session goes to its file
-            if name in ev.mutations:
-                msg = ev.mutate(name)
-            elif name in ev.recombinations:
-                msg = ev.recombine(name)
-            elif name == "evolve":
-                msg = ev.next_generation()
+            if name in ev.mutations or name in ev.recombinations or name == "evolve":
+                msg = self._breed(name)
             elif name == "undo":
                 msg = ev.undo()
             elif name == "redo":
@@ -355,6 +372,69 @@ class Gallery:
             self.lineage_tiles = []
         return msg
 
+    # ---- breeding ahead -------------------------------------------------------------------
+    def _breed(self, name: str) -> str:
+        """The breeding button ``name`` pressed: the generation bred ahead for it when it fits
+        the session as it is (and its thumbnails, when they are of this view), else bred now."""
+        ev, ahead, self._ahead = self.evolution, self._ahead, None
+        self._ahead_action = name
+        if ahead is not None and ahead[0].action == name and ahead[0].fits(ev):
+            prepared, view, thumbs = ahead
+            if view == self._view_key() == self._view:
+                for g, url in thumbs:
+                    self._pngs[id(g)] = (g, url)
+            return ev.commit(prepared)
+        if name in ev.mutations:
+            return ev.mutate(name)
+        return ev.recombine(name) if name in ev.recombinations else ev.next_generation()
+
+    def _ahead_key(self):
+        """What breeding ahead would breed now (None: nothing, or not with these operators)."""
+        ev = self.evolution
+        action = self._ahead_action
+        if not self.breed_ahead or ev.why_not(action):
+            return None
+        library = {id(op) for op in (*O.MUTATIONS.values(), *O.RECOMBINATIONS.values())}
+        if not all(id(op) in library for op in (*ev.mutations.values(), *ev.recombinations.values())):
+            return None  # a student's operator runs only when its button is pressed
+        return action, tuple(ev.state.selected), tuple(map(id, ev.state.population)), self._view_key()
+
+    def _breed_ahead(self) -> None:
+        """Ask the background thread to breed the next generation for the session as it is."""
+        key = self._ahead_key()
+        if key == self._ahead_wanted:
+            return
+        self._ahead_wanted = key
+        self._ahead_ticket += 1
+        if key is None:
+            return
+        if self._ahead_pool is None:
+            self._ahead_pool = ThreadPoolExecutor(1, thread_name_prefix="coursekit-breed-ahead")
+        self._ahead_pool.submit(self._bred_ahead, self._ahead_ticket, key[0])
+
+    def _bred_ahead(self, ticket: int, action: str) -> None:
+        """In the thread: :meth:`Evolution.prepare` and the children's thumbnails. What fails
+        here is left to the button, which breeds again and reports it."""
+        if ticket != self._ahead_ticket:  # a newer request came while this one waited
+            return
+        try:
+            view = size, window, options = self._view_key()  # read once: the view may change meanwhile
+            prepared, thumbs = self.evolution.prepare(action), []
+            if not isinstance(prepared.outcome, str):
+                kids = prepared.outcome[0][len(prepared.selected):]
+                if all(isinstance(g, Genome) for g in kids):
+                    pics = render(kids, size, window=window, **dict(options))
+                    thumbs = [(g, thumbnail_url(p)) for g, p in zip(kids, pics)]
+            self._ahead = (prepared, view, thumbs)
+        except Exception:  # pragma: no cover - the button breeds again and says what failed
+            self._ahead = None
+
+    def _settle(self) -> None:
+        """Wait until the background thread has finished what it was asked (before anything
+        here breeds, renders or reads what it bred)."""
+        if self._ahead_pool is not None:
+            self._ahead_pool.submit(int).result()
+
     # ---- the lineage view -----------------------------------------------------------------
     def show_lineage(self, i: int) -> list[Ancestor]:
         """Show the lineage of picture ``i`` under the gallery: one row per generation, each
@@ -363,6 +443,7 @@ class Gallery:
         from ipyevents import Event
 
         ancestors = self.lineage(i)
+        self._settle()
         pics = render([a.genome for a in ancestors], self.lineage_size, window=self.window,
                       **self.render_options) if ancestors else []
         columns, self.lineage_tiles = [], []
@@ -400,6 +481,7 @@ class Gallery:
         if not isinstance(i, (int, np.integer)) or not 0 <= i < self.evolution.size:
             raise ValueError(f"i: {i!r} is not a picture index (0..{self.evolution.size - 1})")
         opts = {**self.render_options, "window": self.window, **options}
+        self._settle()
         return save_image(path, self.state.population[i], size, **opts)
 
     def _ipython_display_(self):  # pragma: no cover - notebook display
@@ -423,7 +505,7 @@ class Gallery:
         """``make(missing genomes) -> values`` through ``cache`` (this view only). Genomes are
         keyed by identity (kept ones are the same objects; hashing a genome costs more than
         encoding its thumbnail), each entry holding its genome so that the id stays its own."""
-        view = (self.size, self.window, tuple(sorted(self.render_options.items())))
+        view = self._view_key()
         if self._view != view:
             self._pngs.clear()
             self._view = view
@@ -439,8 +521,12 @@ class Gallery:
             cache.popitem(last=False)
         return out
 
+    def _view_key(self) -> tuple:
+        return self.size, self.window, tuple(sorted(self.render_options.items()))
+
     def _thumbnails(self) -> list[bytes]:
         """Thumbnails of the population in the current view (each genome rendered once)."""
+        self._settle()
         return self._cached(self._pngs, self.state.population, lambda todo: [
             thumbnail_url(p) for p in render(todo, self.size, window=self.window, **self.render_options)])
 
@@ -460,6 +546,7 @@ class Gallery:
                 self._mirror(message, images)
         finally:
             self._syncing = False
+        self._breed_ahead()  # for the session as it is now on screen
 
     def _mirror(self, message: str, images: bool):
         """Set every widget to the state (inside :meth:`_sync`'s held messages)."""

@@ -13,6 +13,11 @@ picture (the operator and the parents, indices into the generation before), from
 generator's state is part of the session: a resumed session continues exactly as the original
 would have.
 
+Every breeding action is ``commit(prepare(action))``: :meth:`Evolution.prepare` breeds the new
+generation from a copy of the random generator without changing the session, and
+:meth:`Evolution.commit` makes it happen if the session is still the one it was bred from. The
+gallery uses the split to breed ahead, in a thread, while the student chooses.
+
 Sessions are saved as JSON (``coursekit.gallery/2``; ``coursekit.gallery/1`` files, which had
 no origins, redo or random state, still load). :meth:`GalleryState.from_dict` checks every
 field (types, indices, sizes) and names the bad one, so a broken file is refused before
@@ -25,11 +30,12 @@ whose preview looks like a parent's or another child's is bred again.
 from __future__ import annotations
 
 import contextlib
+import copy
 import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator, Mapping, NamedTuple
+from typing import Callable, Mapping, NamedTuple
 
 import numpy as np
 
@@ -38,26 +44,14 @@ from coursekit.atomic import atomic_write
 from . import operators as O
 from . import primitives as P
 from .genome import Genome
-from .variety import distinct_children, random_population
+from .breeding import Origin, Prepared, breed
+from .variety import random_population
 
-__all__ = ["GALLERY_FORMAT", "Origin", "Generation", "Ancestor", "GalleryState", "Evolution"]
+__all__ = ["GALLERY_FORMAT", "Origin", "Generation", "Ancestor", "GalleryState", "Evolution", "Prepared"]
 
 GALLERY_FORMAT = "coursekit.gallery/2"
 _OLD_FORMATS = ("coursekit.gallery/1",)
 _BIT_GENERATORS = ("PCG64", "PCG64DXSM", "MT19937", "Philox", "SFC64")
-
-
-@dataclass(frozen=True)
-class Origin:
-    """How a picture was made: ``operator`` (an operator's name, ``"kept"`` for a selected
-    picture carried over, ``"random"``, or ``"start"`` for a given first generation) and its
-    ``parents``, indices into the generation before."""
-
-    operator: str
-    parents: tuple[int, ...] = ()
-
-    def to_dict(self) -> dict:
-        return {"operator": self.operator, "parents": list(self.parents)}
 
 
 START = Origin("start")
@@ -380,7 +374,11 @@ class Evolution:
     def why_not(self, action: str) -> str | None:
         """Why ``action`` (an operator's name, ``"evolve"``, ``"undo"``, ``"redo"``, ``"new
         random"``) does not fit now, or None when it does."""
-        k, n = len(self.state.selected), self.size
+        return self._why_not(action, len(self.state.selected))
+
+    def _why_not(self, action: str, k: int) -> str | None:
+        """:meth:`why_not` with ``k`` pictures selected."""
+        n = self.size
         if action in self.mutations or action == "evolve":
             if k == 0:
                 return "select a picture to breed from (click it)"
@@ -400,6 +398,40 @@ class Evolution:
         return None
 
     # ---- breeding -------------------------------------------------------------------------
+    def prepare(self, action: str) -> Prepared:
+        """What the breeding ``action`` (an operator's name or ``"evolve"``) would make now,
+        bred without changing the session: the random generator is copied, the population and
+        the selection are read once. :meth:`commit` then makes it happen, exactly as the action
+        would have (every breeding action is ``commit(prepare(action))``). The gallery breeds
+        ahead this way, in a thread, while the student is still choosing."""
+        if action != "evolve" and action not in self.mutations and action not in self.recombinations:
+            raise ValueError(f"action: {action!r} is not an operator or 'evolve'")
+        s = self.state
+        population, selected, generation = tuple(s.population), tuple(s.selected), s.generation
+        rng = copy.deepcopy(self.rng)
+        before = rng.bit_generator.state
+        outcome = self._why_not(action, len(selected))
+        if outcome is None:
+            outcome = breed(action, list(population), list(selected), rng, self.mutations, self.recombinations)
+            if not isinstance(outcome, str):
+                outcome = (*outcome[:2], f"generation {generation + 1}: {outcome[2]}")
+        return Prepared(action, population, selected, before, rng.bit_generator.state, self._operators(), outcome)
+
+    def commit(self, prepared: Prepared) -> str:
+        """Make a prepared action (:meth:`prepare`) happen: the new generation (or the reason it
+        could not be bred), and the random state it left. A ``prepared`` from another state (the
+        selection changed since, say) raises a ValueError: prepare again."""
+        if not prepared.fits(self):
+            raise ValueError("prepared: it was bred from another state of the session (the population, "
+                             "the selection, the random state or the operators changed since); prepare it again")
+        self.rng.bit_generator.state = prepared.rng_after
+        if isinstance(prepared.outcome, str):
+            return prepared.outcome
+        return self._commit(*prepared.outcome)
+
+    def _operators(self) -> tuple:
+        return tuple(self.mutations.items()), tuple(self.recombinations.items())
+
     def _commit(self, population: list, origins: list[Origin], message: str) -> str:
         bad = [type(g).__name__ for g in population if not isinstance(g, Genome)]
         if bad:
@@ -413,114 +445,24 @@ class Evolution:
         self.save()
         return message
 
-    def _parents(self) -> list[Genome]:
-        return [self.state.population[i] for i in self.state.selected]
-
-    def _breed(self, name: str, make: Callable, again: Callable | None) -> tuple[list, list] | str:
-        """Children from ``make()`` -> (genome, Origin) through :func:`distinct_children`;
-        the parents (the selection) open the new generation as ``kept``."""
-        sel = list(self.state.selected)
-        parents = self._parents()
-        made: dict[int, tuple] = {}  # id(child) -> (child, Origin): the origin of every draw
-
-        def children() -> Iterator:
-            while True:
-                child, origin = make()
-                made[id(child)] = (child, origin)
-                yield child
-
-        def redo(child, kept):
-            new, extra, label = again(child, kept)
-            if isinstance(extra, Genome):  # crossed with a sibling: its parents
-                extra = made.get(id(extra), (None, Origin(name)))[1].parents
-            old = made.get(id(child), (None, Origin(name)))[1]
-            parents_ = tuple(sorted(set(old.parents) | set(extra)))
-            made[id(new)] = (new, Origin(old.operator if label is None else f"{old.operator}+{label}", parents_))
-            return new
-        try:
-            kids = distinct_children(parents, children(), self.size - len(parents),
-                                     again=redo if again is not None else None)
-        except Exception as e:  # a student's operator: report, keep the gallery alive
-            return f"{name} failed: {type(e).__name__}: {e}"
-        origins = [Origin("kept", (i,)) for i in sel]
-        origins += [made.get(id(k), (k, Origin(name)))[1] for k in kids]
-        return list(parents) + list(kids), origins
-
     def mutate(self, name: str) -> str:
         """Parents (the selection) stay; the rest are children by mutation ``name``, none
         looking like a parent or another child (:func:`~.variety.distinct_children`)."""
         if name not in self.mutations:
             raise ValueError(f"name: {name!r} is not one of the mutations {list(self.mutations)}")
-        reason = self.why_not(name)
-        if reason:
-            return reason
-        op, sel = self.mutations[name], list(self.state.selected)
-        count = iter(range(10**9))
-
-        def make():
-            j = sel[next(count) % len(sel)]
-            return op(self.state.population[j], self.rng), Origin(name, (j,))
-        out = self._breed(name, make, lambda c, kept: (op(c, self.rng), (), None))
-        if isinstance(out, str):
-            return out
-        return self._commit(*out, f"generation {self.state.generation + 1}: {name} of {len(sel)} parent(s)")
+        return self.commit(self.prepare(name))
 
     def recombine(self, name: str) -> str:
         """Parents stay; the rest are children of random parent pairs by ``name``, none looking
         like a parent or another child (:func:`~.variety.distinct_children`)."""
         if name not in self.recombinations:
             raise ValueError(f"name: {name!r} is not one of the recombinations {list(self.recombinations)}")
-        reason = self.why_not(name)
-        if reason:
-            return reason
-        op, sel = self.recombinations[name], list(self.state.selected)
-        pending: list = []
-
-        def make():
-            if not pending:
-                i, j = self.rng.choice(len(sel), size=2, replace=False)
-                pair = op(self.state.population[sel[i]], self.state.population[sel[j]], self.rng)
-                pending.extend((c, Origin(name, (sel[i], sel[j]))) for c in pair)
-            return pending.pop(0)
-
-        def again(child, kept):  # crossed once more, with a parent or a sibling kept so far
-            mates = [(p, (i,)) for i, p in zip(sel, self._parents())] + [(k, k) for k in kept]
-            mate, extra = mates[int(self.rng.integers(len(mates)))]
-            return op(child, mate, self.rng)[0], extra, None
-        out = self._breed(name, make, again)
-        if isinstance(out, str):
-            return out
-        return self._commit(*out, f"generation {self.state.generation + 1}: {name} of {len(sel)} parents")
+        return self.commit(self.prepare(name))
 
     def next_generation(self) -> str:
         """Evolve: children by a random operator each (recombination too when two or more are
         selected)."""
-        reason = self.why_not("evolve")
-        if reason:
-            return reason
-        sel = list(self.state.selected)
-        ops = [(name, op, False) for name, op in self.mutations.items()]
-        if len(sel) > 1:
-            ops += [(name, op, True) for name, op in self.recombinations.items()]
-        last = [ops[0][0]]
-
-        def make():
-            name, op, pair = ops[int(self.rng.integers(len(ops)))]
-            last[0] = name
-            if pair:
-                i, j = self.rng.choice(len(sel), size=2, replace=False)
-                kids = op(self.state.population[sel[i]], self.state.population[sel[j]], self.rng)
-                return kids[int(self.rng.integers(2))], Origin(name, (sel[i], sel[j]))
-            j = sel[int(self.rng.integers(len(sel)))]
-            return op(self.state.population[j], self.rng), Origin(name, (j,))
-
-        def again(child, kept):  # one more mutation
-            name = list(self.mutations)[int(self.rng.integers(len(self.mutations)))]
-            return self.mutations[name](child, self.rng), (), name
-        out = self._breed("evolve", make, again if self.mutations else None)
-        if isinstance(out, str):
-            return out.replace("evolve failed", f"{last[0]} failed")
-        return self._commit(*out, f"generation {self.state.generation + 1}: mixed operators")
+        return self.commit(self.prepare("evolve"))
 
     def randomize(self) -> str:
         """A new random population (the old one goes to the history), none flat or black."""
