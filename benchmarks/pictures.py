@@ -15,6 +15,9 @@ coding nodes, fixed seed), images per second at 128^2 and 256^2 for:
   before each run),
 - the same on a generation as Sims' interactive loop makes it (20 children of one parent, each
   one mutation away: they share most subtrees, which the evaluator computes once),
+- what a gallery shows first: 20 random genomes at the library's defaults
+  (:func:`coursekit.pictures.variety.random_population`, about 10 coding nodes each, smaller
+  than the population above), over the worker processes,
 - tensorised in waves (``group=True``: one operation per primitive for the whole population,
   :mod:`coursekit.pictures.grouped`), in this process,
 - tensorised on CUDA, and a population of 256 on CUDA (genome by genome and in waves), when a
@@ -45,6 +48,7 @@ import torch
 from coursekit.operations import CountOperations
 from coursekit.pictures import Genome, render, render_reference
 from coursekit.pictures import operators as O
+from coursekit.pictures.variety import random_population
 
 
 def population(n: int, seed: int = 1991, nodes=(35, 45)) -> list[Genome]:
@@ -140,6 +144,10 @@ def main(argv=None):
                   per_image(best_of(lambda: [render(g, size, workers=1) for g in kids], args.repeats), len(kids))),
                  (size, "children of one parent, tensorised", len(kids),
                   per_image(best_of(lambda: render(kids, size), args.repeats), len(kids)))]
+        first = random_population(np.random.default_rng(2026), len(pop))
+        render(first, size)
+        rows.append((size, "a gallery's first generation, workers", len(first),
+                     per_image(best_of(lambda: render(first, size), args.repeats), len(first))))
         if cuda:
             def on_gpu(genomes, group):
                 render(genomes, size, device="cuda", group=group, as_tensor=True)
