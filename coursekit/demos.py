@@ -20,7 +20,8 @@ import json
 import os
 import re
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
@@ -33,15 +34,31 @@ FILM_SIZE, FILM_FPS = (480, 360), 20
 KEY_FRAMES, KEY_FRAME_SIZE = 4, (320, 240)
 
 
-def _film(creature, trajectory, frame_times, folder: Path, stem: str) -> dict:
+def _film(creature, trajectory, frame_times, folder: Path, stem: str, progress: bool | None = None) -> dict:
     """Write ``stem.mp4``, ``stem.gif`` (one pass) and ``stem-keyframes.png`` of a recorded swim."""
     from coursekit.creatures.render import animate, keyframes
 
-    names = {"mp4": f"{stem}.mp4", "gif": f"{stem}.gif", "keyframes": f"{stem}-keyframes.png"}
+    names = _names(stem)
     animate(creature, trajectory, [folder / names["mp4"], folder / names["gif"]], fps=FILM_FPS, size=FILM_SIZE,
-            frame_times=frame_times)
+            frame_times=frame_times, progress=progress)
     keyframes(creature, trajectory, folder / names["keyframes"], n=KEY_FRAMES, size=KEY_FRAME_SIZE, frame_times=frame_times)
     return names
+
+
+def _names(stem: str) -> dict:
+    return {"mp4": f"{stem}.mp4", "gif": f"{stem}.gif", "keyframes": f"{stem}-keyframes.png"}
+
+
+def _films(creatures, seconds: float, folder: str, stems, progress: bool | None = None) -> list[dict]:
+    """Swim ``creatures`` in one batch (the same swims as alone) and film each as ``stems[k]``
+    (``progress``: the films' bars, see :func:`~coursekit.creatures.render.animate`)."""
+    from coursekit.creatures import simulate
+
+    if not creatures:
+        return []
+    replay = simulate(list(creatures), seconds, record_every=3)  # 20 frames per simulated second at dt = 1/60
+    return [_film(c, replay.trajectory[k], replay.frame_times, Path(folder), stem, progress)
+            for k, (c, stem) in enumerate(zip(creatures, stems))]
 
 
 def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int | None = None,
@@ -61,7 +78,9 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
 
     Args:
         workers: processes the population swims in (default: one per core; 1: this process).
-            The run is bit for bit the same either way.
+            The run is bit for bit the same either way. With more than one, the shipped
+            champions are filmed while evolution runs (in a process at the lowest priority) and
+            the audit's five runs are spread over the workers.
 
     Returns:
         A summary dict (also written as ``summary.json``), with the wall times of its parts.
@@ -71,7 +90,7 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from coursekit.creatures import evolve_swimmers, simulate
+    from coursekit.creatures import evolve_swimmers
     from coursekit.creatures.audit import audit
     from coursekit.creatures.champions import hall_of_fame
     from coursekit.creatures.render import render
@@ -83,39 +102,60 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     wall, t0 = {}, time.perf_counter()
+    t = t0
     rng = np.random.default_rng(seed)
+    fame = hall_of_fame()
+    champions = [c.creature for c in fame]
     pool = ProcessPoolExecutor(workers) if workers > 1 else None
+    auditor = None
+    # The shipped champions are filmed while evolution runs, in a process of their own at the
+    # lowest priority: it takes the core evolution leaves idle while it refines its best in this
+    # process, not the workers' time. One of them may turn out to be the run's best, whose films
+    # are then the best's.
+    filming = (ProcessPoolExecutor(1, mp_context=get_context("spawn"), initializer=os.nice, initargs=(19,))
+               if pool is not None and champions else None)
     try:
+        shot = (filming.submit(_films, champions, seconds, str(out), [f"champion-{k}" for k in range(len(champions))],
+                               progress=False) if filming is not None else None)  # no bars under evolution's
         result = evolve_swimmers(generations=generations, rng=rng, population_size=population, seconds=seconds,
                                  progress=progress, random_options=dict(max_parts=16), executor=pool)
-        wall["evolution"] = time.perf_counter() - t0
-        best, fame = result.best, hall_of_fame()
-        champions = [c.creature for c in fame]
+        wall["evolution"] = time.perf_counter() - t
+        best = result.best
         t = time.perf_counter()
-        # The audit (is it swimming, or exploiting the simulator?) runs in a worker while this
-        # process films the champion and the shipped champions (one batch: the same swims as alone).
-        audited = pool.submit(audit, [best], seconds) if pool is not None else None
+        # The audit (is it swimming, or exploiting the simulator?) runs in the workers, its five
+        # simulations spread over them, while this process films.
+        auditor = ThreadPoolExecutor(1)
+        auditing = auditor.submit(audit, [best], seconds, executor=pool)
         atomic_write(out / "best.json", best.to_json())
         render(best, out / "best.png")
-        # A champion that is this run's best (the demo's own seed ships as a champion) is filmed once.
         text = best.to_json()
-        row = {}  # champion -> its row of the replay (after the best's)
-        for k, c in enumerate(champions):
-            if c.to_json() != text:
-                row[k] = len(row) + 1
-        replay = simulate([best, *(champions[k] for k in row)], seconds, record_every=3)  # 20 frames per simulated second at dt = 1/60
-        films = _film(best, replay.trajectory[0], replay.frame_times, out, "best")
+        own = next((k for k, c in enumerate(champions) if c.to_json() == text), None)  # the run's best shipped
+        if shot is not None:
+            names = shot.result()
+            if own is None:
+                films = _films([best], seconds, str(out), ["best"])[0]
+            else:  # already filmed as that champion: its files become the best's
+                films = _names("best")
+                for kind, name in names[own].items():
+                    os.replace(out / name, out / films[kind])
+                names[own] = films
+        else:
+            others = [k for k in range(len(champions)) if k != own]
+            made = _films([best] + [champions[k] for k in others], seconds, str(out),
+                          ["best"] + [f"champion-{k}" for k in others])
+            films, names = made[0], dict(zip(others, made[1:]))
+            if own is not None:
+                names[own] = films
         shown = [{"name": c.name, "parts": int(c.creature.expand().body.n_bodies), "speed": c.speed,
-                  "body_lengths_per_second": c.body_lengths_per_second, "command": c.command,
-                  **(_film(c.creature, replay.trajectory[row[k]], replay.frame_times, out, f"champion-{k}")
-                     if k in row else films)}
+                  "body_lengths_per_second": c.body_lengths_per_second, "command": c.command, **names[k]}
                  for k, c in enumerate(fame)]
         wall["films"] = time.perf_counter() - t
-        report = (audited.result() if audited is not None else audit([best], seconds))[0]
+        report = auditing.result()[0]
         wall["films and audit"] = time.perf_counter() - t
     finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)
+        for executor in (auditor, pool, filming):
+            if executor is not None:
+                executor.shutdown(cancel_futures=True)
     fig, ax = plt.subplots(figsize=(6, 3.5))
     result.history.plot(ax=ax)
     ax.set_ylabel("fitness: swimming speed (m/s)")

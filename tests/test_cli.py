@@ -199,9 +199,11 @@ def test_bench_says_what_a_benchmark_needs(monkeypatch, capsys):
     assert "swimmers needs mujoco" in err and "pip install 'coursekit[mujoco]'" in err
 
 
-def test_the_swimmer_demo_films_a_champion_that_is_its_own_best_once(tmp_path, monkeypatch):
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_swimmer_demo_films_a_champion_that_is_its_own_best_once(tmp_path, monkeypatch, workers):
     """At its defaults the demo's run is the one that shipped as a champion: that champion is
-    shown with the run's own films, not simulated and filmed a second time."""
+    shown with the run's own films, not simulated and filmed a second time (with workers, the
+    champions are filmed while evolution runs, and that one's films become the best's)."""
     import dataclasses
     import importlib
     import json
@@ -217,7 +219,7 @@ def test_the_swimmer_demo_films_a_champion_that_is_its_own_best_once(tmp_path, m
     best = Creature.from_json((tmp_path / "first" / "best.json").read_text())
     fame = [dataclasses.replace(shipped, name="this run", creature=best), shipped]
     monkeypatch.setattr(C, "hall_of_fame", lambda: fame)
-    second = demos.swimmers(tmp_path / "second", seed=3, workers=1, progress=False)
+    second = demos.swimmers(tmp_path / "second", seed=3, workers=workers, progress=False)
     assert second["best_fitness"] == first["best_fitness"]  # the same run again
     own, theirs = second["champions"]
     assert {own[k] for k in ("mp4", "gif", "keyframes")} == set(second["films"].values())

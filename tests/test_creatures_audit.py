@@ -46,3 +46,14 @@ def test_drifting_without_effort_fails():
     qvel[0] = 1.0
     (r,) = audit([snake], 3.0, initial_state=([np.r_[0, 0, 0, 1, 0, 0, 0, np.zeros(nq - 7)]], [qvel]), settle=0.0, drag_coefficient=0.05)
     assert not r.passed and any("effectors off" in x for x in r.reasons), str(r)
+
+
+def test_an_audit_spread_over_worker_processes_reports_the_same():
+    from concurrent.futures import ProcessPoolExecutor
+
+    creatures = [Creature.figure1_snake(), Creature.paddle_turtle()]
+    alone = audit(creatures, 1.0)
+    with ProcessPoolExecutor(2) as pool:
+        spread = audit(creatures, 1.0, executor=pool)
+    assert [vars(r) for r in spread] == [vars(r) for r in alone]
+    assert alone[0].energy > 0 and alone[0].fine_speed > 0  # the runs came back, the metered swim's work with them
