@@ -61,6 +61,12 @@ def _films(creatures, seconds: float, folder: str, stems, progress: bool | None 
             for k, (c, stem) in enumerate(zip(creatures, stems))]
 
 
+def _lowest_priority() -> None:
+    """Run this process at the lowest priority, where the system has one (``os.nice``)."""
+    if hasattr(os, "nice"):
+        os.nice(19)
+
+
 def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int | None = None,
              generations: int | None = None, seconds: float | None = None, seed: int = 0, workers: int | None = None,
              progress: bool = True) -> dict:
@@ -112,7 +118,7 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
     # lowest priority: it takes the core evolution leaves idle while it refines its best in this
     # process, not the workers' time. One of them may turn out to be the run's best, whose films
     # are then the best's.
-    filming = (ProcessPoolExecutor(1, mp_context=get_context("spawn"), initializer=os.nice, initargs=(19,))
+    filming = (ProcessPoolExecutor(1, mp_context=get_context("spawn"), initializer=_lowest_priority)
                if pool is not None and champions else None)
     try:
         shot = (filming.submit(_films, champions, seconds, str(out), [f"champion-{k}" for k in range(len(champions))],
