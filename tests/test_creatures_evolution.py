@@ -101,3 +101,59 @@ def test_a_run_stopped_after_a_generation_resumes_to_the_uninterrupted_result(tm
     resumed = resume_swimmers(tmp_path / "run.ckpt", generations=2, seconds=0.5, progress=False)
     assert resumed.history == whole.history
     assert [c.to_json() for c in resumed.population] == [c.to_json() for c in whole.population]
+
+
+def test_with_workers_the_next_generation_swims_while_this_one_is_refined():
+    """With an executor and the library's operators the engine begins the next generation's swims
+    before this one's refinement (coursekit.ga.evolve, "Evaluating ahead"); the run is the serial
+    one, and the swims begun ahead were the ones used."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from coursekit.creatures import evolution
+
+    begun, finished = [], []
+    submit, finish = evolution.SwimmerFitness.submit, evolution.SwimmerFitness.finish
+
+    def spy_submit(self, creatures):
+        swims = submit(self, creatures)
+        begun.append(swims)
+        return swims
+
+    def spy_finish(self, creatures, swims):
+        finished.append(swims)
+        return finish(self, creatures, swims)
+
+    def run(executor=None):
+        r = evolve_swimmers(generations=3, rng=np.random.default_rng(8), population_size=8, seconds=0.5,
+                            progress=False, random_options=dict(max_parts=5), executor=executor)
+        return r.history, [c.to_json() for c in r.population]
+
+    serial = run()
+    evolution.SwimmerFitness.submit, evolution.SwimmerFitness.finish = spy_submit, spy_finish
+    try:
+        with ProcessPoolExecutor(2) as pool:
+            assert run(pool) == serial
+    finally:
+        evolution.SwimmerFitness.submit, evolution.SwimmerFitness.finish = submit, finish
+    assert len(finished) == 4  # generations 0-3
+    assert len(begun) >= 4  # generation 0, then each next generation begun while the one before was refined
+    assert sum(any(b is f for f in finished) for b in begun[1:]) >= 2  # predictions that were used
+
+
+def test_a_students_operator_or_fitness_is_never_run_ahead():
+    from concurrent.futures import ThreadPoolExecutor
+
+    from coursekit import ga
+    from coursekit.creatures import operators
+    from coursekit.creatures.evolution import _breeding
+
+    def mine(c, rng):
+        return operators.mutate(c, rng)
+
+    with ThreadPoolExecutor(1) as pool:
+        library = _breeding(1.0, operators.mutate, operators.crossover, operators.graft, (0.4, 0.3, 0.3), pool, {}, None, ga.sims_select)[1]
+        student = _breeding(1.0, mine, operators.crossover, operators.graft, (0.4, 0.3, 0.3), pool, {}, None, ga.sims_select)[1]
+        scored = _breeding(1.0, operators.mutate, operators.crossover, operators.graft, (0.4, 0.3, 0.3), pool,
+                           {"fitness": lambda com, t: com[:, -1, 0]}, None, ga.sims_select)[1]
+    serial = _breeding(1.0, operators.mutate, operators.crossover, operators.graft, (0.4, 0.3, 0.3), None, {}, None, ga.sims_select)[1]
+    assert library.ahead and not student.ahead and not scored.ahead and not serial.ahead

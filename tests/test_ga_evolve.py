@@ -438,3 +438,65 @@ def test_evolve_bad_input(kwargs, exc, pattern):
     population, fitness, vary = args.pop("population"), args.pop("fitness"), args.pop("vary")
     with pytest.raises(exc, match=pattern):
         ga.evolve(population, fitness, vary, **args)
+
+
+class _Ahead:
+    """A map that evaluates ahead (module docstring of coursekit.ga.evolve): its provisional
+    fitness is the final one plus ``noise`` for a third of the genomes, so a prediction of the
+    next generation is sometimes right and sometimes wrong; it keeps what it began and finished."""
+
+    ahead = True
+
+    def __init__(self, noise):
+        self.noise, self.begun, self.finished = noise, [], []
+
+    @staticmethod
+    def key(genome):
+        return np.asarray(genome).tobytes()
+
+    def submit(self, genomes):
+        genomes = [np.array(g) for g in genomes]
+        begun = _Begun(genomes, [FITNESS(g) + self.noise * (sum(self.key(g)) % 3 == 0) for g in genomes])
+        self.begun.append(begun)
+        return begun
+
+    def finish(self, genomes, begun):
+        assert [self.key(g) for g in genomes] == [self.key(g) for g in begun.genomes]  # of exactly these
+        self.finished.append(begun)
+        return [FITNESS(g) for g in genomes]
+
+    def __call__(self, fitness, genomes):
+        return [fitness(g) for g in genomes]
+
+
+class _Begun:
+    def __init__(self, genomes, values):
+        self.genomes, self.values, self.cancelled = genomes, np.asarray(values, dtype=np.float64), False
+
+    def provisional(self):
+        return self.values
+
+    def cancel(self):
+        self.cancelled = True
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**16), noise=st.sampled_from([0.0, 1e-12, 0.5, 3.0]))
+def test_evaluating_ahead_changes_nothing_but_the_wait(seed, noise):
+    """Whatever the provisional fitness, the run is the one without evaluating ahead; an
+    evaluation begun ahead is finished only when it is of exactly the children bred, and
+    dropped otherwise."""
+    ahead = _Ahead(noise)
+    assert_same_run(run(seed, map=ahead), run(seed))
+    assert len(ahead.finished) == G + 1  # each generation once, generation 0 included
+    dropped = [b for b in ahead.begun if b.cancelled]
+    assert not any(b in dropped for b in ahead.finished)
+    assert len(ahead.begun) == G + 1 + len(dropped)  # one begun per generation, and one per wrong prediction
+    if noise == 0.0:  # the provisional fitness is the final one: every prediction is right
+        assert not dropped
+
+
+def test_a_wrong_prediction_is_dropped_and_the_run_still_the_same():
+    ahead = _Ahead(3.0)  # large: it reorders the selection
+    assert_same_run(run(3, map=ahead), run(3))
+    assert any(b.cancelled for b in ahead.begun)
