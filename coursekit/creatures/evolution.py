@@ -73,11 +73,6 @@ class SwimmerFitness:
     an exact simulator still has, and the first thing evolution finds
     (:mod:`coursekit.creatures.audit`) -- does not survive the finer integration; a swimmer's
     does.
-
-    With ``ahead`` (:func:`evolve_swimmers` sets it when there is an executor and every operator
-    is the library's), the engine begins the next generation's swims on the workers while this
-    process refines (:mod:`coursekit.ga.evolve`, "Evaluating ahead"): :meth:`submit` starts the
-    swims, :meth:`finish` refines; the run is the same.
     """
 
     seconds: float = 10.0
@@ -85,61 +80,24 @@ class SwimmerFitness:
     refine: int = 3
     executor: object = None
     chunks: int | None = None
-    ahead: bool = False
 
     def __call__(self, _fitness, creatures):
         creatures = list(creatures)
         if not creatures:
             return []
-        return self.finish(creatures, self.submit(creatures))
-
-    @staticmethod
-    def key(creature) -> str:
-        """What a creature's swim depends on: its genotype."""
-        return creature.to_json()
-
-    def submit(self, creatures) -> _Swims:
-        """The swims of ``creatures`` begun: on the executor's workers, a batch each, or here."""
-        creatures = list(creatures)
-        if self.executor is None or not creatures:
-            return _Swims([_swim((creatures, self.seconds, self.options))] if creatures else [], 1, len(creatures))
-        n = min(len(creatures), self.chunks or ga.evaluation.workers(self.executor))
-        jobs = [(creatures[k::n], self.seconds, self.options) for k in range(n)]
-        return _Swims([ga.evaluation.submit(_swim, job, self.executor) for job in jobs], n, len(creatures))
-
-    def finish(self, creatures, swims: _Swims) -> list[float]:
-        """The swims' fitness, the ``refine`` fittest refined (in this process)."""
-        creatures = list(creatures)
-        fitness = swims.provisional().copy()
-        if self.refine > 0 and creatures:
+        if self.executor is None:
+            fitness = _swim((creatures, self.seconds, self.options))
+        else:
+            n = min(len(creatures), self.chunks or ga.evaluation.workers(self.executor))
+            parts = ga.evaluation.parallel_map(_swim, [(creatures[k::n], self.seconds, self.options) for k in range(n)], self.executor)
+            fitness = np.empty(len(creatures))
+            for k, f in enumerate(parts):
+                fitness[k::n] = f
+        if self.refine > 0:
             top = np.argsort(-fitness, kind="stable")[: self.refine]
             fine = {**self.options, "substeps": 2 * self.options.get("substeps", 1)}
             fitness[top] = np.minimum(fitness[top], simulate([creatures[i] for i in top], self.seconds, **fine).fitness)
         return [float(f) for f in fitness]
-
-
-class _Swims:
-    """Swims begun (:meth:`SwimmerFitness.submit`): ``parts`` are the batches' fitness arrays or
-    futures of them, every ``n``-th creature in the same batch."""
-
-    def __init__(self, parts: list, n: int, size: int):
-        self.parts, self.n, self.size = parts, n, size
-        self._fitness = None
-
-    def provisional(self) -> np.ndarray:
-        """The fitness of the swims, before refinement (waits for the batches)."""
-        if self._fitness is None:
-            fitness = np.empty(self.size)
-            for k, part in enumerate(self.parts):
-                fitness[k::self.n] = part.result() if hasattr(part, "result") else part
-            self._fitness = fitness
-        return self._fitness
-
-    def cancel(self) -> None:
-        """Drop the swims (those not started yet are not run)."""
-        for part in self.parts:
-            if hasattr(part, "cancel"):
-                part.cancel()
 
 
 def _swim(job):
@@ -215,7 +173,7 @@ def evolve_swimmers(
             options.setdefault("joint_types", joint_types)
         population = [Creature.random(rng, **options) for _ in range(population_size)]
     population = list(population)
-    vary, evaluate = _breeding(seconds, mutate, crossover, graft, ratios, executor, simulate_options, joint_types, select)
+    vary, evaluate = _breeding(seconds, _with_joint_types(mutate, joint_types), crossover, graft, ratios, executor, simulate_options)
     if elite is None:
         elite = max(1, math.ceil(len(population) / 5))
     return ga.evolve(
@@ -246,8 +204,7 @@ def resume_swimmers(
     result equals, bit for bit, that of the uninterrupted run. ``generations`` is the total the
     run should reach.
     """
-    # the selection comes from the checkpoint, and may be a student's: no evaluating ahead
-    vary, evaluate = _breeding(seconds, mutate, crossover, graft, ratios, executor, simulate_options, joint_types, select=None)
+    vary, evaluate = _breeding(seconds, _with_joint_types(mutate, joint_types), crossover, graft, ratios, executor, simulate_options)
     return ga.resume(checkpoint, _unbatched, vary, generations=generations, map=evaluate, progress=progress, callback=callback)
 
 
@@ -258,20 +215,13 @@ def _with_joint_types(mutate, joint_types):
     return functools.partial(mutate, joint_types=list(joint_types))
 
 
-def _breeding(seconds, mutate, crossover, graft, ratios, executor, simulate_options, joint_types, select):
-    """The variation (Sims' shares of mutated, recombined and grafted children) and the fitness.
-
-    The fitness evaluates ahead (:class:`SwimmerFitness`) only with an executor and the library's
-    own operators, selection and fitness: a student's runs only when the run itself needs it."""
+def _breeding(seconds, mutate, crossover, graft, ratios, executor, simulate_options):
+    """The variation (Sims' shares of mutated, recombined and grafted children) and the fitness."""
     if len(ratios) != 3 or any(not (r >= 0) for r in ratios):
         raise ValueError(f"ratios: need three shares >= 0 (mutation, crossover, grafting), got {ratios!r}")
-    library = (mutate is operators.mutate and crossover in (operators.crossover, None) and graft in (operators.graft, None)
-               and select is ga.sims_select and "fitness" not in simulate_options)
-    mutate = _with_joint_types(mutate, joint_types)
     parts = [(ratios[0], mutate, 1)]
     if crossover is not None and ratios[1] > 0:
         parts.append((ratios[1], Mated(crossover, mutate), 2))
     if graft is not None and ratios[2] > 0:
         parts.append((ratios[2], Mated(graft, mutate), 2))
-    return ga.Variation(parts), SwimmerFitness(seconds, dict(simulate_options), executor=executor,
-                                               ahead=executor is not None and library)
+    return ga.Variation(parts), SwimmerFitness(seconds, dict(simulate_options), executor=executor)

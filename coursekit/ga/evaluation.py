@@ -48,16 +48,6 @@ def parallel_map(func: Callable, items: Sequence, executor: Any, *, chunksize: i
     raise TypeError(f"executor: expected a concurrent.futures.Executor or a dask distributed.Client, got {type(executor).__name__}")
 
 
-def submit(func: Callable, item: Any, executor: Any):
-    """``func(item)`` started on ``executor`` (a ``concurrent.futures.Executor`` or a Dask
-    ``distributed.Client``): a future with ``result()`` and ``cancel()``."""
-    if is_dask_client(executor):
-        return executor.submit(func, item, pure=False)
-    if hasattr(executor, "submit"):
-        return executor.submit(func, item)
-    raise TypeError(f"executor: expected a concurrent.futures.Executor or a dask distributed.Client, got {type(executor).__name__}")
-
-
 def workers(executor: Any) -> int:
     """How many tasks ``executor`` runs at once (its processes or Dask threads)."""
     if is_dask_client(executor):

@@ -15,21 +15,10 @@ Generation 0 is the evaluated initial population, so ``generations=G`` breeds G 
 and the history has G + 1 entries. All randomness comes from the one ``rng``, consumed in the
 main process in a fixed order (evaluation takes none), so a seed fixes the run on every back end
 and :func:`resume` continues a checkpoint bit for bit.
-
-**Evaluating ahead.** A ``map`` whose evaluation has a cheap provisional stage and a final one
-(``map.ahead`` true, with ``map.submit(genomes)``, ``map.finish(genomes, submitted)`` and
-``map.key(genome)``; the swimmers' :class:`~coursekit.creatures.evolution.SwimmerFitness`,
-whose final stage refines the fittest few in this process) lets the loop predict the next
-generation from the provisional fitness (selection and variation on a copy of ``rng``) and
-start its evaluation on the workers while this generation's is finished here. The next
-generation is then bred as always, from the final fitness and the real ``rng``; the evaluation
-begun ahead is used only if it is of exactly those children (``key`` for key), otherwise
-dropped. So the run is the same, bit for bit; only the wait changes.
 """
 
 from __future__ import annotations
 
-import copy
 import numbers
 import os
 import pickle
@@ -127,37 +116,8 @@ class _Run:
         if self.elite > n:
             raise ValueError(f"elite: cannot keep {self.elite} elites in a population of {n}")
 
-    def evaluate(self, genomes, begun=None) -> np.ndarray:
-        """Fitness of ``genomes``; ``begun``: their evaluation begun (``map.submit``), to finish."""
-        if begun is not None:
-            return evaluate(self.fitness, genomes, map=lambda _fitness, g: self.map.finish(g, begun))
+    def evaluate(self, genomes) -> np.ndarray:
         return evaluate(self.fitness, genomes, map=self.map, executor=self.executor)
-
-    def begin(self, genomes, ahead):
-        """The evaluation of ``genomes``: the one begun ahead if it is of these genomes, else begun
-        now; None when the map does not evaluate ahead (module docstring)."""
-        if not getattr(self.map, "ahead", False):
-            return None
-        if ahead is not None:
-            keys, begun = ahead
-            if keys == [self.map.key(g) for g in genomes]:
-                return begun
-            begun.cancel()
-        return self.map.submit(genomes)
-
-    def predict(self, kept, kept_fitness, children, begun, rng, n):
-        """The next generation bred from the provisional fitness of ``children`` (on a copy of
-        ``rng``), its evaluation begun: ``(keys, begun)``, or None when that fails (the real
-        breeding then says what is wrong)."""
-        try:
-            population = list(kept) + list(children)
-            fitness = np.concatenate([np.asarray(kept_fitness, dtype=np.float64), begun.provisional()])
-            r = copy.deepcopy(rng)
-            idx = self.parents(fitness, n - self.elite, r)
-            kids = list(self.vary([population[i] for i in idx], r))
-            return [self.map.key(k) for k in kids], self.map.submit(kids)
-        except Exception:
-            return None
 
     def save(self, population, fitness, history, generation, generations, rng) -> None:
         if self.checkpoint is None:
@@ -191,7 +151,7 @@ class _Run:
             raise ValueError(f"select: indices must lie in [0, {fitness.size}), got values in [{idx.min()}, {idx.max()}]")
         return idx
 
-    def loop(self, population, fitness, history, start, generations, rng, ahead=None) -> EvolutionResult:
+    def loop(self, population, fitness, history, start, generations, rng) -> EvolutionResult:
         n = len(population)
         self.check_elite(n)
         from tqdm.auto import tqdm
@@ -206,11 +166,7 @@ class _Run:
                 children = list(self.vary([population[i] for i in idx], rng))
                 if len(children) != n - self.elite:
                     raise ValueError(f"vary: returned {len(children)} children for {n - self.elite} parents; expected one per parent")
-                begun = self.begin(children, ahead)
-                ahead = None
-                if begun is not None and generation + 1 < generations:
-                    ahead = self.predict([population[i] for i in elites], fitness[elites], children, begun, rng, n)
-                child_fitness = self.evaluate(children, begun)
+                child_fitness = self.evaluate(children)
                 population = [population[i] for i in elites] + children
                 fitness = np.concatenate([fitness[elites], child_fitness])
                 generation += 1
@@ -218,8 +174,6 @@ class _Run:
                 bar.update(1)
                 bar.set_postfix(best=f"{fitness.max():.4g}", refresh=False)
                 if self.after_generation(population, fitness, history, generation, generations, rng):
-                    if ahead is not None:  # a generation that will not be bred
-                        ahead[1].cancel()
                     bar.total = generation  # stopped early: the bar ends full, and says why
                     bar.set_description(f"evolve (stopped at generation {generation} of {generations})")
                     bar.refresh()
@@ -278,16 +232,12 @@ def evolve(
                checkpoint=checkpoint, progress=progress, callback=callback)
     run.check_elite(len(population))
     population = list(population)
-    begun = run.begin(population, None)
-    ahead = run.predict([], [], population, begun, rng, len(population)) if begun is not None and generations else None
-    fit = run.evaluate(population, begun)
+    fit = run.evaluate(population)
     history = History()
     history.record(0, fit, run.diversity(population), len(population))
     if run.after_generation(population, fit, history, 0, generations, rng):
-        if ahead is not None:
-            ahead[1].cancel()
         return _result(population, fit, history, 0)
-    return run.loop(population, fit, history, 0, generations, rng, ahead)
+    return run.loop(population, fit, history, 0, generations, rng)
 
 
 def resume(
