@@ -163,15 +163,14 @@ def audit(creatures: Any, seconds: float = 10.0, *, dt: float = 1.0 / 60.0, exec
     jobs = [(run, creatures, seconds, dt, dict(options)) for run in RUNS]
     runs = parallel_map(_run, jobs, executor) if executor is not None else [_run(job) for job in jobs]
     fine, vacuum_fine, swim, passive, vacuum = runs
-    dist = lambda r, i: r.distance(i)  # noqa: E731
     energy = swim.work
     reports = []
     for i, b in enumerate(bodies):
-        d = dist(swim, i)
+        d = swim.distance(i)
         mass = float(b.mass.sum())
         rep = AuditReport(
-            speed=d / seconds, body_length=body_length(b), fine_speed=dist(fine, i) / seconds,
-            passive_drift=dist(passive, i), vacuum_drift=dist(vacuum, i), vacuum_drift_fine=dist(vacuum_fine, i),
+            speed=d / seconds, body_length=body_length(b), fine_speed=fine.distance(i) / seconds,
+            passive_drift=passive.distance(i), vacuum_drift=vacuum.distance(i), vacuum_drift_fine=vacuum_fine.distance(i),
             limit_excess=float(swim.limit_excess[i]), diverged=bool(swim.diverged[i] or fine.diverged[i]),
             energy=energy[i], cost_of_transport=energy[i] / (mass * d) if d > 0 else float("inf"),
         )
