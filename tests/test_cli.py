@@ -186,6 +186,16 @@ def test_bench_runs_a_benchmark_and_passes_its_options():
     assert "children: 126 checked (1 sessions x 7 operators" in run.stdout  # the options reached the script
 
 
+def test_bench_refuses_a_bad_option_by_name():
+    """A count the benchmark divides by (``--reference-sample 0`` once ended in ZeroDivisionError after a
+    minute of rendering) is refused at once, naming the option."""
+    run = subprocess.run([sys.executable, "-m", "coursekit", "bench", "pictures", "--reference-sample", "0"],
+                         capture_output=True, text=True)
+    assert run.returncode != 0
+    assert "argument --reference-sample: must be an integer >= 1, got 0" in run.stderr
+    assert "Traceback" not in run.stderr
+
+
 def test_bench_says_what_a_benchmark_needs(monkeypatch, capsys):
     """Without MuJoCo the simulator benchmark is refused with the command that installs it."""
     import importlib.util
