@@ -67,8 +67,8 @@ def test_the_final_champions_score_what_the_simulator_scores_them(data):
     off = np.array([min(abs(r.best_ms[-1] - a), abs(r.best_ms[-1] - min(a, b))) / a for r, a, b in zip(runs, raw, fine)])
     # The file was made on another CPU. Most champions score the same to every digit here; a rare
     # one does not (on an AMD EPYC without AVX-512, one of 35 by 3.8 %, where numpy and torch
-    # agree with each other to 8 digits: a discrete event -- a contact, a limit -- that went the
-    # other way). A change to the physics moves them all, so the test asks for the bulk: with 1 %
+    # agree with each other to 8 digits there; not explained, perhaps a contact or a limit that
+    # went the other way). A change to the physics moves them all, so the test asks for the bulk: with 1 %
     # more drag, 86 % are within 2 % (median 0.45 %, worst 38 %), and it fails.
     assert np.median(off) <= 0.005, np.round(off, 4)
     assert np.mean(off <= 0.02) >= 0.9, np.round(off, 4)
