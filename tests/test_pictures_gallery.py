@@ -10,6 +10,7 @@ import pytest
 
 from coursekit.pictures import operators as O
 from coursekit.pictures.gallery import Gallery, GalleryState
+from coursekit.profile import sized
 from tests.test_pictures_genome import assert_valid
 
 SMALL = {"n_strings": 2, "head_length": 3}
@@ -627,7 +628,7 @@ def test_a_students_operator_runs_only_when_its_button_is_pressed():
     assert calls == [] and g._ahead is None
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=sized(classroom=25, ci=12), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(st.tuples(st.lists(st.integers(0, 5), max_size=3),
                           st.sampled_from(["evolve", "transposition", "substitution", "crossover", "random_copy",
                                            "undo", "redo", "zoom in", "reset view", "new random"]),
