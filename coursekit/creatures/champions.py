@@ -6,10 +6,11 @@ with, and what it measured then: its speed over 10 s (m/s) and its body length (
 lengths per second. A run is deterministic for its seed, its code and the machine it runs on, but
 evolution is chaotic: any change to the physics sends it down another path, and so can another
 machine with the same packages (an AMD EPYC without AVX-512 runs the Sims-scale seed 0 at the code
-it was evolved with, ``f6f3c88``, the same as today's code, and both match the shipped run at
-generation 0 and differ from it by generation 10: 0.0457 against 0.2037 m/s). So a champion is not
-re-derived on every change. What the tests check is what a student sees now: every champion still
-swims at its recorded pace, steadily, and passes the audit (:mod:`~coursekit.creatures.audit`).
+it was evolved with, ``f6f3c88``, generation by generation as today's code does, and both match the
+shipped run at generation 0 and differ from it by generation 10: 0.0457 against 0.2037 m/s). So a
+champion is not re-derived on every change. What the tests check is what a student sees now: every
+champion still swims at its recorded pace, steadily, and passes the audit
+(:mod:`~coursekit.creatures.audit`).
 
 >>> [round(c.body_lengths_per_second, 2) for c in hall_of_fame()]
 [0.12, 0.65, 0.9, 1.2]
