@@ -5,6 +5,8 @@ chromosomes of a genome, the PreHeader's links, the body tree's parts and colour
 every node of a recombined child, the ABA's visiting order, and collisions the contact code finds.
 """
 
+import gc
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -142,6 +144,8 @@ def test_the_aba_animation_ends_with_the_simulators_joint_accelerations():
         assert f"$\\ddot q$={qacc[5 + b]:.3g}" in shown
     anim._func(0)
     assert "sweep 1" in anim._fig.axes[0].get_title()
+    del anim  # never rendered on purpose: collected here, under this test's filter, not in a later test's
+    gc.collect()
 
 
 def test_bending_a_body_until_two_boxes_touch_shows_that_contact():
