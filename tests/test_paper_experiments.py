@@ -65,11 +65,12 @@ def test_the_final_champions_score_what_the_simulator_scores_them(data):
     fine = simulate(champions, seconds, substeps=2).fitness  # the evaluation re-scores its best in 2 sub-steps
     # scored either as it swam, or (if it was among the best of its batch) the lower of the two
     off = np.array([min(abs(r.best_ms[-1] - a), abs(r.best_ms[-1] - min(a, b))) / a for r, a, b in zip(runs, raw, fine)])
-    # The file was made on another machine. Most champions score the same to every digit here; a
-    # rare one does not (on an AMD EPYC without AVX-512, one of 35 by 3.8 %, with numpy and torch
-    # agreeing with each other to 8 digits there; not explained). A change to the physics moves
-    # them all, so the test asks for the bulk: with 1 % more drag, 86 % are within 2 % (median
-    # 0.45 %, worst 38 %), and it fails.
+    # The file was made on a machine with AVX-512. Most champions score the same to every digit
+    # elsewhere; a rare one does not (on an AMD EPYC with AVX2 only, one of 35 by 3.8 %): numpy's
+    # AVX2 and AVX-512 kernels of tan, exp, log and arctan differ in the last bit, and so does
+    # OpenBLAS's solve on other processors (coursekit.creatures.champions). A change to the physics
+    # moves them all, so the test asks for the bulk: with 1 % more drag, 86 % are within 2 %
+    # (median 0.45 %, worst 38 %), and it fails.
     assert np.median(off) <= 0.005, np.round(off, 4)
     assert np.mean(off <= 0.02) >= 0.9, np.round(off, 4)
     assert np.all(off <= 0.2), np.round(off, 4)

@@ -3,11 +3,17 @@
 Students should see a good swimmer without waiting for evolution. ``coursekit/data/champions.json``
 holds each champion's genotype with the command and seed that evolved it, the code it was evolved
 with, and what it measured then: its speed over 10 s (m/s) and its body length (m), hence body
-lengths per second. A run is deterministic for its seed, its code and the machine it runs on, but
-evolution is chaotic: any change to the physics sends it down another path, and so can another
-machine with the same packages (an AMD EPYC without AVX-512 runs the Sims-scale seed 0 at the code
-it was evolved with, ``f6f3c88``, generation by generation as today's code does, and both match the
-shipped run at generation 0 and differ from it by generation 10: 0.0457 against 0.2037 m/s). So a
+lengths per second. A run is deterministic for its seed, its code and the machine's floating-point
+kernels, but evolution is chaotic: any change to the physics sends it down another path, and so
+does a difference in the last bit of one function. Two such differences exist between x86-64
+machines with the same packages: numpy's AVX-512 kernels of ``tan`` (every joint transform,
+:mod:`~coursekit.creatures.physics.jcalc`), ``exp``, ``log`` and ``arctan`` (the brains' neurons)
+round differently from its AVX2 ones, and OpenBLAS's ``solve`` of the roots' 6 x 6 systems
+depends on the kernels it picks for the processor. The shipped runs were made on machines with
+AVX-512 (numpy's ``X86_V4``, OpenBLAS's ``SkylakeX`` kernels), where their commands follow them
+generation by generation; there,
+``NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" OPENBLAS_CORETYPE=Haswell`` (read when
+numpy loads) takes the path of an AVX2-only machine instead, to every digit (benchmarks/NOTES.md). So a
 champion is not re-derived on every change. What the tests check is what a student sees now: every
 champion still swims at its recorded pace, steadily, and passes the audit
 (:mod:`~coursekit.creatures.audit`).
