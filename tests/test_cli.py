@@ -266,3 +266,15 @@ def test_the_simulator_benchmark_runs_both_tables():
     for row in ("mujoco RK4 (1 thread)", "ours numpy RKN +collisions", "mujoco RK4 +collisions +brains",
                 "ours numpy RKN +collisions +brains", "our brains alone"):
         assert row in run.stdout, row
+
+
+def test_the_grading_benchmark_grades_a_set_and_says_what_each_notebook_should_get(tmp_path):
+    """`coursekit bench grading` through the grader an instructor runs: here the back-door set (the
+    library's work handed in), each notebook 0 points, with its grading time."""
+    table = tmp_path / "grading.md"
+    run = subprocess.run([sys.executable, "-m", "coursekit", "bench", "grading", "--sets", "back-doors", "--markdown", str(table)],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
+    assert "every notebook got what it should" in run.stdout
+    rows = [line.split("|")[1:-1] for line in table.read_text().splitlines() if line.startswith("| back-doors | cheats_")]
+    assert len(rows) == 3 and all(r[2].strip().startswith("0 / ") and r[4].strip() == "yes" and float(r[5]) > 0 for r in rows)

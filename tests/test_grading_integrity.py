@@ -72,6 +72,7 @@ def test_solution_gets_full_marks(solutions_and_exercises, stem):
     points, _ = EXERCISES[stem]
     sol = by_path[f"solutions/{stem}.ipynb"]
     assert sol["score"] == sol["max_score"] == points and sol["graded"] and sol["not_graded"] == []
+    assert type(sol["seconds"]) is float and sol["seconds"] > 0  # the grading's wall time, for the instructor
     assert f"solutions/{stem}.ipynb: {points:g} / {points:g} points" in stdout
 
 

@@ -340,7 +340,8 @@ def main(args: argparse.Namespace) -> int:
                                           seed=getattr(args, "seed", None),
                                           max_processes=getattr(args, "max_processes", supervisor.MAX_PROCESSES),
                                           disk_mb=getattr(args, "disk_mb", supervisor.DISK_MB)))
-            results[-1].notes.append(f"graded in {time.monotonic() - t0:.1f} s (cases drawn with --seed {results[-1].seed})")
+            results[-1].seconds = round(time.monotonic() - t0, 2)
+            results[-1].notes.append(f"graded in {results[-1].seconds:.1f} s (cases drawn with --seed {results[-1].seed})")
     except supervisor.Terminated as exc:  # the notebook's processes and private folder are gone already
         print(f"coursekit grade: {exc}; no results written", file=sys.stderr)
         return 128 + exc.signum

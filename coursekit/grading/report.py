@@ -32,6 +32,7 @@ class NotebookResult:
     notes: list
     not_graded: list = field(default_factory=list)  # why the score does not stand (cells skipped...)
     seed: int | None = None  # the seed of the grading cases (``--seed`` repeats them)
+    seconds: float | None = None  # wall time of its grading, kernel start and sandbox included
 
     @property
     def graded(self) -> bool:
@@ -105,7 +106,8 @@ def gradescope(results: list) -> dict:
         "tests": tests,
         "extra_data": {"format": RESULTS_FORMAT,
                        "notebooks": [{"path": clean(r.path), "score": r.score, "max_score": r.max_score, "graded": r.graded,
-                                      "not_graded": [clean(n) for n in r.not_graded], "seed": r.seed} for r in results]},
+                                      "not_graded": [clean(n) for n in r.not_graded], "seed": r.seed,
+                                      "seconds": r.seconds} for r in results]},
     }
 
 
