@@ -65,8 +65,8 @@ def test_the_final_champions_score_what_the_simulator_scores_them(data):
     fine = simulate(champions, seconds, substeps=2).fitness  # the evaluation re-scores its best in 2 sub-steps
     # scored either as it swam, or (if it was among the best of its batch) the lower of the two
     off = np.array([min(abs(r.best_ms[-1] - a), abs(r.best_ms[-1] - min(a, b))) / a for r, a, b in zip(runs, raw, fine)])
-    # The file was made on a machine with AVX-512. Most champions score the same to every digit
-    # elsewhere; a rare one does not (on an AMD EPYC with AVX2 only, one of 35 by 3.8 %): numpy's
+    # The file was made on a machine with AVX-512: on one (an Intel Xeon) all 35 score its figures
+    # to every digit. Elsewhere a rare one does not (on an AMD EPYC with AVX2 only, one by 3.8 %): numpy's
     # AVX2 and AVX-512 kernels of tan, exp, log and arctan differ in the last bit, and so does
     # OpenBLAS's solve on other processors (coursekit.creatures.champions). A change to the physics
     # moves them all, so the test asks for the bulk: with 1 % more drag, 86 % are within 2 %
