@@ -20,7 +20,8 @@ costs more than drawing a small creature.
 Mesa's software renderer and triton (which CUDA builds of torch import on first use of
 ``torch._dynamo``) each load their own LLVM, and triton loaded after Mesa crashes the process
 (a segmentation fault, measured with torch 2.14.1+cu130). So before its first plotter this
-module imports ``torch._dynamo`` when triton is installed: loaded in that order, both work.
+module imports ``triton`` when it is installed (0.3 s; ``torch._dynamo``, which imports it, takes
+4 s): loaded in that order, both work.
 """
 
 from __future__ import annotations
@@ -136,7 +137,7 @@ def _check_size(size, *, even: bool = False):
 def _triton_before_mesa() -> None:
     """Load triton's LLVM before Mesa's (see the module docstring); once, and only where triton is installed."""
     if importlib.util.find_spec("triton") is not None:
-        import torch._dynamo  # noqa: F401  (imports triton)
+        import triton  # noqa: F401  (loads its LLVM, libtriton)
 
 
 _SHARED: dict[int, object] = {}  # process id -> the off-screen plotter every picture of that process reuses
