@@ -12,6 +12,21 @@ ROOT = Path(__file__).resolve().parent.parent  # the checkout, where solutions/ 
 DEFAULT_COURSE_DIR = "coursekit-course"
 
 
+def _number(kind: type, low: float, *, above: bool = False):
+    """An argparse type: a ``kind`` (int or float) >= ``low`` (> with ``above``); argparse names the
+    option when the value is not one."""
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            value = None
+        if value is None or value != value or (value <= low if above else value < low):
+            raise argparse.ArgumentTypeError(f"must be {'an integer' if kind is int else 'a number'} "
+                                             f"{'>' if above else '>='} {low:g}, got {text}")
+        return value
+    return parse
+
+
 def _lab(folder: Path, open_rel: str, no_browser: bool, extra: list[str]) -> int:
     """JupyterLab serving the working folder ``folder`` (lessons link to ../exercises), opened at ``open_rel``.
 
@@ -55,12 +70,13 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from coursekit import demos
 
     sizes = dict(population=args.population, generations=args.generations, seconds=args.seconds, seed=args.seed,
-                 workers=args.workers)
+                 workers=args.workers, budget=args.budget)
     if args.name is None:
         result = demos.both(args.out or "coursekit-demo", **sizes)
         summary = result["swimmers"]
         print(f"best swimmer: {summary['best_speed']:.3f} m/s = {summary['best_body_lengths_per_second']:.3f} body lengths/s, "
               f"{summary['best_parts']} parts; audit: {summary['audit']}")
+        _say_budget(summary)
         print(f"demo written in {result['wall_seconds']:.0f} s (evolution {summary['wall_seconds']['evolution']:.0f} s "
               f"on {summary['workers']} processes); open {result['index']}")
         return 0
@@ -69,12 +85,19 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         print(f"best swimmer: {summary['best_speed']:.3f} m/s = {summary['best_body_lengths_per_second']:.3f} body lengths/s "
               f"(fitness {summary['best_fitness']:.4f} m/s), {summary['best_parts']} parts")
         print(f"audit: {summary['audit']}")
+        _say_budget(summary)
         print(f"wrote {', '.join(summary['files'])} to {args.out or 'swimmers-demo'}/")
         return 0
     folder = _working_copy(args.dir)
     if folder is None:
         return 2
     return _lab(folder, "demos/picture_breeding.ipynb", args.no_browser, args.extra)
+
+
+def _say_budget(summary: dict) -> None:
+    if summary["stopped_by_budget"]:
+        print(f"evolution stopped after generation {summary['generations']} of {summary['generations_planned']}: the next "
+              f"would have ended after the {summary['budget']:g} s budget (--budget 0 breeds them all)")
 
 
 def _cmd_grade(args: argparse.Namespace) -> int:
@@ -158,11 +181,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="one demo (default: both, into --out with an index.html)")
     s.add_argument("--out", help="output folder (default coursekit-demo/; swimmers alone: swimmers-demo/)")
     s.add_argument("--dir", default=DEFAULT_COURSE_DIR, help=f"pictures: the working folder the course is copied to (default ./{DEFAULT_COURSE_DIR})")
-    s.add_argument("--population", type=int, help="population size (default by COURSEKIT_PROFILE)")
-    s.add_argument("--generations", type=int, help="generations (default by COURSEKIT_PROFILE)")
-    s.add_argument("--seconds", type=float, help="swimming seconds per evaluation")
+    s.add_argument("--population", type=_number(int, 2), help="population size (default by COURSEKIT_PROFILE)")
+    s.add_argument("--generations", type=_number(int, 0), help="generations (default by COURSEKIT_PROFILE)")
+    s.add_argument("--seconds", type=_number(float, 0, above=True), help="swimming seconds per evaluation")
     s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    s.add_argument("--workers", type=int, help="processes the swimmers swim in (default: one per core)")
+    s.add_argument("--workers", type=_number(int, 1), help="processes the swimmers swim in (default: one per core)")
+    s.add_argument("--budget", type=_number(float, 0), help="seconds the swimmers' evolution may take: no generation is begun that "
+                   "would end after them (default by COURSEKIT_PROFILE: 75 in the classroom; 0: no limit)")
     s.add_argument("--no-browser", action="store_true", help="pictures: do not open a browser window")
     s.set_defaults(func=_cmd_demo)
 

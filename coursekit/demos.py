@@ -67,9 +67,26 @@ def _lowest_priority() -> None:
         os.nice(19)
 
 
+class _Budget:
+    """An :func:`~coursekit.creatures.evolve_swimmers` callback that stops the run before a
+    generation that, taking as long as the last one did, would end more than ``seconds`` after
+    ``start`` (0: never stops it). What runs is the same run, generation by generation: only where
+    it ends depends on the machine's speed."""
+
+    def __init__(self, seconds: float, start: float):
+        self.seconds, self.start, self.last = seconds, start, start
+        self.stopped = False
+
+    def __call__(self, result) -> bool:
+        now = time.perf_counter()
+        took, self.last = now - self.last, now
+        self.stopped = 0 < self.seconds < now - self.start + took
+        return self.stopped
+
+
 def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int | None = None,
              generations: int | None = None, seconds: float | None = None, seed: int = 0, workers: int | None = None,
-             progress: bool = True) -> dict:
+             budget: float | None = None, progress: bool = True) -> dict:
     """Evolve swimmers and write the champion's files and the run's fitness plot to ``out``.
 
     Files: ``best.json``, ``best.png``, ``best.mp4`` and ``best.gif`` (the champion swimming, the
@@ -83,6 +100,12 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
     5 s; ci: tiny).
 
     Args:
+        budget: seconds the live evolution may take, so that the demo fits a lecture's break on
+            any laptop: no generation is begun that, taking as long as the last one, would end
+            after them (default by profile: classroom 75 s -- with the films and the audit after
+            it, about 2 minutes in all on 2 cores; ci and 0: no limit). The run is the same run
+            either way, cut short: ``generations`` in the summary is what was bred, and
+            ``--budget 0`` breeds them all.
         workers: processes the population swims in (default: one per core; 1: this process).
             The run is bit for bit the same either way. With more than one, the shipped
             champions are filmed while evolution runs (in a process at the lowest priority) and
@@ -105,6 +128,9 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
     generations = sized(classroom=8, ci=1) if generations is None else generations
     seconds = seconds or sized(classroom=10.0, ci=0.5)
     workers = workers or os.cpu_count() or 1
+    budget = sized(classroom=75.0, ci=0.0) if budget is None else budget
+    if not (isinstance(budget, (int, float)) and budget >= 0):
+        raise ValueError(f"budget: must be a number of seconds >= 0 (0: no limit), got {budget!r}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     wall, t0 = {}, time.perf_counter()
@@ -123,8 +149,9 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
     try:
         shot = (filming.submit(_films, champions, seconds, str(out), [f"champion-{k}" for k in range(len(champions))],
                                progress=False) if filming is not None else None)  # no bars under evolution's
+        clock = _Budget(budget, t)
         result = evolve_swimmers(generations=generations, rng=rng, population_size=population, seconds=seconds,
-                                 progress=progress, random_options=dict(max_parts=16), executor=pool)
+                                 progress=progress, random_options=dict(max_parts=16), executor=pool, callback=clock)
         wall["evolution"] = time.perf_counter() - t
         best = result.best
         t = time.perf_counter()
@@ -165,7 +192,8 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
     fig, ax = plt.subplots(figsize=(6, 3.5))
     result.history.plot(ax=ax)
     ax.set_ylabel("fitness: swimming speed (m/s)")
-    ax.set_title(f"Swimmers: {population} creatures, {generations} generations")
+    bred = f"{result.generation} of {generations} generations (the {budget:g} s budget)" if clock.stopped else f"{generations} generations"
+    ax.set_title(f"Swimmers: {population} creatures, {bred}")
     ax.annotate(f"champion: {report.speed:.3f} m/s = {report.body_lengths_per_second:.3f} body lengths/s\n"
                 f"(body length {report.body_length:.2f} m)", xy=(0.02, 0.97), xycoords="axes fraction",
                 va="top", fontsize=8, bbox=dict(boxstyle="round", fc="white", alpha=0.8))
@@ -174,7 +202,8 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
     plt.close(fig)
     wall["total"] = time.perf_counter() - t0
     summary = {
-        "population": population, "generations": generations, "seconds": seconds, "seed": seed, "workers": workers,
+        "population": population, "generations": result.generation, "generations_planned": generations,
+        "budget": budget, "stopped_by_budget": clock.stopped, "seconds": seconds, "seed": seed, "workers": workers,
         "best_fitness": float(result.best_fitness), "best_parts": int(best.expand().body.n_bodies),
         "best_speed": report.speed, "best_body_length": report.body_length,
         "best_body_lengths_per_second": report.body_lengths_per_second,
@@ -269,7 +298,7 @@ code {{ background: #f3f3f3; padding: 0 0.2em; }}
 Computer Graphics Education</em> and Karl Sims' <em>Evolving Virtual Creatures</em> (1994) and
 <em>Artificial Evolution for Computer Graphics</em> (1991).</p>
 <h2>Swimmers: a live run</h2>
-<p>{population} random creatures, {generations} generations of Sims' recipe, {seconds:g} s of swimming each
+<p>{population} random creatures, {generations}, {seconds:g} s of swimming each
 ({evolution:.0f} s on {workers} processes). The champion swims {speed:.3f} m/s =
 {blps:.3f} body lengths per second. Audit: {audit}</p>
 <div class="row">
@@ -292,14 +321,23 @@ Breed your own: <code>coursekit demo pictures</code> (the session goes on from
 """
 
 
+def _bred(summary: dict) -> str:
+    """How many generations a run bred, and why no more."""
+    bred = f"{summary['generations']} generations of Sims' recipe"
+    if summary["stopped_by_budget"]:
+        bred += f" (of {summary['generations_planned']}: the next would have ended after the {summary['budget']:g} s budget)"
+    return bred
+
+
 def _links(page: str) -> list[str]:
     return re.findall(r'(?:src|href)="([^"]+)"', page)
 
 
 def both(out: str | os.PathLike[str] = "coursekit-demo", *, population: int | None = None,
          generations: int | None = None, seconds: float | None = None, seed: int = 0, workers: int | None = None,
-         progress: bool = True) -> dict:
-    """Both demos into ``out`` (``swimmers/``, ``pictures/``) and an ``index.html`` that opens them.
+         budget: float | None = None, progress: bool = True) -> dict:
+    """Both demos into ``out`` (``swimmers/``, ``pictures/``) and an ``index.html`` that opens them
+    (the options are :func:`swimmers`').
 
     Returns:
         ``{"swimmers": ..., "pictures": ..., "index": path, "wall_seconds": ...}``; every file the
@@ -308,7 +346,7 @@ def both(out: str | os.PathLike[str] = "coursekit-demo", *, population: int | No
     out = Path(out)
     t0 = time.perf_counter()
     sw = swimmers(out / "swimmers", population=population, generations=generations, seconds=seconds, seed=seed,
-                  workers=workers, progress=progress)
+                  workers=workers, budget=budget, progress=progress)
     pi = pictures(out / "pictures", seed=seed)
     total = time.perf_counter() - t0
     esc = html.escape
@@ -325,7 +363,7 @@ def both(out: str | os.PathLike[str] = "coursekit-demo", *, population: int | No
                            f'{esc(e[:120])}{"..." if len(e) > 120 else ""}</code></figcaption></figure>'
                            for k, (f, e) in enumerate(zip(pi["favourites"], pi["expressions"])))
     page = _PAGE.format(
-        total=total, population=sw["population"], generations=sw["generations"], seconds=sw["seconds"],
+        total=total, population=sw["population"], generations=_bred(sw), seconds=sw["seconds"],
         evolution=sw["wall_seconds"]["evolution"], workers=sw["workers"], speed=sw["best_speed"],
         blps=sw["best_body_lengths_per_second"], audit=esc(sw["audit"]), fw=FILM_SIZE[0], fh=FILM_SIZE[1],
         mp4=f"swimmers/{sw['films']['mp4']}", gif=f"swimmers/{sw['films']['gif']}", json="swimmers/best.json",

@@ -239,6 +239,39 @@ def test_the_swimmer_demo_films_a_champion_that_is_its_own_best_once(tmp_path, m
 
 
 
+def test_the_swimmer_demo_keeps_to_its_budget_by_breeding_fewer_generations_of_the_same_run(tmp_path, monkeypatch):
+    """``budget``: no generation is begun that would end after it, so a slow laptop shows fewer
+    generations, of the very same run, and says so; a budget the run fits in changes nothing."""
+    import importlib
+    import json
+
+    from coursekit import demos
+
+    monkeypatch.setenv("COURSEKIT_PROFILE", "ci")
+    monkeypatch.setattr(importlib.import_module("coursekit.creatures.champions"), "hall_of_fame", lambda: [])
+    full = demos.swimmers(tmp_path / "full", seed=2, generations=2, workers=1, progress=False)
+    roomy = demos.swimmers(tmp_path / "roomy", seed=2, generations=2, workers=1, budget=1e9, progress=False)
+    tight = demos.swimmers(tmp_path / "tight", seed=2, generations=2, workers=1, budget=1e-9, progress=False)
+    assert full["generations"] == roomy["generations"] == 2 and not full["stopped_by_budget"] | roomy["stopped_by_budget"]
+    assert roomy["history_best"] == full["history_best"]
+    assert (tight["generations"], tight["generations_planned"], tight["stopped_by_budget"]) == (0, 2, True)
+    assert tight["history_best"] == full["history_best"][:1]  # generation 0 of the same run
+    assert json.loads((tmp_path / "tight" / "summary.json").read_text())["stopped_by_budget"] is True
+    assert demos._bred(tight) == "0 generations of Sims' recipe (of 2: the next would have ended after the 1e-09 s budget)"
+    with pytest.raises(ValueError, match="budget: must be a number of seconds >= 0"):
+        demos.swimmers(tmp_path / "bad", budget=-1.0)
+
+
+@pytest.mark.parametrize("option, message", [("--budget=-1", "argument --budget: must be a number >= 0, got -1"),
+                                             ("--population=1", "argument --population: must be an integer >= 2, got 1"),
+                                             ("--seconds=0", "argument --seconds: must be a number > 0, got 0")])
+def test_the_demo_refuses_a_bad_size_by_name_before_it_starts(option, message, tmp_path):
+    run = subprocess.run([sys.executable, "-m", "coursekit", "demo", "swimmers", option, "--out", str(tmp_path / "d")],
+                         capture_output=True, text=True)
+    assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr
+    assert not (tmp_path / "d").exists()
+
+
 def test_bench_runs_everything_but_what_this_machine_lacks(monkeypatch, capsys):
     """`coursekit bench` with no names runs every script but the GPU one where there is no GPU
     (named, it runs, and says itself that it has nothing to measure)."""
