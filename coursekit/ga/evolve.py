@@ -171,8 +171,8 @@ class _Run:
                 fitness = np.concatenate([fitness[elites], child_fitness])
                 generation += 1
                 history.record(generation, fitness, self.diversity(population), len(children))
+                bar.set_postfix(best=f"{fitness.max():.4g}", refresh=False)  # before the update that shows it
                 bar.update(1)
-                bar.set_postfix(best=f"{fitness.max():.4g}", refresh=False)
                 if self.after_generation(population, fitness, history, generation, generations, rng):
                     bar.total = generation  # stopped early: the bar ends full, and says why
                     bar.set_description(f"evolve (stopped at generation {generation} of {generations})")
