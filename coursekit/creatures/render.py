@@ -20,8 +20,7 @@ costs more than drawing a small creature.
 Mesa's software renderer and triton (which CUDA builds of torch import on first use of
 ``torch._dynamo``) each load their own LLVM, and triton loaded after Mesa crashes the process
 (a segmentation fault, measured with torch 2.14.1+cu130). So before its first plotter this
-module imports ``triton`` when it is installed (0.3 s; ``torch._dynamo``, which imports it, takes
-4 s): loaded in that order, both work.
+module imports ``triton`` where it is installed (0.3 s; ``torch._dynamo`` took 4 s): both then work.
 """
 
 from __future__ import annotations
