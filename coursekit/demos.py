@@ -164,10 +164,10 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
         text = best.to_json()
         own = next((k for k, c in enumerate(champions) if c.to_json() == text), None)  # the run's best shipped
         if shot is not None:
-            names = shot.result()
-            if own is None:
+            if own is None:  # filmed here while the champions' films end in their process
                 films = _films([best], seconds, str(out), ["best"])[0]
-            else:  # already filmed as that champion: its files become the best's
+            names = shot.result()
+            if own is not None:  # already filmed as that champion: its files become the best's
                 films = _names("best")
                 for kind, name in names[own].items():
                     os.replace(out / name, out / films[kind])
