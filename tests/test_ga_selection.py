@@ -195,6 +195,8 @@ def test_selection_pressure_orders_the_schemes():
         (lambda r: truncation([1.0, 2.0], 2, 42), TypeError, r"rng: expected a numpy.random.Generator"),
         (lambda r: sims_offspring([-1.0, -2.0], 4), ValueError, r"fitness: .*non-negative survivor fitness"),
         (lambda r: sims_offspring([1.0, 2.0], -4), ValueError, r"n_offspring"),
+        (lambda r: sims_select([1.0, 2.0], -4, r), ValueError, r"^k: expected a non-negative int, got -4"),
+        (lambda r: sims_select([1.0, 2.0], 2.5, r), TypeError, r"^k: expected a non-negative int"),
     ],
 )
 def test_bad_input_errors_name_the_field(call, exc, pattern):

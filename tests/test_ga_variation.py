@@ -71,6 +71,12 @@ def test_operator_bad_input():
         point_mutation([0, 1], rng)
     with pytest.raises(ValueError, match="b: parents must have the same length"):
         one_point_crossover(np.zeros(4, dtype=np.int8), np.zeros(5, dtype=np.int8), rng)
+    with pytest.raises(ValueError, match="genome: expected bits \\(0 or 1\\), got 2 at index 1"):
+        point_mutation(np.array([0, 2, 1]), rng)
+    with pytest.raises(TypeError, match="rng: expected a numpy.random.Generator"):
+        point_mutation(np.zeros(4, dtype=np.int8), None)
+    with pytest.raises(TypeError, match="rng: expected a numpy.random.Generator"):
+        one_point_crossover(np.zeros(4, dtype=np.int8), np.ones(4, dtype=np.int8), 0)
 
 
 @settings(max_examples=60, deadline=None)

@@ -14,6 +14,8 @@ import numbers
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .selection import _check_rng
+
 __all__ = ["point_mutation", "one_point_crossover"]
 
 
@@ -41,6 +43,12 @@ def point_mutation(genome: ArrayLike, rng: np.random.Generator, rate: float | No
     [0, 0, 1, 0, 1, 1, 0, 1]
     """
     genome = _check_genome("genome", genome)
+    rng = _check_rng(rng)
+    if genome.dtype != bool:
+        not_bit = (genome != 0) & (genome != 1)
+        if not_bit.any():
+            i = int(np.flatnonzero(not_bit)[0])
+            raise ValueError(f"genome: expected bits (0 or 1), got {genome[i]} at index {i}")
     if genome.size == 0:
         return genome.copy()
     if rate is None:
@@ -76,6 +84,7 @@ def one_point_crossover(a: ArrayLike, b: ArrayLike, rng: np.random.Generator) ->
     b = _check_genome("b", b)
     if a.shape != b.shape or a.dtype != b.dtype:
         raise ValueError(f"b: parents must have the same length and dtype, got {a.shape}/{a.dtype} and {b.shape}/{b.dtype}")
+    rng = _check_rng(rng)
     if a.size < 2:
         return a.copy(), b.copy()
     cut = int(rng.integers(1, a.size))

@@ -220,6 +220,7 @@ def sims_select(fitness: ArrayLike, k: int, rng: np.random.Generator, survival: 
     Returns:
         ``int64`` array of ``k`` indices, index ``i`` occurring exactly ``sims_offspring(...)[i]`` times.
     """
+    k = _check_count("k", k)
     rng = _check_rng(rng)
     counts = sims_offspring(fitness, k, survival=survival)
     return rng.permutation(np.repeat(np.arange(counts.size, dtype=np.int64), counts))
