@@ -430,6 +430,10 @@ def _pop():
         (dict(map=map, executor=object()), ValueError, "give at most one of map= and executor="),
         (dict(executor=object()), TypeError, "executor: expected a concurrent.futures.Executor"),
         (dict(map=lambda f, gs: [1.0]), ValueError, "map: returned 1 fitness values for 6 genomes"),
+        (dict(vary=lambda parents, rng: None), TypeError, "vary: expected a list of 5 children, got NoneType"),
+        (dict(checkpoint=5), TypeError, "checkpoint: expected a file path"),
+        (dict(diversity=lambda population: "high"), ValueError, "diversity: diversity\\(population\\) returned 'high'"),
+        (dict(diversity=lambda population: float("nan")), ValueError, "diversity: .* returned nan; expected a finite number"),
     ],
 )
 def test_evolve_bad_input(kwargs, exc, pattern):
@@ -438,3 +442,24 @@ def test_evolve_bad_input(kwargs, exc, pattern):
     population, fitness, vary = args.pop("population"), args.pop("fitness"), args.pop("vary")
     with pytest.raises(exc, match=pattern):
         ga.evolve(population, fitness, vary, **args)
+
+
+@pytest.mark.parametrize(
+    "call, exc, pattern",
+    [
+        (lambda: ga.evaluate(None, [1]), TypeError, "fitness: expected a callable"),
+        (lambda: ga.evaluate(onemax, None), TypeError, "genomes: expected a list of genomes, got NoneType"),
+        (lambda: ga.mean_pairwise(5), TypeError, "distance: expected a callable"),
+        (lambda: random_bits(None, 2, 3), TypeError, "rng: expected a numpy.random.Generator"),
+        (lambda: random_bits(np.random.default_rng(0), 2, -1), ValueError, "length: must be an integer >= 0, got -1"),
+        (lambda: random_bits(np.random.default_rng(0), 1.5, 3), ValueError, "n: must be an integer >= 0, got 1.5"),
+        (lambda: ga.problems.smiley(-1), ValueError, "size: must be an integer >= 1, got -1"),
+        (lambda: ga.problems.smiley(16.0), ValueError, "size: must be an integer >= 1, got 16.0"),
+        (lambda: TargetMatch(None), ValueError, "target: expected a non-empty array of 0/1 values, got None"),
+        (lambda: TargetMatch([0, 2]), ValueError, "target: expected a non-empty array of 0/1 values"),
+        (lambda: TargetMatch([]), ValueError, "target: expected a non-empty array"),
+    ],
+)
+def test_helpers_name_bad_arguments(call, exc, pattern):
+    with pytest.raises(exc, match=pattern):
+        call()

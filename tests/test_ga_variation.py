@@ -170,6 +170,14 @@ def test_variation_bad_input(ops, exc, pattern):
         Variation(ops)
 
 
+def test_variation_call_and_counts_name_bad_arguments():
+    vary = Variation([(1, point_mutation)])
+    with pytest.raises(ValueError, match="n: expected an int >= 0, got -1"):
+        vary.counts(-1)
+    with pytest.raises(TypeError, match="parents: expected a list of genomes, got NoneType"):
+        vary(None, np.random.default_rng(0))
+
+
 def test_binary_operator_must_return_a_pair():
     vary = Variation([(1, lambda a, b, rng: a)])
     with pytest.raises(TypeError, match="must return \\(child1, child2\\), got int"):

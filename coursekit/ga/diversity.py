@@ -57,6 +57,8 @@ def mean_pairwise(distance: Callable) -> Callable[[Sequence], float]:
     >>> mean_pairwise(hamming)([np.array([0, 0]), np.array([0, 1]), np.array([1, 1])])
     0.6666666666666666
     """
+    if not callable(distance):
+        raise TypeError(f"distance: expected a callable distance(a, b) -> float, got {type(distance).__name__}")
 
     def diversity(population: Sequence) -> float:
         if len(population) < 2:

@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import numbers
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -72,6 +72,10 @@ def evaluate(fitness: Callable, genomes: Sequence, *, map: Callable | None = Non
     """
     if map is not None and executor is not None:
         raise ValueError("map/executor: give at most one of map= and executor=")
+    if not callable(fitness):
+        raise TypeError(f"fitness: expected a callable fitness(genome) -> float, got {type(fitness).__name__}")
+    if isinstance(genomes, (str, bytes)) or not isinstance(genomes, Iterable):
+        raise TypeError(f"genomes: expected a list of genomes, got {type(genomes).__name__}")
     genomes = list(genomes)
     if not genomes:
         return np.zeros(0, dtype=np.float64)

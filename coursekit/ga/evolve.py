@@ -22,7 +22,7 @@ from __future__ import annotations
 import numbers
 import os
 import pickle
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -108,6 +108,8 @@ class _Run:
         if map is not None:
             _check_callable("map", map, "map(func, iterable) -> iterable")
         self.map, self.executor = map, executor
+        if checkpoint is not None and not isinstance(checkpoint, (str, os.PathLike)):
+            raise TypeError(f"checkpoint: expected a file path (str or pathlib.Path) or None, got {type(checkpoint).__name__}")
         self.checkpoint = checkpoint
         self.progress = progress
         self.callback = None if callback is None else _check_callable("callback", callback, "callback(result)")
@@ -118,6 +120,12 @@ class _Run:
 
     def evaluate(self, genomes) -> np.ndarray:
         return evaluate(self.fitness, genomes, map=self.map, executor=self.executor)
+
+    def measure_diversity(self, population) -> float:
+        value = self.diversity(population)
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or not np.isfinite(value):
+            raise ValueError(f"diversity: diversity(population) returned {value!r}; expected a finite number")
+        return float(value)
 
     def save(self, population, fitness, history, generation, generations, rng) -> None:
         if self.checkpoint is None:
@@ -163,14 +171,17 @@ class _Run:
             while generation < generations:
                 elites = ranking(fitness)[: self.elite]
                 idx = self.parents(fitness, n - self.elite, rng)
-                children = list(self.vary([population[i] for i in idx], rng))
+                children = self.vary([population[i] for i in idx], rng)
+                if isinstance(children, (str, bytes)) or not isinstance(children, Iterable):
+                    raise TypeError(f"vary: expected a list of {n - self.elite} children, got {type(children).__name__}")
+                children = list(children)
                 if len(children) != n - self.elite:
                     raise ValueError(f"vary: returned {len(children)} children for {n - self.elite} parents; expected one per parent")
                 child_fitness = self.evaluate(children)
                 population = [population[i] for i in elites] + children
                 fitness = np.concatenate([fitness[elites], child_fitness])
                 generation += 1
-                history.record(generation, fitness, self.diversity(population), len(children))
+                history.record(generation, fitness, self.measure_diversity(population), len(children))
                 bar.set_postfix(best=f"{fitness.max():.4g}", refresh=False)  # before the update that shows it
                 bar.update(1)
                 if self.after_generation(population, fitness, history, generation, generations, rng):
@@ -234,7 +245,7 @@ def evolve(
     population = list(population)
     fit = run.evaluate(population)
     history = History()
-    history.record(0, fit, run.diversity(population), len(population))
+    history.record(0, fit, run.measure_diversity(population), len(population))
     if run.after_generation(population, fit, history, 0, generations, rng):
         return _result(population, fit, history, 0)
     return run.loop(population, fit, history, 0, generations, rng)

@@ -7,8 +7,12 @@ to a target. Everything here is defined at module top level so it pickles into w
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 from numpy.typing import ArrayLike
+
+from .selection import _check_rng
 
 __all__ = ["onemax", "TargetMatch", "random_bits", "smiley"]
 
@@ -27,7 +31,10 @@ class TargetMatch:
     """
 
     def __init__(self, target: ArrayLike) -> None:
-        self.target = np.asarray(target).astype(np.int8).ravel()
+        t = np.asarray(target)
+        if t.size == 0 or t.dtype.kind not in "biuf" or not np.isin(t, (0, 1)).all():
+            raise ValueError(f"target: expected a non-empty array of 0/1 values, got {_shown(target)}")
+        self.target = t.astype(np.int8).ravel()
 
     def __call__(self, genome) -> float:
         g = np.asarray(genome)
@@ -39,8 +46,21 @@ class TargetMatch:
         return f"TargetMatch(<{self.target.size} bits>)"
 
 
+def _shown(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _check_size(name: str, value, low: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
+        raise ValueError(f"{name}: must be an integer >= {low}, got {value!r}")
+    return int(value)
+
+
 def random_bits(rng: np.random.Generator, n: int, length: int) -> list:
     """``n`` random bit strings (``int8`` arrays of 0/1) of ``length`` bits."""
+    rng = _check_rng(rng)
+    n, length = _check_size("n", n, 0), _check_size("length", length, 0)
     return list(rng.integers(0, 2, size=(n, length), dtype=np.int8))
 
 
@@ -48,6 +68,7 @@ def smiley(size: int = 16) -> np.ndarray:
     """A ``size x size`` 0/1 bitmap of a smiley face (1 = ink): the lesson's target picture."""
     from skimage.draw import circle_perimeter, disk, ellipse_perimeter
 
+    size = _check_size("size", size, 1)
     img = np.zeros((size, size), dtype=np.int8)
     c, r = (size - 1) / 2, size / 2 - 1
     rr, cc = circle_perimeter(round(c), round(c), round(r), shape=img.shape)

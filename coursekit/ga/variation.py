@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import inspect
 import numbers
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -119,7 +119,9 @@ class Variation:
 
     def counts(self, n: int) -> np.ndarray:
         """How many of ``n`` children each operator makes (sums to ``n``)."""
-        return largest_remainder(self.ratios, n)
+        if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 0:
+            raise ValueError(f"n: expected an int >= 0, got {n!r}")
+        return largest_remainder(self.ratios, int(n))
 
     def __call__(self, parents: Sequence, rng: np.random.Generator) -> list:
         """Make ``len(parents)`` children.
@@ -132,6 +134,8 @@ class Variation:
         """
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}")
+        if isinstance(parents, (str, bytes)) or not isinstance(parents, Iterable):
+            raise TypeError(f"parents: expected a list of genomes, got {type(parents).__name__}")
         parents = list(parents)
         n = len(parents)
         labels = rng.permutation(np.repeat(np.arange(len(self.operators)), self.counts(n)))
