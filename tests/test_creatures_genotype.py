@@ -118,6 +118,16 @@ def test_figure1_snake_two_nodes_two_legs_on_last_limb():
     assert body.gain[legs[0]] == -body.gain[legs[1]]
 
 
+def test_part_poses_names_a_bad_pose():
+    body = Creature.figure1_snake(segments=4).expand().body
+    with pytest.raises(ValueError, match=r"q: expected 5 joint coordinates \(one per joint\)"):
+        part_poses(body, np.zeros(99))
+    with pytest.raises(ValueError, match="q: expected 5 joint coordinates"):
+        part_poses(body, "abc")
+    with pytest.raises(TypeError, match="body: expected a BodyTree"):
+        part_poses(Creature.figure1_snake())
+
+
 def test_recursion_count_scale_and_terminal_only():
     seg = Node(size=(0.2, 0.1, 0.1), recursive_limit=3, recursion=[Recursion((1.0, 0, 0), 0.75)],
                children=[ChildLink(1, (0, 1.0, 0), terminal_only=True), ChildLink(1, (0, 0, 1.0))], effectors=[None])

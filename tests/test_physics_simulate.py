@@ -130,6 +130,18 @@ def test_simulate_refuses_bad_arguments():
         simulate([tree], -1.0)
     with pytest.raises(ValueError, match="settle"):
         simulate([tree], 1.0, settle=-0.5)
+    with pytest.raises(ValueError, match="seconds: must be a positive number, got '1'"):
+        simulate([tree], "1")
+    with pytest.raises(ValueError, match="settle: must be >= 0 seconds, got None"):
+        simulate([tree], 1.0, settle=None)
+    with pytest.raises(TypeError, match="creatures: expected a creature, a BodyTree or a list of them, got NoneType"):
+        simulate(None, 1.0)
+    with pytest.raises(TypeError, match="controller: expected an object with step"):
+        simulate([tree], 1.0, controller=5)
+    with pytest.raises(ValueError, match=r"initial_state: expected a \(qpos, qvel\) pair, got int"):
+        simulate([tree], 1.0, initial_state=5)
+    with pytest.raises(TypeError, match="drag_coefficient: must be a number >= 0, got 'x'"):
+        simulate([tree], 1.0, drag_coefficient="x")
 
 
 # ---------------------------------------------------------------- collisions

@@ -240,8 +240,16 @@ def part_poses(body: BodyTree, q: np.ndarray | None = None) -> tuple[np.ndarray,
         body: the body tree.
         q: (B - 1,) joint coordinates (default zeros: the rest pose).
     """
+    if not isinstance(body, BodyTree):
+        raise TypeError(f"body: expected a BodyTree (creature.expand().body), got {type(body).__name__}")
     B = body.n_bodies
-    q = np.zeros(B - 1) if q is None else np.asarray(q, dtype=np.float64).reshape(B - 1)
+    if q is None:
+        q = np.zeros(B - 1)
+    else:
+        try:
+            q = np.asarray(q, dtype=np.float64).reshape(B - 1)
+        except (TypeError, ValueError):
+            raise ValueError(f"q: expected {B - 1} joint coordinates (one per joint), got {q!r:.60}") from None
     Rw = np.zeros((B, 3, 3))
     tw = np.zeros((B, 3))
     Rw[0] = np.eye(3)

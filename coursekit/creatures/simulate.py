@@ -23,6 +23,7 @@ import numpy as np
 
 from coursekit.creatures.brain import BrainBatch
 from coursekit.creatures.fitness import swimming_fitness
+from coursekit.creatures.neural import is_real
 from coursekit.creatures.physics import backend as bk
 from coursekit.creatures.physics.limits import MAX_EXCESS
 from coursekit.creatures.physics.model import as_trees, validated
@@ -120,10 +121,15 @@ def simulate(
     Returns:
         A :class:`SimulationResult`.
     """
-    if not (np.isfinite(seconds) and seconds > 0):
-        raise ValueError(f"seconds: must be a positive number, got {seconds}")
-    if not (np.isfinite(settle) and settle >= 0):
-        raise ValueError(f"settle: must be >= 0 seconds, got {settle}")
+    if not (is_real(seconds) and seconds > 0):
+        raise ValueError(f"seconds: must be a positive number, got {seconds!r}")
+    if not (is_real(settle) and settle >= 0):
+        raise ValueError(f"settle: must be >= 0 seconds, got {settle!r}")
+    if controller is not None and not callable(getattr(controller, "step", controller)):
+        raise TypeError("controller: expected an object with step(joint_angle, joint_velocity, contact, dt) or such a "
+                        f"function, got {type(controller).__name__}")
+    if initial_state is not None and not (isinstance(initial_state, (tuple, list)) and len(initial_state) == 2):
+        raise ValueError(f"initial_state: expected a (qpos, qvel) pair, got {type(initial_state).__name__}")
     brains, bodies = _brains(creatures) if controller is None else (None, as_trees(creatures))
     world = World(bodies, dt=dt, **options)
     m = world.model

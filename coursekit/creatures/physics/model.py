@@ -47,6 +47,8 @@ def as_trees(creatures: Any) -> list[BodyTree]:
     (validated first)."""
     if isinstance(creatures, BodyTree) or hasattr(creatures, "expand") or hasattr(creatures, "body"):
         creatures = [creatures]
+    if isinstance(creatures, (str, bytes)) or not hasattr(creatures, "__iter__"):
+        raise TypeError(f"creatures: expected a creature, a BodyTree or a list of them, got {type(creatures).__name__}")
     trees = []
     for i, c in enumerate(creatures):
         if isinstance(c, BodyTree):

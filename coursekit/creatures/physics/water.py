@@ -85,9 +85,16 @@ def body_drag(half_extents: np.ndarray, k: float, box_drag=None) -> np.ndarray:
     return out
 
 
+def _coefficient(k) -> float:
+    """``k`` as a float, or a TypeError naming ``drag_coefficient`` (its range is checked by the drag)."""
+    if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, float, np.integer, np.floating)):
+        raise TypeError(f"drag_coefficient: must be a number >= 0, got {k!r}")
+    return float(k)
+
+
 def drag_matrix(model, k: float | None = None, box_drag=None):
     """The (N, 6) drag diagonals of a packed model, on its backend (see :func:`body_drag`)."""
-    k = DRAG_COEFFICIENT if k is None else float(k)
+    k = DRAG_COEFFICIENT if k is None else _coefficient(k)
     return bk.asarray(model.xp, body_drag(model.half_extents_np, k, box_drag), device=model.device)
 
 
