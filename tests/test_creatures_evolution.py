@@ -70,6 +70,17 @@ def test_bad_arguments_are_named():
         evolve_swimmers(generations=1, rng=np.random.default_rng(0), population_size=1)
     with pytest.raises(ValueError, match="ratios"):
         evolve_swimmers(generations=1, rng=np.random.default_rng(0), ratios=(1, -1, 0), **SMALL)
+    for ratios in (None, 5, ("a", 1, 1)):
+        with pytest.raises(ValueError, match="ratios: need three shares >= 0"):
+            evolve_swimmers(generations=1, rng=np.random.default_rng(0), ratios=ratios, **SMALL)
+    with pytest.raises(TypeError, match="crossover: must be a function or None, got int"):
+        evolve_swimmers(generations=1, rng=np.random.default_rng(0), crossover=5, **SMALL)
+    with pytest.raises(TypeError, match="graft: must be a function or None, got str"):
+        evolve_swimmers(generations=1, rng=np.random.default_rng(0), graft="graft", **SMALL)
+    with pytest.raises(TypeError, match="mutate: must be a function, got NoneType"):
+        evolve_swimmers(generations=1, rng=np.random.default_rng(0), mutate=None, **SMALL)
+    with pytest.raises(TypeError, match="population: expected a list of creatures, got int"):
+        evolve_swimmers(5, generations=1, rng=np.random.default_rng(0))
 
 
 def test_a_run_on_worker_processes_or_dask_equals_the_serial_run_bit_for_bit():

@@ -93,6 +93,14 @@ def test_random_rejects_bad_params():
         Creature.random(rng, n_nodes=0)
     with pytest.raises(TypeError, match="rng"):
         Creature.random(np.random.RandomState(0))
+    for bad in ("3", None, 2.5, (1,)):
+        with pytest.raises(ValueError, match="Creature.random.n_nodes: need 1 <= lo <= hi"):
+            Creature.random(rng, n_nodes=bad)
+    with pytest.raises(ValueError, match="Creature.random.neurons: need 0 <= lo <= hi"):
+        Creature.random(rng, neurons=5)
+    with pytest.raises(ValueError, match="Creature.random.p_recursion: must be a probability in \\[0, 1\\], got '0.3'"):
+        Creature.random(rng, p_recursion="0.3")
+    assert Creature.random(np.random.default_rng(0), n_nodes=[2, 3], neurons=np.array([0, 2])).summary()
 
 
 # ------------------------------------------------------------------------------------ snake

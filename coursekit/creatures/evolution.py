@@ -25,6 +25,7 @@ import numpy as np
 from coursekit import ga
 from coursekit.creatures import operators
 from coursekit.creatures.genotype import Creature
+from coursekit.creatures.neural import is_int, is_real
 from coursekit.creatures.simulate import simulate
 
 
@@ -166,12 +167,14 @@ def evolve_swimmers(
         The engine's :class:`~coursekit.ga.EvolutionResult`; ``best`` is the fastest swimmer.
     """
     if population is None:
-        if not (isinstance(population_size, int) and population_size >= 2):
+        if not (is_int(population_size) and population_size >= 2):
             raise ValueError(f"population_size: must be an integer >= 2, got {population_size!r}")
         options = dict(random_options or {})
         if joint_types is not None:
             options.setdefault("joint_types", joint_types)
         population = [Creature.random(rng, **options) for _ in range(population_size)]
+    elif isinstance(population, (str, bytes)) or not hasattr(population, "__iter__"):
+        raise TypeError(f"population: expected a list of creatures, got {type(population).__name__}")
     population = list(population)
     vary, evaluate = _breeding(seconds, _with_joint_types(mutate, joint_types), crossover, graft, ratios, executor, simulate_options)
     if elite is None:
@@ -210,15 +213,20 @@ def resume_swimmers(
 
 def _with_joint_types(mutate, joint_types):
     """``mutate`` drawing from ``joint_types`` when it takes them (a picklable partial)."""
-    if joint_types is None or "joint_types" not in inspect.signature(mutate).parameters:
+    if joint_types is None or not callable(mutate) or "joint_types" not in inspect.signature(mutate).parameters:
         return mutate
     return functools.partial(mutate, joint_types=list(joint_types))
 
 
 def _breeding(seconds, mutate, crossover, graft, ratios, executor, simulate_options):
     """The variation (Sims' shares of mutated, recombined and grafted children) and the fitness."""
-    if len(ratios) != 3 or any(not (r >= 0) for r in ratios):
+    if (not isinstance(ratios, (tuple, list)) or len(ratios) != 3
+            or any(not (is_real(r) and r >= 0) for r in ratios)):
         raise ValueError(f"ratios: need three shares >= 0 (mutation, crossover, grafting), got {ratios!r}")
+    for name, op in (("mutate", mutate), ("crossover", crossover), ("graft", graft)):
+        if not (callable(op) or (op is None and name != "mutate")):
+            allowed = "a function" if name == "mutate" else "a function or None"
+            raise TypeError(f"{name}: must be {allowed}, got {type(op).__name__}")
     parts = [(ratios[0], mutate, 1)]
     if crossover is not None and ratios[1] > 0:
         parts.append((ratios[1], Mated(crossover, mutate), 2))

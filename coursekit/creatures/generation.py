@@ -33,7 +33,7 @@ from .morphology import (
     Symmetry,
     renumber,
 )
-from .neural import MAX_BRAIN_NEURONS, MAX_NEURONS, N_SENSORS, Input, Neuron, is_int, random_input, random_neuron
+from .neural import MAX_BRAIN_NEURONS, MAX_NEURONS, N_SENSORS, Input, Neuron, is_int, is_real, random_input, random_neuron
 from .phenotype import MAX_PARTS, expand
 
 T = TypeVar("T")
@@ -186,6 +186,15 @@ class _Draft(NamedTuple):
     brain: list
 
 
+def _int_range(pair) -> tuple:
+    """``(lo, hi)`` of an inclusive range of ints, or ``(1, 0)`` (an empty range, refused by the caller)."""
+    try:
+        a, b = pair
+    except (TypeError, ValueError):
+        return 1, 0
+    return (a, b) if is_int(a) and is_int(b) else (1, 0)
+
+
 def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), max_children: int = 3,
                     neurons: tuple = (0, 3), brain_neurons: tuple = (0, 3), p_recursion: float = 0.3,
                     p_symmetry: float = 0.4, max_parts: int | None = None,
@@ -211,16 +220,17 @@ def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), 
     """
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"Creature.random: rng must be a numpy.random.Generator, got {type(rng).__name__}")
-    lo, hi = (n_nodes, n_nodes) if is_int(n_nodes) else tuple(n_nodes)
+    lo, hi = (n_nodes, n_nodes) if is_int(n_nodes) else _int_range(n_nodes)
     if not 1 <= lo <= hi <= MAX_NODES:
         raise ValueError(f"Creature.random.n_nodes: need 1 <= lo <= hi <= {MAX_NODES}, got {n_nodes!r}")
     if not is_int(max_children) or not 1 <= max_children <= MAX_CHILDREN:
         raise ValueError(f"Creature.random.max_children: must be in [1, {MAX_CHILDREN}], got {max_children!r}")
-    for name, (a, b), cap in (("neurons", neurons, MAX_NEURONS), ("brain_neurons", brain_neurons, MAX_BRAIN_NEURONS)):
+    for name, pair, cap in (("neurons", neurons, MAX_NEURONS), ("brain_neurons", brain_neurons, MAX_BRAIN_NEURONS)):
+        a, b = _int_range(pair)
         if not 0 <= a <= b <= cap:
-            raise ValueError(f"Creature.random.{name}: need 0 <= lo <= hi <= {cap}, got {(a, b)!r}")
+            raise ValueError(f"Creature.random.{name}: need 0 <= lo <= hi <= {cap}, got {pair!r}")
     for name, p in (("p_recursion", p_recursion), ("p_symmetry", p_symmetry)):
-        if not 0.0 <= p <= 1.0:
+        if not (is_real(p) and 0.0 <= p <= 1.0):
             raise ValueError(f"Creature.random.{name}: must be a probability in [0, 1], got {p!r}")
     max_parts = MAX_PARTS if max_parts is None else max_parts
     if not is_int(max_parts) or max_parts < hi:
