@@ -11,6 +11,7 @@ the temporaries whose process is gone (or, without a process id, that are over a
 
 from __future__ import annotations
 
+import errno
 import os
 import tempfile
 import time
@@ -28,6 +29,10 @@ def atomic_path(path: str | os.PathLike[str], suffix: str = ".tmp") -> Iterator[
     lets writers that choose a format by extension see the right one.
     """
     path = Path(path)
+    if not path.parent.is_dir():  # named here: mkstemp's error names the temporary file
+        raise FileNotFoundError(errno.ENOENT, f"the folder {str(path.parent)!r} does not exist", str(path))
+    if path.is_dir():
+        raise IsADirectoryError(errno.EISDIR, "is a folder; give a file name", str(path))
     sweep(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.{os.getpid()}.", suffix=suffix)
     os.close(fd)

@@ -53,6 +53,11 @@ def test_save_load_atomic_and_refuses_bad_files(tmp_path):
     del d["nodes"][0]["size"]
     with pytest.raises(ValueError, match=r"nodes\[0\].*size"):
         Creature.from_dict(d)
+    # a missing folder or a folder given as the file is named, not the temporary file beside it
+    with pytest.raises(FileNotFoundError, match="the folder '.*nowhere' does not exist: '.*nowhere/c.json'"):
+        c.save(tmp_path / "nowhere" / "c.json")
+    with pytest.raises(IsADirectoryError, match="is a folder; give a file name"):
+        c.save(tmp_path)
 
 
 @pytest.mark.parametrize(

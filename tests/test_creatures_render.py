@@ -51,6 +51,9 @@ def test_pose_changes_the_picture_and_bad_input_is_refused():
         render("snake")
     with pytest.raises(ValueError, match="render.size"):
         render(c, size=(0, 10))
+    for size in (64, None):
+        with pytest.raises(ValueError, match="render.size: need \\(width, height\\)"):
+            render(c, size=size)
 
 
 def test_torch_compile_machinery_after_a_render_does_not_crash_the_process():

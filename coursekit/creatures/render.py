@@ -127,7 +127,7 @@ def frame(points: ArrayLike, azimuth: float, elevation: float, aspect: float, *,
 
 
 def _check_size(size, *, even: bool = False):
-    if len(size) != 2 or not all(isinstance(s, (int, np.integer)) and 16 <= s <= 4096 for s in size):
+    if not isinstance(size, (tuple, list, np.ndarray)) or len(size) != 2 or not all(isinstance(s, (int, np.integer)) and 16 <= s <= 4096 for s in size):
         raise ValueError(f"render.size: need (width, height) integers in [16, 4096], got {size!r}")
     if even and any(s % 2 for s in size):
         raise ValueError(f"size: an MP4 (H.264, yuv420p) needs an even width and height, got {tuple(size)!r}")
