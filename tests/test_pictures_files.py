@@ -66,6 +66,10 @@ def test_files_without_or_with_broken_genome_are_refused(tmp_path, genome):
     out.close()
     with pytest.raises(ValueError, match="carries no coursekit genome"):
         load_genome(plain)
+    with pytest.raises(IsADirectoryError, match="path: .* is a folder; give an image file"):
+        load_genome(tmp_path)
+    with pytest.raises(FileNotFoundError, match="the folder '.*nowhere' does not exist"):
+        save_image(tmp_path / "nowhere" / "a.png", genome, 8)
     broken = tmp_path / "broken.exr"
     spec = oiio.ImageSpec(4, 4, 3, oiio.FLOAT)
     spec.attribute("coursekit:genome", genome.to_json()[:-20])

@@ -187,3 +187,25 @@ def test_extreme_windows_and_times_stay_finite(window):
     genomes = [Genome.random(rng, n_strings=2, head_length=4) for _ in range(60)]
     img = render(genomes, (12, 16), window=window, time=1e7)
     assert np.isfinite(img).all() and img.min() >= 0.0 and img.max() <= 1.0
+
+
+@pytest.mark.parametrize("call, exc, pattern", [
+    (lambda g: render(None, 8), TypeError, "genomes: expected a Genome or a list of them, got NoneType"),
+    (lambda g: render(g, 8, time=None), ValueError, "time: None must be a finite number"),
+    (lambda g: render(g, 8, time="1"), ValueError, "time: '1' must be a finite number"),
+    (lambda g: render(g, 8, device="foo"), ValueError, "device: 'foo' is not a torch device"),
+    (lambda g: render_reference(g, 4, time=float("nan")), ValueError, "time: nan must be a finite number"),
+])
+def test_bad_arguments_are_named(call, exc, pattern):
+    with pytest.raises(exc, match=pattern):
+        call(Genome.random(np.random.default_rng(0)))
+
+
+def test_a_cuda_device_without_cuda_is_named():
+    import torch
+
+    if torch.cuda.is_available():
+        pytest.skip("this machine has CUDA")
+    with pytest.raises(ValueError, match="device: 'cuda' needs CUDA, which this machine does not have"):
+        render(Genome.random(np.random.default_rng(0)), 8, device="cuda")
+

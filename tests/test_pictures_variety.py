@@ -185,6 +185,12 @@ def test_children_breed_the_same_way_from_the_same_seed():
 
 # ---- random pictures worth a look ----------------------------------------------------------
 
+def test_random_population_names_a_bad_min_nodes():
+    for bad in ("3", None, 1.5, -1):
+        with pytest.raises(ValueError, match="min_nodes: .* must be an integer >= 0"):
+            random_population(np.random.default_rng(0), 2, size=8, min_nodes=bad)
+
+
 def test_a_random_population_is_never_flat_or_black_and_mostly_coloured():
     pop = random_population(np.random.default_rng(2026), 150)
     pics = render(pop, 64, workers=1)

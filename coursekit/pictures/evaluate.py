@@ -30,7 +30,6 @@ in a worker): see :mod:`.kernels`.
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Sequence
 
@@ -39,7 +38,7 @@ import torch
 
 from . import primitives as P
 from .context import clear_cache, default_device, to_rgb
-from .frame import MAX_PIXELS, parse_size, parse_window
+from .frame import MAX_PIXELS, parse_size, parse_time, parse_window
 from .genome import Genome, Node
 from .local import no_gc, render_into
 from .workers import render_parts
@@ -100,21 +99,27 @@ def render(genomes: Genome | Sequence[Genome], size: int | tuple[int, int] = (12
     """
     if isinstance(genomes, Genome):
         genomes = [genomes]
+    if isinstance(genomes, (str, bytes)) or not hasattr(genomes, "__iter__"):
+        raise TypeError(f"genomes: expected a Genome or a list of them, got {type(genomes).__name__}")
     genomes = list(genomes)
     for i, g in enumerate(genomes):
         if not isinstance(g, Genome):
             raise TypeError(f"genomes[{i}]: expected a Genome, got {type(g).__name__}")
     H, W = parse_size(size)
     window = parse_window(window)
-    if not math.isfinite(float(time)):
-        raise ValueError(f"time: {time!r} must be finite")
+    time = parse_time(time)
     if workers is None:
         workers = os.cpu_count() or 1
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise ValueError(f"workers: {workers!r} must be a positive integer or None")
     if group is not None and not isinstance(group, (bool, np.bool_)):
         raise ValueError(f"group: {group!r} must be True, False or None")
-    device = torch.device(device) if device is not None else default_device()
+    try:
+        device = torch.device(device) if device is not None else default_device()
+    except (RuntimeError, TypeError) as e:
+        raise ValueError(f"device: {device!r} is not a torch device ({e})") from None
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise ValueError(f"device: {str(device)!r} needs CUDA, which this machine does not have; use 'cpu' or None")
     group = (device.type != "cpu" or H * W <= _WAVES_PIXELS) if group is None else bool(group)
     with no_gc():
         trees = [g.decode() for g in genomes]  # once: the workers get the trees

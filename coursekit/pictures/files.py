@@ -122,6 +122,8 @@ def _verify(tmp: Path, path: Path, img, fmt, genome: Genome, settings: dict) -> 
 
 def _spec(path) -> oiio.ImageSpec:
     path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(f"path: {str(path)!r} is a folder; give an image file")
     if not path.is_file():
         raise FileNotFoundError(f"path: {str(path)!r} does not exist")
     inp = oiio.ImageInput.open(str(path))

@@ -1,7 +1,8 @@
-"""The frame of a picture: its size in pixels and the world window it shows (paper section 3.2).
+"""The frame of a picture: its size in pixels, the world window it shows (paper section 3.2) and
+its animation time.
 
-Both evaluators (:mod:`.evaluate`, :mod:`.reference`) read ``size`` and ``window`` through these
-functions, so a bad value gets the same clear error from either.
+Both evaluators (:mod:`.evaluate`, :mod:`.reference`) read ``size``, ``window`` and ``time``
+through these functions, so a bad value gets the same clear error from either.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["MAX_PIXELS", "parse_size", "parse_window"]
+__all__ = ["MAX_PIXELS", "parse_size", "parse_window", "parse_time"]
 
 MAX_PIXELS = 4096 * 4096  # pixels of one rendered picture at most (a 4096^2 poster: 192 MiB of float32)
 
@@ -42,3 +43,10 @@ def parse_window(window: Sequence[float]) -> tuple[float, float, float, float]:
     if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or x0 == x1 or y0 == y1:
         raise ValueError(f"window: {window!r} must be finite with x0 != x1 and y0 != y1")
     return x0, y0, x1, y1
+
+
+def parse_time(time: float) -> float:
+    """``time`` as a finite float (ValueError naming ``time``)."""
+    if isinstance(time, (bool, np.bool_)) or not isinstance(time, (int, float, np.integer, np.floating)) or not math.isfinite(time):
+        raise ValueError(f"time: {time!r} must be a finite number")
+    return float(time)

@@ -21,7 +21,7 @@ import numpy as np
 
 from . import primitives as P
 from . import textures as T
-from .frame import parse_size, parse_window
+from .frame import parse_size, parse_time, parse_window
 from .genome import Genome, Node
 from .primitives import pixel_kernel
 
@@ -382,7 +382,7 @@ def render_reference(genome: Genome, size: int | tuple[int, int] = (16, 16), *,
     if not isinstance(genome, Genome):
         raise TypeError(f"genome: expected a Genome, got {type(genome).__name__}")
     H, W = parse_size(size)
-    ref = _Reference(H, W, parse_window(window), time)
+    ref = _Reference(H, W, parse_window(window), parse_time(time))
     tree = genome.decode()
     out = np.empty((H, W, 3))
     for i in range(H):

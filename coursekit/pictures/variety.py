@@ -101,6 +101,8 @@ def random_population(rng: np.random.Generator, n: int, *, tries: int = 8, size:
         raise ValueError(f"n: {n!r} must be an integer >= 0")
     if isinstance(tries, bool) or not isinstance(tries, (int, np.integer)) or tries < 0:
         raise ValueError(f"tries: {tries!r} must be an integer >= 0")
+    if isinstance(min_nodes, bool) or not isinstance(min_nodes, (int, np.integer)) or min_nodes < 0:
+        raise ValueError(f"min_nodes: {min_nodes!r} must be an integer >= 0")
     genomes = [Genome.random(rng, **genome_params) for _ in range(n)]
     accepted: dict[int, np.ndarray] = {}
     pending = list(range(n))
