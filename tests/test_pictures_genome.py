@@ -119,6 +119,17 @@ def test_constructors_refuse_invalid_genomes():
         Genome((s(1, "x", "y", "x"), s(1, "x", "y", "x")))
     with pytest.raises(TypeError, match="rng"):
         Genome.random(7)
+    with pytest.raises(TypeError, match="rng: expected numpy.random.Generator, got NoneType"):
+        ChromosomeString.random(None, 2)
+    with pytest.raises(ValueError, match="function_rate: '0.5' must lie in"):
+        Genome.random(np.random.default_rng(0), function_rate="0.5")
+    with pytest.raises(TypeError, match="symbols: expected a list of primitive names, got the string 'sin'"):
+        Genome.random(np.random.default_rng(0), symbols="sin")
+    g = Genome.random(np.random.default_rng(0))
+    for k in (3, -4, "a", None):
+        with pytest.raises(ValueError, match="k: .* must be 'pre' or the index of one of the 3 strings"):
+            g.replace_string(k, g.strings[0])
+    assert g.replace_string(-1, g.strings[0]).strings[-1] == g.strings[0]
 
 
 @pytest.mark.parametrize("text, match", [

@@ -205,6 +205,12 @@ def test_recombination_refuses_incompatible_parents():
         O.crossover(a, a, rng, splits=0)
     with pytest.raises(TypeError, match="Genome"):
         O.transposition("genome", rng)
+    for op in (O.transposition, O.root_transposition, O.substitution, O.head_tail_rotation):
+        with pytest.raises(TypeError, match="rng: expected numpy.random.Generator, got NoneType"):
+            op(a, None)
+    for op in (O.crossover, O.random_copy, O.random_interpolation):
+        with pytest.raises(TypeError, match="rng: expected numpy.random.Generator, got int"):
+            op(a, a, 0)
     one = Genome((ChromosomeString(1, (Chromosome("sin"), Chromosome("x"), Chromosome("y"))),))
     with pytest.raises(ValueError, match="head length >= 2"):
         O.root_transposition(one, rng)

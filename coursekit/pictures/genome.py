@@ -189,6 +189,8 @@ class ChromosomeString(_CachedHash):
         place (:func:`random_chromosome`) its first chromosome is drawn for."""
         if isinstance(head_length, bool) or not isinstance(head_length, (int, np.integer)) or head_length < 1:
             raise ValueError(f"head_length: {head_length!r} must be an integer >= 1")
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng: expected numpy.random.Generator, got {type(rng).__name__}")
         t = head_length * (P.max_arity() - 1) + 1
         head = [random_chromosome(rng, root if i == 0 else "head", symbols, function_rate)
                 for i in range(head_length)]
@@ -199,6 +201,8 @@ class ChromosomeString(_CachedHash):
 def _symbol_pools(symbols):
     if symbols is None:
         symbols = P.names()
+    if isinstance(symbols, str):
+        raise TypeError(f"symbols: expected a list of primitive names, got the string {symbols!r} (write [{symbols!r}])")
     symbols = list(symbols)
     for s in symbols:
         P.get(s)
@@ -238,7 +242,7 @@ def random_chromosome(rng: np.random.Generator, place: str, symbols: Sequence[st
     if place == "tail":
         pool = terms
     elif place == "head":
-        if not 0.0 <= function_rate <= 1.0:
+        if isinstance(function_rate, bool) or not isinstance(function_rate, (int, float, np.integer, np.floating)) or not 0.0 <= function_rate <= 1.0:
             raise ValueError(f"function_rate: {function_rate!r} must lie in [0, 1]")
         pool = funcs if funcs and rng.random() < function_rate else terms
     elif place == "pre":
@@ -551,6 +555,9 @@ class Genome(_CachedHash):
         """A new genome with string ``k`` (or ``'pre'`` for the PreHeader) replaced."""
         if k == "pre":
             return Genome(self.strings, tuple(string))
+        n = len(self.strings)
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not -n <= k < n:
+            raise ValueError(f"k: {k!r} must be 'pre' or the index of one of the {n} strings")
         strings = list(self.strings)
         old = strings[k] if isinstance(k, int) and -len(strings) <= k < len(strings) else None
         strings[k] = string

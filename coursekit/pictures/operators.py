@@ -65,6 +65,11 @@ def _check(genome, name="genome"):
         raise TypeError(f"{name}: expected a Genome, got {type(genome).__name__}")
 
 
+def _check_rng(rng):
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"rng: expected numpy.random.Generator, got {type(rng).__name__}")
+
+
 def _keys(g: Genome) -> list:
     return list(range(len(g.strings))) + (["pre"] if g.preheader else [])
 
@@ -158,6 +163,7 @@ def _active(g: Genome) -> dict:
 
 def _mutated(genome, rng, draw) -> Genome:
     """``draw(genome, rng)`` until the coding part changes (at most :data:`TRIES` draws)."""
+    _check_rng(rng)
     before = coding(genome)
     for _ in range(TRIES):
         child = draw(genome, rng)
@@ -169,6 +175,7 @@ def _mutated(genome, rng, draw) -> Genome:
 def _recombined(a, b, rng, draw) -> tuple[Genome, Genome]:
     """``draw(a, b, rng)`` until both children's coding parts differ from both parents' and
     from each other (at most :data:`TRIES` draws; otherwise the draw that came closest)."""
+    _check_rng(rng)
     parents = (coding(a), coding(b))
     best, best_score = None, -1
     for _ in range(TRIES):
