@@ -13,14 +13,14 @@ DEFAULT_COURSE_DIR = "coursekit-course"
 
 
 def _number(kind: type, low: float, *, above: bool = False):
-    """An argparse type: a ``kind`` (int or float) >= ``low`` (> with ``above``); argparse names the
-    option when the value is not one."""
+    """An argparse type: a finite ``kind`` (int or float) >= ``low`` (> with ``above``); argparse
+    names the option when the value is not one."""
     def parse(text: str):
         try:
             value = kind(text)
         except ValueError:
             value = None
-        if value is None or value != value or (value <= low if above else value < low):
+        if value is None or value != value or abs(value) == float("inf") or (value <= low if above else value < low):
             raise argparse.ArgumentTypeError(f"must be {'an integer' if kind is int else 'a number'} "
                                              f"{'>' if above else '>='} {low:g}, got {text}")
         return value
@@ -71,6 +71,13 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
     sizes = dict(population=args.population, generations=args.generations, seconds=args.seconds, seed=args.seed,
                  workers=args.workers, budget=args.budget)
+    if args.name != "pictures":
+        out = Path(args.out or ("coursekit-demo" if args.name is None else "swimmers-demo"))
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            print(f"coursekit demo: --out {out}: cannot make this folder ({e.strerror})", file=sys.stderr)
+            return 2
     if args.name is None:
         result = demos.both(args.out or "coursekit-demo", **sizes)
         summary = result["swimmers"]
@@ -184,7 +191,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--population", type=_number(int, 2), help="population size (default by COURSEKIT_PROFILE)")
     s.add_argument("--generations", type=_number(int, 0), help="generations (default by COURSEKIT_PROFILE)")
     s.add_argument("--seconds", type=_number(float, 0, above=True), help="swimming seconds per evaluation")
-    s.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    s.add_argument("--seed", type=_number(int, 0), default=0, help="random seed (default 0)")
     s.add_argument("--workers", type=_number(int, 1), help="processes the swimmers swim in (default: one per core)")
     s.add_argument("--budget", type=_number(float, 0), help="seconds the swimmers' evolution may take: no generation is begun that "
                    "would end after them (default by COURSEKIT_PROFILE: 75 in the classroom; 0: no limit)")
@@ -207,7 +214,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "past them all of its processes are stopped and it is reported as not graded")
     s.add_argument("--disk-mb", type=int, default=1024, help="MiB of files a notebook may write in its folder (default 1024); "
                    "past them all of its processes are stopped and it is reported as not graded")
-    s.add_argument("--seed", type=int, help="seed of the grading cases (default: fresh ones every run; "
+    s.add_argument("--seed", type=_number(int, 0), help="seed of the grading cases (default: fresh ones every run; "
                    "the results name each notebook's seed, so a run can be repeated exactly)")
     s.add_argument("--unsafe", action="store_true",
                    help="grade even where the bubblewrap sandbox cannot be set up (notebooks can then read "

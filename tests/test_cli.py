@@ -264,12 +264,33 @@ def test_the_swimmer_demo_keeps_to_its_budget_by_breeding_fewer_generations_of_t
 
 @pytest.mark.parametrize("option, message", [("--budget=-1", "argument --budget: must be a number >= 0, got -1"),
                                              ("--population=1", "argument --population: must be an integer >= 2, got 1"),
-                                             ("--seconds=0", "argument --seconds: must be a number > 0, got 0")])
+                                             ("--seconds=0", "argument --seconds: must be a number > 0, got 0"),
+                                             ("--seconds=inf", "argument --seconds: must be a number > 0, got inf"),
+                                             ("--seed=-1", "argument --seed: must be an integer >= 0, got -1")])
 def test_the_demo_refuses_a_bad_size_by_name_before_it_starts(option, message, tmp_path):
     run = subprocess.run([sys.executable, "-m", "coursekit", "demo", "swimmers", option, "--out", str(tmp_path / "d")],
                          capture_output=True, text=True)
     assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr
     assert not (tmp_path / "d").exists()
+
+
+def test_the_demo_refuses_an_out_folder_it_cannot_make(tmp_path):
+    (tmp_path / "afile").write_text("")
+    for out in (tmp_path / "afile", tmp_path / "afile" / "d"):
+        run = subprocess.run([sys.executable, "-m", "coursekit", "demo", "swimmers", "--out", str(out)],
+                             capture_output=True, text=True, timeout=120)
+        assert run.returncode == 2 and "Traceback" not in run.stderr, run.stderr
+        assert f"coursekit demo: --out {out}: cannot make this folder" in run.stderr
+
+
+@pytest.mark.parametrize("option, message", [("--timeout=inf", "--timeout must be a positive finite number, got inf"),
+                                             ("--cell-timeout=nan", "--cell-timeout must be a positive finite number, got nan"),
+                                             ("--memory-mb=0", "--memory-mb must be a positive finite number, got 0"),
+                                             ("--seed=-1", "argument --seed: must be an integer >= 0, got -1")])
+def test_grade_refuses_a_bad_limit_by_name_before_grading(option, message, tmp_path):
+    run = subprocess.run([sys.executable, "-m", "coursekit", "grade", str(tmp_path / "01_selection.ipynb"), option],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr, run.stderr
 
 
 def test_bench_runs_everything_but_what_this_machine_lacks(monkeypatch, capsys):

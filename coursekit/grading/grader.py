@@ -68,6 +68,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import secrets
 import shutil
@@ -303,8 +304,8 @@ def main(args: argparse.Namespace) -> int:
     """
     for name in ("timeout", "cell_timeout", "memory_mb", "notebook_timeout", "max_processes", "disk_mb"):
         v = getattr(args, name, None)
-        if v is not None and not v > 0:
-            print(f"coursekit grade: --{name.replace('_', '-')} must be positive, got {v}", file=sys.stderr)
+        if v is not None and not (v > 0 and (isinstance(v, int) or math.isfinite(v))):
+            print(f"coursekit grade: --{name.replace('_', '-')} must be a positive finite number, got {v}", file=sys.stderr)
             return 2
     try:
         exercises = [exercise_of(nb, getattr(args, "exercise", None)) for nb in args.notebooks]
