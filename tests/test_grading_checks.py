@@ -249,6 +249,13 @@ def test_timeouts_crashes_and_exits_cost_one_case_not_the_process():
     assert "MemoryError" in evaluate("ga.point_mutation", hog, memory_mb=512).verdicts[0].message
 
 
+def test_a_memory_limit_past_what_rlimit_holds_means_no_extra_limit():
+    # coursekit grade --memory-mb 99999999999999: setrlimit overflowed in every worker, so every
+    # call "exited with status 0" and a correct notebook scored 0
+    j = evaluate("ga.point_mutation", mutation_xor, memory_mb=10**14)
+    assert j.passed and j.score == j.check.points, [v for v in j.verdicts if not v.passed]
+
+
 def test_thread_isolation_gives_the_same_verdicts_and_reports_timeouts(monkeypatch):
     monkeypatch.setenv("COURSEKIT_CHECK_ISOLATION", "thread")
     assert evaluate("ga.tournament", tournament_loop).passed

@@ -174,8 +174,8 @@ def _limit_memory(memory_mb):
         if hard != resource.RLIM_INFINITY:
             want = min(want, hard)
         resource.setrlimit(resource.RLIMIT_AS, (want, hard))
-    except (ImportError, OSError, ValueError):
-        pass  # no /proc or no RLIMIT_AS (macOS): the outer limits still apply
+    except (ImportError, OSError, ValueError, OverflowError):
+        pass  # no /proc or no RLIMIT_AS (macOS), or a limit past what rlim_t holds: the outer limits still apply
 
 
 def _write_all(fd, data):
