@@ -267,6 +267,24 @@ def test_zoom_and_pan_re_evaluate_the_genomes_and_reset_comes_back(gallery, tmp_
     assert "x at (" not in gallery.status_text()
 
 
+def test_bad_arguments_are_named_and_leave_the_gallery_as_it_was(gallery):
+    window = gallery.window
+    for bad in (float("nan"), float("inf"), None, "1"):
+        with pytest.raises(ValueError, match="dx: .* must be a finite number"):
+            gallery.pan(bad, 0)
+    assert gallery.window == window  # a nan pan once stuck in the view: every later render refused it
+    assert gallery.pan(1e308, 0) == "the view cannot pan further" and gallery.window == window
+    for bad in (6, -1, "a", None):
+        with pytest.raises(ValueError, match=r"i: .* is not a picture index \(0..5\)"):
+            gallery.click(bad)
+    assert gallery.state.selected == []
+    for name, bad in (("columns", 0), ("size", "96"), ("lineage_size", -1)):
+        with pytest.raises(ValueError, match=f"{name}: .* must be an integer >= 1"):
+            Gallery(np.random.default_rng(0), gallery.state.population, **{"size": 12, name: bad})
+    with pytest.raises(TypeError, match=r"mutations\['mine'\]: expected an operator function, got int"):
+        Gallery(np.random.default_rng(0), gallery.state.population, size=12, mutations={"mine": 5})
+
+
 def test_keys_move_a_cursor_select_evolve_undo_and_redo(gallery):
     def press(key, shift=False):  # a keydown over the gallery, as ipyevents delivers it
         gallery._keys._handle_mouse_msg(None, {"event": "keydown", "type": "keydown", "key": key,

@@ -54,6 +54,7 @@ import numpy as np
 
 from . import operators as O
 from .evaluate import render
+from .frame import parse_window
 from .genome import Genome
 from .session import GALLERY_FORMAT, Ancestor, Evolution, GalleryState, Generation, Origin
 from .textures import preload
@@ -140,6 +141,9 @@ class Gallery:
 
         if rng is not None and not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng: expected numpy.random.Generator, got {type(rng).__name__}")
+        for name, value in (("columns", columns), ("size", size), ("lineage_size", lineage_size)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"{name}: {value!r} must be an integer >= 1")
         genome_params = dict(genome_params or {})
         preload()  # the stock pictures decoded now, not in the first click that shows one
         if population is None:
@@ -252,6 +256,7 @@ class Gallery:
     # ---- actions --------------------------------------------------------------------------
     def click(self, i: int) -> None:
         """What a click on picture ``i`` does: select it, or unselect it if it was selected."""
+        self._check_index(i)
         self.cursor = i
         self.toggles[i].value = not self.toggles[i].value
 
@@ -302,9 +307,16 @@ class Gallery:
 
     def pan(self, dx: float, dy: float) -> str:
         """Move the view by ``(dx, dy)`` of its own width and height (right and down > 0)."""
+        for name, v in (("dx", dx), ("dy", dy)):
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v):
+                raise ValueError(f"{name}: {v!r} must be a finite number")
         x0, y0, x1, y1 = self.window
         w, h = x1 - x0, y1 - y0
-        self.window = (x0 + dx * w, y0 + dy * h, x1 + dx * w, y1 + dy * h)
+        window = (x0 + dx * w, y0 + dy * h, x1 + dx * w, y1 + dy * h)
+        try:
+            self.window = parse_window(window)
+        except ValueError:  # so far out that the view's edges meet (or overflow)
+            return "the view cannot pan further"
         self._sync("panned")
         return self.status_text()
 
@@ -478,11 +490,14 @@ class Gallery:
         :func:`save_image`; up to 4096 x 4096)."""
         from .files import save_image
 
-        if not isinstance(i, (int, np.integer)) or not 0 <= i < self.evolution.size:
-            raise ValueError(f"i: {i!r} is not a picture index (0..{self.evolution.size - 1})")
+        self._check_index(i)
         opts = {**self.render_options, "window": self.window, **options}
         self._settle()
         return save_image(path, self.state.population[i], size, **opts)
+
+    def _check_index(self, i) -> None:
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < self.evolution.size:
+            raise ValueError(f"i: {i!r} is not a picture index (0..{self.evolution.size - 1})")
 
     def _ipython_display_(self):  # pragma: no cover - notebook display
         from IPython.display import display

@@ -313,6 +313,10 @@ class Evolution:
         self.state, self.rng = state, rng
         self.mutations = dict(O.MUTATIONS if mutations is None else mutations)
         self.recombinations = dict(O.RECOMBINATIONS if recombinations is None else recombinations)
+        for kind, ops in (("mutations", self.mutations), ("recombinations", self.recombinations)):
+            for name, op in ops.items():
+                if not callable(op):
+                    raise TypeError(f"{kind}[{name!r}]: expected an operator function, got {type(op).__name__}")
         clash = set(self.mutations) & set(self.recombinations)
         if clash:
             raise ValueError(f"recombinations: {sorted(clash)} are also mutations' names")
