@@ -26,6 +26,7 @@ import time
 
 import numpy as np
 
+from coursekit.cli import number
 from coursekit.pictures import operators as O
 from coursekit.pictures.gallery import Gallery
 
@@ -55,11 +56,11 @@ def clicks(gallery: Gallery, count: int, seed: int = 0, buttons: list[str] = BUT
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--clicks", type=int, default=60)
-    ap.add_argument("--size", type=int, default=128)
-    ap.add_argument("--n", type=int, default=20)
-    ap.add_argument("--warmup", type=int, default=8)
-    ap.add_argument("--think", type=float, default=0.5,
+    ap.add_argument("--clicks", type=number(int, 1), default=60)
+    ap.add_argument("--size", type=number(int, 1), default=128)
+    ap.add_argument("--n", type=number(int, 2), default=20)
+    ap.add_argument("--warmup", type=number(int, 0), default=8)
+    ap.add_argument("--think", type=number(float, 0), default=0.5,
                     help="seconds between the last pick and the press in the breeding-ahead rows (a student's pause)")
     ap.add_argument("--buttons", nargs="+", choices=BUTTONS, default=BUTTONS,
                     help="the buttons clicked in turn (default: evolve and the seven operators; "

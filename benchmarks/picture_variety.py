@@ -38,6 +38,7 @@ import time
 
 import numpy as np
 
+from coursekit.cli import number
 from coursekit.pictures import Genome, primitives, render
 from coursekit.pictures.gallery import Evolution, GalleryState
 from coursekit.pictures.genome import Chromosome, ChromosomeString
@@ -142,8 +143,8 @@ def chain_figures(sessions, n=20, depth=4):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--genomes", type=int, default=600)
-    ap.add_argument("--sessions", type=int, default=30)
+    ap.add_argument("--genomes", type=number(int, 1), default=600)
+    ap.add_argument("--sessions", type=number(int, 0), default=30)
     args = ap.parse_args(argv)
     photos = _photos()
     rows = []

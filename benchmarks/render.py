@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from coursekit.cli import number
 from coursekit.creatures import Creature, simulate
 
 R = importlib.import_module("coursekit.creatures.render")  # (coursekit.creatures.render is the function)
@@ -75,8 +76,8 @@ def files(creature, trajectory, times, size, out: Path) -> dict:
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="a few pictures and one short clip (CI)")
-    p.add_argument("--size", type=int, nargs=2, default=(480, 360), metavar=("W", "H"))
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--size", type=number(int, 16), nargs=2, default=(480, 360), metavar=("W", "H"))
+    p.add_argument("--seed", type=number(int, 0), default=0)
     a = p.parse_args(argv)
     size = tuple(a.size)
     rng = np.random.default_rng(a.seed)

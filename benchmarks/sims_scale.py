@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from coursekit.cli import number
 from coursekit.atomic import atomic_write
 from coursekit.creatures import evolve_swimmers, resume_swimmers, simulate
 from coursekit.creatures.audit import audit, body_length
@@ -85,11 +86,11 @@ def champion(creature, seconds: float = 10.0) -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
-    parser.add_argument("--population", type=int, default=300)
-    parser.add_argument("--generations", type=int, default=100)
-    parser.add_argument("--seconds", type=float, default=10.0)
-    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--seeds", type=number(int, 0), nargs="+", default=[0])
+    parser.add_argument("--population", type=number(int, 2), default=300)
+    parser.add_argument("--generations", type=number(int, 0), default=100)
+    parser.add_argument("--seconds", type=number(float, 0, above=True), default=10.0)
+    parser.add_argument("--workers", type=number(int, 1), default=os.cpu_count() or 1)
     parser.add_argument("--quick", action="store_true", help="24 creatures x 3 generations x 2 s")
     parser.add_argument("--torch-device", help="swim on torch on this device (e.g. cuda), in this process, "
                                                "with the graph-ready step (World(graph=True)), instead of numpy in worker processes")

@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parent.parent  # the checkout, where solutions/ 
 DEFAULT_COURSE_DIR = "coursekit-course"
 
 
-def _number(kind: type, low: float, *, above: bool = False):
+def number(kind: type, low: float, *, above: bool = False):
     """An argparse type: a finite ``kind`` (int or float) >= ``low`` (> with ``above``); argparse
     names the option when the value is not one."""
     def parse(text: str):
@@ -188,12 +188,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="one demo (default: both, into --out with an index.html)")
     s.add_argument("--out", help="output folder (default coursekit-demo/; swimmers alone: swimmers-demo/)")
     s.add_argument("--dir", default=DEFAULT_COURSE_DIR, help=f"pictures: the working folder the course is copied to (default ./{DEFAULT_COURSE_DIR})")
-    s.add_argument("--population", type=_number(int, 2), help="population size (default by COURSEKIT_PROFILE)")
-    s.add_argument("--generations", type=_number(int, 0), help="generations (default by COURSEKIT_PROFILE)")
-    s.add_argument("--seconds", type=_number(float, 0, above=True), help="swimming seconds per evaluation")
-    s.add_argument("--seed", type=_number(int, 0), default=0, help="random seed (default 0)")
-    s.add_argument("--workers", type=_number(int, 1), help="processes the swimmers swim in (default: one per core)")
-    s.add_argument("--budget", type=_number(float, 0), help="seconds the swimmers' evolution may take: no generation is begun that "
+    s.add_argument("--population", type=number(int, 2), help="population size (default by COURSEKIT_PROFILE)")
+    s.add_argument("--generations", type=number(int, 0), help="generations (default by COURSEKIT_PROFILE)")
+    s.add_argument("--seconds", type=number(float, 0, above=True), help="swimming seconds per evaluation")
+    s.add_argument("--seed", type=number(int, 0), default=0, help="random seed (default 0)")
+    s.add_argument("--workers", type=number(int, 1), help="processes the swimmers swim in (default: one per core)")
+    s.add_argument("--budget", type=number(float, 0), help="seconds the swimmers' evolution may take: no generation is begun that "
                    "would end after them (default by COURSEKIT_PROFILE: 75 in the classroom; 0: no limit)")
     s.add_argument("--no-browser", action="store_true", help="pictures: do not open a browser window")
     s.set_defaults(func=_cmd_demo)
@@ -214,7 +214,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "past them all of its processes are stopped and it is reported as not graded")
     s.add_argument("--disk-mb", type=int, default=1024, help="MiB of files a notebook may write in its folder (default 1024); "
                    "past them all of its processes are stopped and it is reported as not graded")
-    s.add_argument("--seed", type=_number(int, 0), help="seed of the grading cases (default: fresh ones every run; "
+    s.add_argument("--seed", type=number(int, 0), help="seed of the grading cases (default: fresh ones every run; "
                    "the results name each notebook's seed, so a run can be repeated exactly)")
     s.add_argument("--unsafe", action="store_true",
                    help="grade even where the bubblewrap sandbox cannot be set up (notebooks can then read "

@@ -196,6 +196,19 @@ def test_bench_refuses_a_bad_option_by_name():
     assert "Traceback" not in run.stderr
 
 
+@pytest.mark.parametrize("argv, message", [
+    (["gallery_click", "--clicks", "0"], "argument --clicks: must be an integer >= 1, got 0"),
+    (["render", "--size", "0", "0"], "argument --size: must be an integer >= 16, got 0"),
+    (["sims_scale", "--population", "1"], "argument --population: must be an integer >= 2, got 1"),
+    (["picture_variety", "--genomes", "0"], "argument --genomes: must be an integer >= 1, got 0"),
+])
+def test_bench_scripts_refuse_bad_sizes_by_name(argv, message):
+    """--clicks 0 ended in an IndexError from numpy's quantile after the warm-up clicks, --size 0 0 and
+    --population 1 in tracebacks from the library, --genomes 0 in a table of 0.0 % rows."""
+    run = subprocess.run([sys.executable, "-m", "coursekit", "bench", *argv], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr, run.stderr
+
+
 def test_bench_says_what_a_benchmark_needs(monkeypatch, capsys):
     """Without MuJoCo the simulator benchmark is refused with the command that installs it."""
     import importlib.util
