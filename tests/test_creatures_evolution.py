@@ -81,6 +81,8 @@ def test_bad_arguments_are_named():
         evolve_swimmers(generations=1, rng=np.random.default_rng(0), mutate=None, **SMALL)
     with pytest.raises(TypeError, match="population: expected a list of creatures, got int"):
         evolve_swimmers(5, generations=1, rng=np.random.default_rng(0))
+    with pytest.raises(TypeError, match="random_options: expected a dict of Creature.random options, got int"):
+        evolve_swimmers(generations=1, rng=np.random.default_rng(0), population_size=4, random_options=5)
 
 
 def test_a_run_on_worker_processes_or_dask_equals_the_serial_run_bit_for_bit():

@@ -163,6 +163,7 @@ def test_arity_inference_and_declaration():
         ([(1, point_mutation), (1, "mutate")], TypeError, r"operators\[1\]: operator must be callable"),
         ([(1, point_mutation, 3)], ValueError, r"operators\[0\]: arity must be 1 .* or 2 .*, got 3"),
         ([(0, point_mutation)], ValueError, "ratios must not all be zero"),
+        ([(1e308, point_mutation), (1e308, point_mutation)], ValueError, "ratios must have a finite sum"),
     ],
 )
 def test_variation_bad_input(ops, exc, pattern):

@@ -169,6 +169,8 @@ def evolve_swimmers(
     if population is None:
         if not (is_int(population_size) and population_size >= 2):
             raise ValueError(f"population_size: must be an integer >= 2, got {population_size!r}")
+        if random_options is not None and not isinstance(random_options, dict):
+            raise TypeError(f"random_options: expected a dict of Creature.random options, got {type(random_options).__name__}")
         options = dict(random_options or {})
         if joint_types is not None:
             options.setdefault("joint_types", joint_types)

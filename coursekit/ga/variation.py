@@ -109,6 +109,8 @@ class Variation:
         total = sum(ratios)
         if total <= 0:
             raise ValueError(f"operators: ratios must not all be zero, got {ratios}")
+        if not np.isfinite(total):
+            raise ValueError(f"operators: ratios must have a finite sum, got {ratios}")
         self.ratios = [r / total for r in ratios]
         self.operators = ops
         self.arities = arities
