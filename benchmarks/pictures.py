@@ -45,6 +45,7 @@ import time
 import numpy as np
 import torch
 
+from coursekit.cli import number
 from coursekit.operations import CountOperations
 from coursekit.pictures import Genome, render, render_reference
 from coursekit.pictures import operators as O
@@ -100,21 +101,13 @@ def per_image(times, n):
     return times[0] / n, times[1] / n
 
 
-def positive(text: str) -> int:
-    """An argument that must be an integer >= 1 (argparse names the option when it is not)."""
-    n = int(text)
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {n}")
-    return n
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--population", type=positive, default=20)
-    ap.add_argument("--repeats", type=positive, default=3)
-    ap.add_argument("--reference-sample", type=positive, default=2,
+    ap.add_argument("--population", type=number(int, 1), default=20)
+    ap.add_argument("--repeats", type=number(int, 1), default=3)
+    ap.add_argument("--reference-sample", type=number(int, 1), default=2,
                     help="genomes timed with the (slow) per-pixel evaluator (at least 1: the last column is against it)")
-    ap.add_argument("--sizes", type=positive, nargs="+", default=[128, 256])
+    ap.add_argument("--sizes", type=number(int, 1), nargs="+", default=[128, 256])
     args = ap.parse_args(argv)
 
     pop = population(args.population)

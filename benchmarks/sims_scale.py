@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from coursekit.cli import number
 from coursekit.atomic import atomic_write
+from coursekit.cli import number
 from coursekit.creatures import evolve_swimmers, resume_swimmers, simulate
 from coursekit.creatures.audit import audit, body_length
 

@@ -559,9 +559,9 @@ class Genome(_CachedHash):
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not -n <= k < n:
             raise ValueError(f"k: {k!r} must be 'pre' or the index of one of the {n} strings")
         strings = list(self.strings)
-        old = strings[k] if isinstance(k, int) and -len(strings) <= k < len(strings) else None
+        old = strings[k]
         strings[k] = string
-        if (type(string) is ChromosomeString and old is not None and string.head_length == old.head_length
+        if (type(string) is ChromosomeString and string.head_length == old.head_length
                 and type(self) is Genome and len(self.preheader) + old.head_length + 1 <= MAX_DEPTH):
             # the operators' case (thousands per gallery click): this genome is valid, and a
             # valid string of the same head length keeps it valid (the same shape, and no
