@@ -252,7 +252,7 @@ def pictures(out: str | os.PathLike[str] = "pictures-demo", *, generations: int 
 
     Sizes default by profile (classroom: 3 generations of 128-pixel pictures; ci: 1 of 32).
     """
-    from coursekit.creatures.render import write_png
+    from coursekit.creatures.film import write_png
     from coursekit.pictures import render, save_image
     from coursekit.pictures.session import Evolution, GalleryState
     from coursekit.pictures.variety import random_population

@@ -54,6 +54,17 @@ def test_pose_changes_the_picture_and_bad_input_is_refused():
     for size in (64, None):
         with pytest.raises(ValueError, match="render.size: need \\(width, height\\)"):
             render(c, size=size)
+    for name, angle in (("azimuth", float("nan")), ("elevation", None), ("azimuth", "x")):
+        with pytest.raises(ValueError, match=f"{name}: must be a finite number of degrees"):
+            render(c, size=(32, 24), **{name: angle})
+
+
+def test_a_picture_file_must_be_named_png(tmp_path):
+    """render writes PNG: a name ending in .jpg would hold PNG data under a JPEG name."""
+    with pytest.raises(ValueError, match="path: a picture is written as PNG; give a file name ending in .png"):
+        render(Creature.figure1_snake(), tmp_path / "snake.jpg", size=(32, 24))
+    assert not list(tmp_path.iterdir())
+    assert render(Creature.figure1_snake(), tmp_path / "snake.PNG", size=(32, 24)).is_file()
 
 
 def test_torch_compile_machinery_after_a_render_does_not_crash_the_process():

@@ -1,5 +1,6 @@
 """Film files: the frames of a clip written as an endlessly looping GIF (Pillow) or an H.264 MP4
-(imageio-ffmpeg's own ffmpeg binary), each read back before it replaces an old file.
+(imageio-ffmpeg's own ffmpeg binary), each read back before it replaces an old file; and single
+pictures as PNG (:func:`write_png`), read back the same way.
 
 A writer is made on a temporary path with ``(tmp, fps, size)``, takes frames with ``add``, and
 ``finish`` (or ``abort``) closes it; ``check(path, n, size)`` reads the file back and raises
@@ -9,9 +10,26 @@ drives them, one per file, from a single rendering pass.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
+
+from coursekit.atomic import atomic_path
+
+
+def write_png(img: np.ndarray, path: str | os.PathLike[str]) -> Path:
+    """Write a ``(H, W, 3)`` uint8 image as a PNG, atomically, read back before it replaces an old file."""
+    from PIL import Image
+
+    if Path(path).suffix.lower() != ".png":
+        raise ValueError(f"path: a picture is written as PNG; give a file name ending in .png, got {str(path)!r}")
+    with atomic_path(path, ".png") as tmp:
+        Image.fromarray(img).save(tmp, format="PNG")
+        with Image.open(tmp) as check:  # read back before it replaces an old file
+            if check.size != (img.shape[1], img.shape[0]):
+                raise OSError(f"{path}: the PNG read back is {check.size}, not {img.shape[1]}x{img.shape[0]}")
+    return Path(path)
 
 
 class GifFile:

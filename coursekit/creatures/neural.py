@@ -152,11 +152,11 @@ def need_keys(d, keys, where: str) -> None:
         raise ValueError(f"{where}: missing field(s) {missing}")
 
 
-def is_int(v) -> bool:
+def is_int(v: object) -> bool:
     return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
 
 
-def is_real(v) -> bool:
+def is_real(v: object) -> bool:
     return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and math.isfinite(v)
 
 

@@ -42,7 +42,8 @@ os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 from coursekit.atomic import atomic_path  # noqa: E402
 
 from .body import PRISMATIC, BodyTree  # noqa: E402
-from .film import WRITERS  # noqa: E402
+from .film import WRITERS, write_png  # noqa: E402
+from .neural import is_real  # noqa: E402
 from .phenotype import Phenotype, part_poses  # noqa: E402
 
 _BOX_CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
@@ -98,6 +99,9 @@ def frame(points: ArrayLike, azimuth: float, elevation: float, aspect: float, *,
     Returns:
         ``(eye, focal_point, view_up)``, as pyvista's ``camera_position`` takes them.
     """
+    for name, angle in (("azimuth", azimuth), ("elevation", elevation)):
+        if not is_real(angle):
+            raise ValueError(f"{name}: must be a finite number of degrees, got {angle!r}")
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     az, el = np.radians(azimuth), np.radians(elevation)
     back = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])  # centre -> eye
@@ -294,18 +298,6 @@ def render(obj: Any, path: str | os.PathLike[str] | None = None, *, size: tuple[
     if path is None:
         return img
     return write_png(img, path)
-
-
-def write_png(img: np.ndarray, path: str | os.PathLike[str]) -> Path:
-    """Write a ``(H, W, 3)`` uint8 image as a PNG, atomically, read back before it replaces an old file."""
-    from PIL import Image
-
-    with atomic_path(path, ".png") as tmp:
-        Image.fromarray(img).save(tmp, format="PNG")
-        with Image.open(tmp) as check:  # read back before it replaces an old file
-            if check.size != (img.shape[1], img.shape[0]):
-                raise OSError(f"{path}: the PNG read back is {check.size}, not {img.shape[1]}x{img.shape[0]}")
-    return Path(path)
 
 
 class View:
