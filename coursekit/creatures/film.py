@@ -59,6 +59,11 @@ class GifFile:
                 raise OSError(f"{path}: the GIF read back has {g.n_frames} frames of {g.size}, not {n} of {tuple(size)}")
 
 
+#: imageio-ffmpeg's quality (0-10) of the MP4s: 6 is x264's constant rate factor 20, which looks like
+#: 8 (factor 10) at half the file (a 10 s champion film at 480 x 360: 2.8 against 6.3 MB).
+MP4_QUALITY = 6
+
+
 class Mp4File:
     """Frames streamed to ffmpeg (imageio-ffmpeg's own binary): H.264 in yuv420p, which browsers play."""
 
@@ -66,7 +71,7 @@ class Mp4File:
         import imageio_ffmpeg
 
         self.out = imageio_ffmpeg.write_frames(str(tmp), tuple(size), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
-                                               quality=8, macro_block_size=2, output_params=["-preset", "veryfast", "-movflags", "+faststart"])
+                                               quality=MP4_QUALITY, macro_block_size=2, output_params=["-preset", "veryfast", "-movflags", "+faststart"])
         self.out.send(None)
 
     def add(self, img: np.ndarray) -> None:
