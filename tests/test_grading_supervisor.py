@@ -198,4 +198,4 @@ def test_a_notebook_past_its_total_time_is_stopped_and_not_graded(tmp_path):
 
 def test_notebook_timeout_must_be_positive(tmp_path):
     proc = grade(tmp_path, [tmp_path / "01_selection.ipynb"], "--notebook-timeout", "0")
-    assert proc.returncode == 2 and "--notebook-timeout must be positive" in proc.stderr
+    assert proc.returncode == 2 and "--notebook-timeout must be a positive finite number, got 0.0" in proc.stderr
