@@ -151,6 +151,9 @@ def test_bad_options_are_refused():
     for bad in (0, 1.5, True):
         with pytest.raises(ValueError, match="substeps"):
             World([tree], substeps=bad)
+    for name in ("contacts", "limits", "graph"):  # a string would switch them on, silently
+        with pytest.raises(TypeError, match=f"{name}: must be True or False, got str"):
+            World([tree], **{name: "no"})
     w = World([tree])
     with pytest.raises(ValueError, match="effector"):
         w.set_effectors(np.zeros(5))

@@ -142,8 +142,9 @@ class World:
             raise ValueError(f"integrator: got {integrator!r}; allowed: {', '.join(INTEGRATORS)} or a function rkn_step(f, t, y, v, h)")
         if not (isinstance(drag, (bool, np.bool_)) or callable(drag)):
             raise TypeError(f"drag: must be True, False or a function box_drag(half_extents, k), got {type(drag).__name__}")
-        if not isinstance(graph, (bool, np.bool_)):
-            raise TypeError(f"graph: must be True or False, got {type(graph).__name__}")
+        for name, flag in (("graph", graph), ("limits", limits), ("contacts", contacts)):
+            if not isinstance(flag, (bool, np.bool_)):
+                raise TypeError(f"{name}: must be True or False, got {type(flag).__name__}")
         if not (isinstance(substeps, (int, np.integer)) and not isinstance(substeps, bool) and substeps >= 1):
             raise ValueError(f"substeps: must be an integer >= 1, got {substeps!r}")
         for name, cap in (("max_speed", max_speed), ("max_angular_speed", max_angular_speed), ("max_joint_speed", max_joint_speed)):
