@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import subprocess
 import sys
@@ -20,7 +21,7 @@ def number(kind: type, low: float, *, above: bool = False):
             value = kind(text)
         except ValueError:
             value = None
-        if value is None or value != value or abs(value) == float("inf") or (value <= low if above else value < low):
+        if value is None or not math.isfinite(value) or (value <= low if above else value < low):
             raise argparse.ArgumentTypeError(f"must be {'an integer' if kind is int else 'a number'} "
                                              f"{'>' if above else '>='} {low:g}, got {text}")
         return value
@@ -79,7 +80,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
             print(f"coursekit demo: --out {out}: cannot make this folder ({e.strerror})", file=sys.stderr)
             return 2
     if args.name is None:
-        result = demos.both(args.out or "coursekit-demo", **sizes)
+        result = demos.both(out, **sizes)
         summary = result["swimmers"]
         print(f"best swimmer: {summary['best_speed']:.3f} m/s = {summary['best_body_lengths_per_second']:.3f} body lengths/s, "
               f"{summary['best_parts']} parts; audit: {summary['audit']}")
@@ -88,12 +89,12 @@ def _cmd_demo(args: argparse.Namespace) -> int:
               f"on {summary['workers']} processes); open {result['index']}")
         return 0
     if args.name == "swimmers":
-        summary = demos.swimmers(args.out or "swimmers-demo", **sizes)
+        summary = demos.swimmers(out, **sizes)
         print(f"best swimmer: {summary['best_speed']:.3f} m/s = {summary['best_body_lengths_per_second']:.3f} body lengths/s "
               f"(fitness {summary['best_fitness']:.4f} m/s), {summary['best_parts']} parts")
         print(f"audit: {summary['audit']}")
         _say_budget(summary)
-        print(f"wrote {', '.join(summary['files'])} to {args.out or 'swimmers-demo'}/")
+        print(f"wrote {', '.join(summary['files'])} to {out}/")
         return 0
     folder = _working_copy(args.dir)
     if folder is None:
