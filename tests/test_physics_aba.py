@@ -174,3 +174,48 @@ def test_segment_and_scatter_sums_equal_add_at(seed, n, shape):
     bk.scatter_add(np, got2, parent, values)
     for result in (got, got2):
         np.testing.assert_allclose(result, want, rtol=0, atol=1e-12)
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(1, 30), st.integers(1, 4), st.sampled_from([(), (1,), (6,), (6, 6)]))
+@settings(max_examples=40, deadline=None)
+def test_segment_sums_are_scipy_sparse_products_bit_for_bit(seed, n, k, shape):
+    """Segments multiplies by scipy's kernels directly: the result is bit for bit the public product's."""
+    import scipy.sparse
+
+    rng = np.random.default_rng(seed)
+    parent = np.sort(rng.integers(3, 10, n))
+    start = rng.normal(size=(12,) + shape)
+    values, weights = rng.normal(size=(n, k) + shape), rng.normal(size=(n, k))
+    rows = np.repeat(parent - 3, k)
+    A = scipy.sparse.csr_matrix((weights.reshape(-1), (rows, np.arange(n * k))), shape=(7, n * k))
+    ones = scipy.sparse.csr_matrix((np.ones(n), (parent - 3, np.arange(n))), shape=(7, n))
+    want_weighted, want_sum = start.copy(), start.copy()
+    want_weighted[3:10] += (A @ values.reshape(n * k, -1)).reshape((7,) + shape)
+    want_sum[3:10] += (ones @ values[:, 0].reshape(n, -1)).reshape((7,) + shape)
+    segments = bk.Segments(np, parent, (3, 10))
+    got_weighted, got_sum = start.copy(), start.copy()
+    segments.add_weighted(got_weighted, weights, values)
+    segments.add_into(got_sum, values[:, 0].reshape(n, -1))
+    assert np.array_equal(got_weighted, want_weighted) and np.array_equal(got_sum, want_sum)
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(1, 3), st.integers(1, 4))
+@settings(max_examples=40, deadline=None)
+def test_numpy_namespace_calls_numpy_bit_for_bit(seed, ndim, count):
+    """The simulator's numpy namespace (take, reshape, sum and stack on the arrays) gives numpy's results."""
+    rng = np.random.default_rng(seed)
+    shape = tuple(rng.integers(1, 5, ndim))
+    arrays = [rng.normal(size=shape) for _ in range(count)]
+    xp, a = bk.namespace("numpy"), arrays[0]
+    for axis in range(-ndim - 1, ndim + 1):
+        assert np.array_equal(xp.stack(arrays, axis=axis), np.stack(arrays, axis=axis))
+    for axis in range(-ndim, ndim):
+        idx = rng.integers(0, shape[axis], 5)
+        assert np.array_equal(xp.take(a, idx, axis=axis), np.take(a, idx, axis=axis))
+        assert np.array_equal(xp.sum(a, axis=axis, keepdims=True), np.sum(a, axis=axis, keepdims=True))
+    assert np.array_equal(xp.reshape(a, (-1,)), np.reshape(a, (-1,))) and xp.sum(a) == np.sum(a)
+    with pytest.raises(ValueError):
+        xp.stack(arrays + [np.zeros(shape + (2,))], axis=0)
+    with pytest.raises(Exception):  # numpy's own error (AxisError)
+        xp.stack(arrays, axis=ndim + 1)
+    assert bk.is_numpy(xp) and not bk.is_torch(xp)

@@ -3,9 +3,19 @@
 The simulator is written against the array API (through :mod:`array_api_compat`). This module
 adds the little the standard lacks -- moving index arrays to a backend and the segment sum that
 accumulates children's articulated inertias into their parents -- and nothing else.
+
+numpy (>= 2) implements the array API in its main namespace; :data:`NUMPY` is that namespace with
+its ``take``, ``reshape``, ``sum`` and ``stack`` called straight on the arrays. numpy's own are
+Python wrappers (a dispatcher, then ``_wrapfunc``, or ``stack``'s shape checks) that cost more
+than the work on the few rows of a small batch -- the step of a lesson's one creature, or of the
+three fittest that evolution re-scores; they call the same kernels, so every result is bit for
+bit numpy's.
 """
 
 from __future__ import annotations
+
+import functools
+import types
 
 import numpy as np
 import array_api_compat
@@ -13,10 +23,38 @@ import array_api_compat
 BACKENDS = ("numpy", "torch")
 
 
+def _take(x, indices, /, *, axis=None):
+    return x.take(indices, axis=axis)
+
+
+def _reshape(x, /, shape, *, copy=None):
+    return x.reshape(shape) if copy is None else np.reshape(x, shape, copy=copy)
+
+
+def _sum(x, /, *, axis=None, dtype=None, keepdims=False):
+    return x.sum(axis=axis, dtype=dtype, keepdims=keepdims)
+
+
+def _stack(arrays, /, *, axis=0):
+    arrays = [np.asarray(a) for a in arrays]
+    if not arrays:
+        return np.stack(arrays, axis=axis)  # numpy's own error
+    ndim = arrays[0].ndim + 1
+    at = axis + ndim if axis < 0 else axis
+    if not 0 <= at < ndim:
+        return np.stack(arrays, axis=axis)  # numpy's own error
+    new = (slice(None),) * at + (None,)
+    return np.concatenate([a[new] for a in arrays], axis=at)
+
+
+#: numpy's namespace, with ``take``, ``reshape``, ``sum`` and ``stack`` called straight on the arrays.
+NUMPY = types.SimpleNamespace(**{**vars(np), "take": _take, "reshape": _reshape, "sum": _sum, "stack": _stack})
+
+
 def namespace(backend: str):
-    """Array namespace for ``backend`` ("numpy" or "torch")."""
+    """Array namespace for ``backend`` ("numpy": :data:`NUMPY`, or "torch")."""
     if backend == "numpy":
-        return np  # numpy >= 2 implements the array API in its main namespace (no wrapper overhead)
+        return NUMPY
     if backend == "torch":
         import array_api_compat.torch as xp
 
@@ -24,8 +62,12 @@ def namespace(backend: str):
     raise ValueError(f"backend: unknown backend {backend!r}; allowed: {', '.join(BACKENDS)}")
 
 
+def is_numpy(xp) -> bool:
+    return xp is NUMPY or xp is np
+
+
 def is_torch(xp) -> bool:
-    return xp is not np and array_api_compat.is_torch_namespace(xp)
+    return not is_numpy(xp) and array_api_compat.is_torch_namespace(xp)
 
 
 def asarray(xp, a, *, dtype=None, device=None):
@@ -66,9 +108,10 @@ class Segments:
             :meth:`add_weighted`.
         parent_level: ``(start, stop)`` of the parents (a contiguous slice of bodies).
 
-    numpy sums with a sparse (parents x children) 0/1 matrix product through ``scipy.sparse``'s
-    public API -- several times faster than ``np.add.reduceat`` or ``np.add.at`` on stacks of
-    6x6 matrices; torch uses an accumulating ``index_put_``.
+    numpy sums with a sparse (parents x children) CSR matrix product -- several times faster than
+    ``np.add.reduceat`` or ``np.add.at`` on stacks of 6x6 matrices -- built by ``scipy.sparse`` and
+    multiplied by its kernels directly (:func:`_csr_product`); torch uses an accumulating
+    ``index_put_``.
     """
 
     def __init__(self, xp, parent: np.ndarray, parent_level: tuple[int, int], device=None):
@@ -78,12 +121,10 @@ class Segments:
         self.parent = index(xp, parent, device=device)
         self.start, self.stop = parent_level
         if not self.torch:
-            import scipy.sparse
-
             n = parent.size
             self._rows = parent - self.start
             self._pattern = {}  # index structure of add_weighted's matrix, per number of terms
-            self.matrix = scipy.sparse.csr_matrix((np.ones(n), (self._rows, np.arange(n))), shape=(self.stop - self.start, n))
+            self.matrix = _csr(np.ones(n), self._rows, np.arange(n), (self.stop - self.start, n))
 
     def add_into(self, target, values) -> None:
         """``target[parent[k]] += values[k]`` for every child ``k`` (in place); ``values`` may be
@@ -95,7 +136,8 @@ class Segments:
             target.index_put_((self.parent,), values.reshape((-1,) + tuple(target.shape[1:])), accumulate=True)
             return
         rows = target[self.start : self.stop]
-        rows += (self.matrix @ np.asarray(values, dtype=np.float64).reshape(n, -1)).reshape(rows.shape)
+        A = self.matrix
+        rows += _csr_product(A.shape, A.indptr, A.indices, A.data, np.asarray(values, dtype=np.float64).reshape(n, -1)).reshape(rows.shape)
 
     def add_weighted(self, target, weights, values) -> None:
         """``target[parent[k]] += sum_t weights[k, t] values[k, t]`` (in place) for (n, k) weights
@@ -109,23 +151,46 @@ class Segments:
             terms = (weights[:, :, None] * values.reshape(n, k, -1)).sum(1)
             target.index_put_((self.parent,), terms.reshape((n,) + tuple(target.shape[1:])), accumulate=True)
             return
+        # (parents x n k) matrix with entry weights[i, t] at (parent of i, i k + t); its entries are
+        # stored in exactly that order (children are sorted by parent), so the index structure is
+        # built once per k and only the weights change
+        if k not in self._pattern:
+            A = _csr(np.ones(n * k), np.repeat(self._rows, k), np.arange(n * k), (self.stop - self.start, n * k))
+            self._pattern[k] = (A.shape, A.indptr, A.indices)
+        shape, indptr, indices = self._pattern[k]
         x = np.asarray(values, dtype=np.float64).reshape(n * k, -1)
         rows = target[self.start : self.stop]
-        rows += (self._weighted_matrix(k, weights) @ x).reshape(rows.shape)
+        rows += _csr_product(shape, indptr, indices, np.ascontiguousarray(weights, dtype=np.float64).reshape(-1), x).reshape(rows.shape)
 
-    def _weighted_matrix(self, k, weights):
-        """(parents x n k) CSR matrix with entry ``weights[i, t]`` at (parent of i, i k + t); its
-        entries are stored in exactly that order (children are sorted by parent), so the index
-        structure is built once per ``k`` and only the weights change."""
-        import scipy.sparse
 
-        n = weights.shape[0]
-        shape = (self.stop - self.start, n * k)
-        if k not in self._pattern:
-            A = scipy.sparse.csr_matrix((np.ones(n * k), (np.repeat(self._rows, k), np.arange(n * k))), shape=shape)
-            self._pattern[k] = (A.indptr, A.indices)
-        indptr, indices = self._pattern[k]
-        return scipy.sparse.csr_matrix((np.asarray(weights, dtype=np.float64).reshape(-1), indices, indptr), shape=shape)
+def _csr(data, rows, columns, shape):
+    import scipy.sparse
+
+    return scipy.sparse.csr_matrix((data, (rows, columns)), shape=shape)
+
+
+def _csr_product(shape, indptr, indices, data, x):
+    """``A @ x`` for the CSR matrix ``A`` = (``data``, ``indices``, ``indptr``) of ``shape`` and a
+    float64 block ``x`` (N, m): what ``scipy.sparse`` computes for it -- the same kernel
+    (``csr_matvec`` for one column, ``csr_matvecs`` for more) into the same zeroed result, so
+    bit for bit its product -- without its checks and dispatch, which on the few rows of a tree
+    level cost three times the product."""
+    M, N = shape
+    m = x.shape[1]
+    out = np.zeros((M, m))
+    if m == 1:
+        _sparsetools().csr_matvec(M, N, indptr, indices, data, np.ascontiguousarray(x).ravel(), out.ravel())
+    else:
+        _sparsetools().csr_matvecs(M, N, m, indptr, indices, data, x.ravel(), out.ravel())
+    return out
+
+
+@functools.cache
+def _sparsetools():
+    """scipy's sparse kernels, imported when numpy first sums segments (not with the package)."""
+    from scipy.sparse import _sparsetools
+
+    return _sparsetools
 
 
 def scatter_add(xp, target, idx, values) -> None:

@@ -159,7 +159,7 @@ def transform_matrices(model, b):
     ``-E rx``, 0) and gathers the 36 from them; torch, whose small stacked products are slow on
     the CPU, two ``addcmul`` over the rows of the full coefficients."""
     P = model.X_basis
-    if model.xp is np:
+    if bk.is_numpy(model.xp):
         return np.take((b[:, None, :3] @ P)[:, 0], model.X_expand, axis=1).reshape(-1, 6, 6)
     return P[0].addcmul(b[:, 1:2], P[1]).addcmul_(b[:, 2:3], P[2]).reshape(-1, 6, 6)
 

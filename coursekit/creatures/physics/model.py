@@ -165,7 +165,7 @@ class Model:
         pose = jcalc.fit_joint_basis(rev, consts, lambda E, r: np.concatenate([E.mT.reshape(-1, 9), r], axis=1))
         self.pose_rows_basis = f(np.transpose(pose, (1, 2, 0)))  # (3, 12, M): rows of E' and r
         X_basis = jcalc.fit_joint_basis(rev, consts, lambda E, r: sp.transform_matrix(np, E, r).reshape(-1, 36))
-        if xp is np:
+        if bk.is_numpy(xp):
             # Xup = [[E, 0], [-E rx, E]] has 18 distinct entries: numpy streams their coefficients
             # (M, 3, 19: E, -E rx and a zero column) and gathers the 36 entries from them after
             # (see jcalc.transform_matrices); the full basis is twice the memory traffic
