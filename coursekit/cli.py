@@ -73,6 +73,11 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     sizes = dict(population=args.population, generations=args.generations, seconds=args.seconds, seed=args.seed,
                  workers=args.workers, budget=args.budget)
     if args.name != "pictures":
+        try:
+            demos.swimmer_sizes(args.population, args.generations, args.seconds, args.workers, args.budget)
+        except ValueError as e:
+            print(f"coursekit demo: --{e}", file=sys.stderr)
+            return 2
         out = Path(args.out or ("coursekit-demo" if args.name is None else "swimmers-demo"))
         try:
             out.mkdir(parents=True, exist_ok=True)

@@ -84,6 +84,27 @@ class _Budget:
         return self.stopped
 
 
+def swimmer_sizes(population: int | None = None, generations: int | None = None, seconds: float | None = None,
+          workers: int | None = None, budget: float | None = None) -> tuple:
+    """The swimmer demo's ``(population, generations, seconds, workers, budget)``: the given ones,
+    checked (a ``ValueError`` names the one that is not allowed), the others by profile."""
+    from coursekit.creatures.neural import is_int
+
+    population = sized(classroom=40, ci=6) if population is None else population
+    generations = sized(classroom=8, ci=1) if generations is None else generations
+    seconds = seconds or sized(classroom=10.0, ci=0.5)
+    if not (is_int(population) and population >= 2):
+        raise ValueError(f"population: must be an integer >= 2, got {population!r}")
+    if workers is None:
+        workers = min(os.cpu_count() or 1, population)
+    elif not (is_int(workers) and 1 <= workers <= population):  # a process per creature at most
+        raise ValueError(f"workers: must be an integer from 1 to the population ({population}), got {workers!r}")
+    budget = sized(classroom=75.0, ci=0.0) if budget is None else budget
+    if not (isinstance(budget, (int, float)) and budget >= 0):
+        raise ValueError(f"budget: must be a number of seconds >= 0 (0: no limit), got {budget!r}")
+    return population, generations, seconds, workers, budget
+
+
 def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int | None = None,
              generations: int | None = None, seconds: float | None = None, seed: int = 0, workers: int | None = None,
              budget: float | None = None, progress: bool = True) -> dict:
@@ -106,7 +127,8 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
             it, about 2 minutes in all on 2 cores; ci and 0: no limit). The run is the same run
             either way, cut short: ``generations`` in the summary is what was bred, and
             ``--budget 0`` breeds them all.
-        workers: processes the population swims in (default: one per core; 1: this process).
+        workers: processes the population swims in, at most one per creature (default: one per
+            core; 1: this process).
             The run is bit for bit the same either way. With more than one, the shipped
             champions are filmed while evolution runs (in a process at the lowest priority) and
             the audit's five runs are spread over the workers.
@@ -124,13 +146,7 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
     from coursekit.creatures.champions import hall_of_fame
     from coursekit.creatures.render import render
 
-    population = population or sized(classroom=40, ci=6)
-    generations = sized(classroom=8, ci=1) if generations is None else generations
-    seconds = seconds or sized(classroom=10.0, ci=0.5)
-    workers = workers or os.cpu_count() or 1
-    budget = sized(classroom=75.0, ci=0.0) if budget is None else budget
-    if not (isinstance(budget, (int, float)) and budget >= 0):
-        raise ValueError(f"budget: must be a number of seconds >= 0 (0: no limit), got {budget!r}")
+    population, generations, seconds, workers, budget = swimmer_sizes(population, generations, seconds, workers, budget)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     wall, t0 = {}, time.perf_counter()

@@ -279,9 +279,12 @@ def test_the_swimmer_demo_keeps_to_its_budget_by_breeding_fewer_generations_of_t
                                              ("--population=1", "argument --population: must be an integer >= 2, got 1"),
                                              ("--seconds=0", "argument --seconds: must be a number > 0, got 0"),
                                              ("--seconds=inf", "argument --seconds: must be a number > 0, got inf"),
-                                             ("--seed=-1", "argument --seed: must be an integer >= 0, got -1")])
+                                             ("--seed=-1", "argument --seed: must be an integer >= 0, got -1"),
+                                             ("--workers=0", "argument --workers: must be an integer >= 1, got 0"),
+                                             ("--workers=100000", "--workers: must be an integer from 1 to the population ("),
+                                             ("--population=6 --workers=7", "--workers: must be an integer from 1 to the population (6), got 7")])
 def test_the_demo_refuses_a_bad_size_by_name_before_it_starts(option, message, tmp_path):
-    run = subprocess.run([sys.executable, "-m", "coursekit", "demo", "swimmers", option, "--out", str(tmp_path / "d")],
+    run = subprocess.run([sys.executable, "-m", "coursekit", "demo", "swimmers", *option.split(), "--out", str(tmp_path / "d")],
                          capture_output=True, text=True)
     assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr
     assert not (tmp_path / "d").exists()
