@@ -195,6 +195,8 @@ def test_step_rejects_bad_shapes():
         bb.step(np.zeros(4), np.zeros(5), np.zeros((6, 6)), 0.01)
     with pytest.raises(TypeError, match="Brain"):
         BrainBatch([])
+    with pytest.raises(TypeError, match=r"BrainBatch.brains: expected a non-empty list of Brain \(or Phenotype\) objects, got NoneType"):
+        BrainBatch(None)
 
 
 def test_snake_legs_move_in_opposition():

@@ -458,6 +458,8 @@ def test_evolve_bad_input(kwargs, exc, pattern):
         (lambda: TargetMatch(None), ValueError, "target: expected a non-empty array of 0/1 values, got None"),
         (lambda: TargetMatch([0, 2]), ValueError, "target: expected a non-empty array of 0/1 values"),
         (lambda: TargetMatch([]), ValueError, "target: expected a non-empty array"),
+        (lambda: onemax(None), TypeError, "onemax: genome must be an array of 0/1 bits, got NoneType"),
+        (lambda: ga.diversity.distinct_fraction(None), TypeError, "population: expected a sequence of genomes, got NoneType"),
     ],
 )
 def test_helpers_name_bad_arguments(call, exc, pattern):

@@ -283,6 +283,17 @@ def test_bad_arguments_are_named_and_leave_the_gallery_as_it_was(gallery):
             Gallery(np.random.default_rng(0), gallery.state.population, **{"size": 12, name: bad})
     with pytest.raises(TypeError, match=r"mutations\['mine'\]: expected an operator function, got int"):
         Gallery(np.random.default_rng(0), gallery.state.population, size=12, mutations={"mine": 5})
+    for option, bad, error, message in (
+            ("mutations", [O.MUTATIONS["transposition"]], TypeError, r"mutations: expected a dict of \{name: operator\}, got list"),
+            ("recombinations", 5, TypeError, r"recombinations: expected a dict of \{name: operator\}, got int"),
+            ("genome_params", 5, TypeError, "genome_params: expected a dict of Genome.random options, got int"),
+            ("render_options", "fast", TypeError, "render_options: expected a dict of render options"),
+            ("render_options", {"window": "abc"}, ValueError, r"window: 'abc' must be \(x0, y0, x1, y1\)"),
+            ("autosave", 5, TypeError, "autosave: expected the path of a JSON file, got int"),
+            ("breed_ahead", "no", TypeError, "breed_ahead: expected True or False, got 'no'"),
+            ("population", 5, TypeError, "gallery: population must be a non-empty list of genomes, got int")):
+        with pytest.raises(error, match=message):
+            Gallery(np.random.default_rng(0), **{"population": gallery.state.population, "size": 12, option: bad})
 
 
 def test_keys_move_a_cursor_select_evolve_undo_and_redo(gallery):

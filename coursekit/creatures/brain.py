@@ -179,6 +179,8 @@ class BrainBatch:
     """
 
     def __init__(self, brains: Sequence[Brain | Phenotype], backend: str = "numpy", device: Any | None = None) -> None:
+        if isinstance(brains, (str, bytes)) or not hasattr(brains, "__iter__"):
+            raise TypeError(f"BrainBatch.brains: expected a non-empty list of Brain (or Phenotype) objects, got {type(brains).__name__}")
         brains = [getattr(b, "brain", b) for b in brains]
         if not brains or not all(isinstance(b, Brain) for b in brains):
             raise TypeError("BrainBatch.brains: expected a non-empty list of Brain (or Phenotype) objects")

@@ -41,6 +41,8 @@ def distinct_fraction(population: Sequence) -> float:
     >>> distinct_fraction([np.array([0, 1]), np.array([0, 1]), np.array([1, 1]), np.array([0, 0])])
     0.75
     """
+    if not hasattr(population, "__len__") or isinstance(population, (str, bytes)):
+        raise TypeError(f"population: expected a sequence of genomes, got {type(population).__name__}")
     if len(population) == 0:
         return 0.0
     return len({genome_digest(g) for g in population}) / len(population)

@@ -20,6 +20,8 @@ __all__ = ["onemax", "TargetMatch", "random_bits", "smiley"]
 def onemax(genome: ArrayLike) -> float:
     """OneMax: the fraction of ones in a bit string (optimum 1.0 at all ones)."""
     g = np.asarray(genome)
+    if g.dtype.kind not in "biuf":
+        raise TypeError(f"onemax: genome must be an array of 0/1 bits, got {type(genome).__name__}")
     return float(g.mean()) if g.size else 0.0
 
 

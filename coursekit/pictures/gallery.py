@@ -44,7 +44,7 @@ import html
 import io
 import os
 from collections import OrderedDict
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack
 from pathlib import Path
@@ -56,7 +56,7 @@ from . import operators as O
 from .evaluate import render
 from .frame import parse_window
 from .genome import Genome
-from .session import GALLERY_FORMAT, Ancestor, Evolution, GalleryState, Generation, Origin
+from .session import GALLERY_FORMAT, Ancestor, Evolution, GalleryState, Generation, Origin, options
 from .textures import preload
 from .variety import random_population
 
@@ -132,8 +132,8 @@ class Gallery:
     """
 
     def __init__(self, rng: np.random.Generator | None = None, population: Sequence[Genome] | None = None, *,
-                 n: int = 20, columns: int = 5, size: int = 96, mutations: Sequence[Callable] | None = None,
-                 recombinations: Sequence[Callable] | None = None, genome_params: dict | None = None,
+                 n: int = 20, columns: int = 5, size: int = 96, mutations: Mapping[str, Callable] | None = None,
+                 recombinations: Mapping[str, Callable] | None = None, genome_params: dict | None = None,
                  autosave: str | os.PathLike[str] | None = None, render_options: dict | None = None,
                  lineage_size: int = 56, breed_ahead: bool = True) -> None:
         import ipywidgets as W
@@ -144,20 +144,21 @@ class Gallery:
         for name, value in (("columns", columns), ("size", size), ("lineage_size", lineage_size)):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"{name}: {value!r} must be an integer >= 1")
-        genome_params = dict(genome_params or {})
+        genome_params = dict(options("genome_params", genome_params, "Genome.random options"))
+        if not isinstance(breed_ahead, (bool, np.bool_)):
+            raise TypeError(f"breed_ahead: expected True or False, got {breed_ahead!r}")
         preload()  # the stock pictures decoded now, not in the first click that shows one
         if population is None:
             if isinstance(n, bool) or not isinstance(n, int) or n < 2:
                 raise ValueError(f"n: {n!r} must be an integer >= 2")
             rng = np.random.default_rng() if rng is None else rng
             population = random_population(rng, n, **genome_params)
-        state = population if isinstance(population, GalleryState) else GalleryState(list(population))
+        state = population if isinstance(population, GalleryState) else GalleryState(population)
         self.evolution = Evolution(state, rng, mutations=mutations, recombinations=recombinations,
                                    genome_params=genome_params, autosave=autosave)
         self.size, self.lineage_size = size, lineage_size
-        self.render_options = dict(render_options or {})
-        window = self.render_options.pop("window", DEFAULT_WINDOW)
-        self.window = tuple(float(v) for v in window)
+        self.render_options = dict(options("render_options", render_options, "render options (time, device, window)"))
+        self.window = parse_window(self.render_options.pop("window", DEFAULT_WINDOW))
         self.cursor = 0
         self._syncing = False
         self._pngs: OrderedDict = OrderedDict()  # id(genome) -> (genome, thumbnail data: URL), this view

@@ -130,6 +130,8 @@ class GalleryState:
     rng_state: dict | None = None
 
     def __post_init__(self):
+        if isinstance(self.population, (str, bytes)) or not hasattr(self.population, "__iter__"):
+            raise TypeError(f"gallery: population must be a non-empty list of genomes, got {type(self.population).__name__}")
         self.population = list(self.population)
         if self.origins is None:
             self.origins = [START] * len(self.population)
@@ -288,6 +290,15 @@ def _generator(state) -> np.random.Generator:
     return np.random.Generator(bg)
 
 
+def options(name: str, value: Mapping | None, what: str) -> Mapping:
+    """``value`` (``{}`` for None) when it is a mapping; a TypeError naming ``name`` otherwise."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise TypeError(f"{name}: expected a dict of {what}, got {type(value).__name__}")
+    return value
+
+
 class Evolution:
     """The gallery's logic without widgets: every action returns a message for the user.
 
@@ -311,8 +322,9 @@ class Evolution:
             raise TypeError(f"rng: expected numpy.random.Generator, got {type(rng).__name__}")
         state.check()
         self.state, self.rng = state, rng
-        self.mutations = dict(O.MUTATIONS if mutations is None else mutations)
-        self.recombinations = dict(O.RECOMBINATIONS if recombinations is None else recombinations)
+        self.mutations = dict(O.MUTATIONS if mutations is None else options("mutations", mutations, "{name: operator}"))
+        self.recombinations = dict(O.RECOMBINATIONS if recombinations is None else
+                                   options("recombinations", recombinations, "{name: operator}"))
         for kind, ops in (("mutations", self.mutations), ("recombinations", self.recombinations)):
             for name, op in ops.items():
                 if not callable(op):
@@ -320,7 +332,9 @@ class Evolution:
         clash = set(self.mutations) & set(self.recombinations)
         if clash:
             raise ValueError(f"recombinations: {sorted(clash)} are also mutations' names")
-        self.genome_params = dict(genome_params or {})
+        self.genome_params = dict(options("genome_params", genome_params, "Genome.random options"))
+        if autosave is not None and not isinstance(autosave, (str, os.PathLike)):
+            raise TypeError(f"autosave: expected the path of a JSON file, got {type(autosave).__name__}")
         self.autosave = Path(autosave) if autosave is not None else None
         self.max_history = max_history
         self._held = None  # inside saved_after(): whether a save is waiting
