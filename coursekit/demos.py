@@ -85,7 +85,7 @@ class _Budget:
 
 
 def swimmer_sizes(population: int | None = None, generations: int | None = None, seconds: float | None = None,
-          workers: int | None = None, budget: float | None = None) -> tuple:
+                  workers: int | None = None, budget: float | None = None) -> tuple:
     """The swimmer demo's ``(population, generations, seconds, workers, budget)``: the given ones,
     checked (a ``ValueError`` names the one that is not allowed), the others by profile."""
     from coursekit.creatures.neural import is_int

@@ -121,10 +121,9 @@ class Segments:
         self.parent = index(xp, parent, device=device)
         self.start, self.stop = parent_level
         if not self.torch:
-            n = parent.size
             self._rows = parent - self.start
-            self._pattern = {}  # index structure of add_weighted's matrix, per number of terms
-            self.matrix = _csr(np.ones(n), self._rows, np.arange(n), (self.stop - self.start, n))
+            self._ones = np.ones(parent.size)
+            self._structures = {}  # the CSR matrix's (shape, indptr, indices), per number of terms
 
     def add_into(self, target, values) -> None:
         """``target[parent[k]] += values[k]`` for every child ``k`` (in place); ``values`` may be
@@ -136,8 +135,7 @@ class Segments:
             target.index_put_((self.parent,), values.reshape((-1,) + tuple(target.shape[1:])), accumulate=True)
             return
         rows = target[self.start : self.stop]
-        A = self.matrix
-        rows += _csr_product(A.shape, A.indptr, A.indices, A.data, np.asarray(values, dtype=np.float64).reshape(n, -1)).reshape(rows.shape)
+        rows += _csr_product(*self._structure(1), self._ones, np.asarray(values, dtype=np.float64).reshape(n, -1)).reshape(rows.shape)
 
     def add_weighted(self, target, weights, values) -> None:
         """``target[parent[k]] += sum_t weights[k, t] values[k, t]`` (in place) for (n, k) weights
@@ -151,22 +149,23 @@ class Segments:
             terms = (weights[:, :, None] * values.reshape(n, k, -1)).sum(1)
             target.index_put_((self.parent,), terms.reshape((n,) + tuple(target.shape[1:])), accumulate=True)
             return
-        # (parents x n k) matrix with entry weights[i, t] at (parent of i, i k + t); its entries are
-        # stored in exactly that order (children are sorted by parent), so the index structure is
-        # built once per k and only the weights change
-        if k not in self._pattern:
-            A = _csr(np.ones(n * k), np.repeat(self._rows, k), np.arange(n * k), (self.stop - self.start, n * k))
-            self._pattern[k] = (A.shape, A.indptr, A.indices)
-        shape, indptr, indices = self._pattern[k]
         x = np.asarray(values, dtype=np.float64).reshape(n * k, -1)
         rows = target[self.start : self.stop]
-        rows += _csr_product(shape, indptr, indices, np.ascontiguousarray(weights, dtype=np.float64).reshape(-1), x).reshape(rows.shape)
+        rows += _csr_product(*self._structure(k), np.ascontiguousarray(weights, dtype=np.float64).reshape(-1), x).reshape(rows.shape)
 
+    def _structure(self, k):
+        """``(shape, indptr, indices)`` of the (parents x n k) CSR matrix with an entry at (parent of
+        i, i k + t) for every child i and term t, stored in exactly that order (children are sorted
+        by parent; ``add_into``'s, k = 1, needs no sorting): built once per ``k`` by
+        ``scipy.sparse``, only the entries change."""
+        if k not in self._structures:
+            import scipy.sparse
 
-def _csr(data, rows, columns, shape):
-    import scipy.sparse
-
-    return scipy.sparse.csr_matrix((data, (rows, columns)), shape=shape)
+            n = self._rows.size
+            A = scipy.sparse.csr_matrix((np.ones(n * k), (np.repeat(self._rows, k), np.arange(n * k))),
+                                        shape=(self.stop - self.start, n * k))
+            self._structures[k] = (A.shape, A.indptr, A.indices)
+        return self._structures[k]
 
 
 def _csr_product(shape, indptr, indices, data, x):
