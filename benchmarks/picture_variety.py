@@ -9,6 +9,8 @@ generation (:func:`coursekit.pictures.variety.random_population`, one genome per
 
 - *flat*: every channel's standard deviation over the picture is below 0.02;
 - *black*: no value above 1/255;
+- *one colour*: one colour (16 levels per channel) covers at least 90 % of the pixels (a black
+  field with specks or a thin line; flat pictures are one colour too);
 - *greyscale*: the mean over pixels of (largest channel - smallest channel) is below 0.02;
 - *photo-dominated*: the picture's luminance correlates (``|Pearson r| > 0.5``) with the
   luminance of one of the scikit-image stock photos (each rendered alone as a ``pixmap``
@@ -25,8 +27,10 @@ mean absolute difference to a parent or to an earlier child of the same click is
 for any other child of the click (the issue's definition: both children of a duplicate pair count).
 
 **Flat children** (the same sessions): the fraction of those children that are flat or black,
-and along a *chain*: session ``s`` evolves (mixed operators) from one random picture, then from
-one random child of that, four times; the fraction of flat or black children over the chain.
+and that are one colour, and along a *chain*: session ``s`` evolves (mixed operators) from one
+random picture, then from one random child of that, four times; the same two fractions over the
+chain. These yardsticks are the benchmark's own, so that one script measures any version of the
+library.
 
 Usage: ``python benchmarks/picture_variety.py [--genomes 600] [--sessions 30]``
 """
@@ -42,10 +46,23 @@ from coursekit.cli import number
 from coursekit.pictures import Genome, primitives, render
 from coursekit.pictures.gallery import Evolution, GalleryState
 from coursekit.pictures.genome import Chromosome, ChromosomeString
-from coursekit.pictures.variety import dull
 
 SIZE = 64
 SAME = 1.0 / 255.0
+
+
+def flat_or_black(images):
+    """Per picture of ``images`` (N, H, W, 3): every channel's standard deviation below 0.02, or
+    no value above 1/255."""
+    n = len(images)
+    return (images.reshape(n, -1, 3).std(axis=1).max(axis=1) < 0.02) | (images.reshape(n, -1).max(axis=1) <= SAME)
+
+
+def one_colour(images, share=0.9, levels=16):
+    """Per picture: one colour (``levels`` per channel) on at least ``share`` of the pixels."""
+    q = np.clip(np.rint(images * (levels - 1)), 0, levels - 1).astype(np.int64).reshape(len(images), -1, 3)
+    colour = (q[..., 0] * levels + q[..., 1]) * levels + q[..., 2]
+    return np.array([np.bincount(c).max() / c.size >= share for c in colour], dtype=bool)
 
 
 def _render(genomes):
@@ -63,10 +80,10 @@ def _photos():
 
 
 def picture_figures(images, photos):
-    """Fractions (flat, black, greyscale, photo-dominated) of ``images`` (N, H, W, 3)."""
+    """Fractions (flat, black, one colour, greyscale, photo-dominated) of ``images`` (N, H, W, 3)."""
     n = len(images)
     if n == 0:
-        return [float("nan")] * 4
+        return [float("nan")] * 5
     flat = images.reshape(n, -1, 3).std(axis=1).max(axis=1) < 0.02
     black = images.reshape(n, -1).max(axis=1) <= SAME
     grey = (images.max(axis=3) - images.min(axis=3)).reshape(n, -1).mean(axis=1) < 0.02
@@ -77,7 +94,7 @@ def picture_figures(images, photos):
     with np.errstate(invalid="ignore", divide="ignore"):
         r = np.where(norm > 1e-9, (lum @ ph.T) / np.maximum(norm, 1e-30), 0.0)
     photo = np.abs(r).max(axis=1) > 0.5
-    return [float(v.mean()) for v in (flat, black, grey, photo)]
+    return [float(v.mean()) for v in (flat, black, one_colour(images), grey, photo)]
 
 
 def with_photo(genomes):
@@ -97,7 +114,7 @@ def first_generation(rng, n):
 def children_figures(sessions, n=20):
     """(children checked, fraction repeating, fraction identical to a parent or sibling, and
     per operator the fraction identical)."""
-    checked = repeats = identical = flat = 0
+    checked = repeats = identical = flat = single = 0
     per_op: dict = {}
     for s in range(sessions):
         rng = np.random.default_rng(s)
@@ -117,18 +134,19 @@ def children_figures(sessions, n=20):
                 checked += 1
                 repeats += min(d_par + d_earlier) < SAME
                 identical += min(d_par + d_sib) < SAME
-                flat += bool(dull(kid[None])[0])
+                flat += bool(flat_or_black(kid[None])[0])
+                single += bool(one_colour(kid[None])[0])
                 per_op.setdefault(name, []).append(min(d_par + d_sib) < SAME)
             ev.undo()
             ev.state.selected.clear()
     return (checked, repeats / checked, identical / checked, {k: float(np.mean(v)) for k, v in per_op.items()},
-            flat / checked)
+            flat / checked, single / checked)
 
 
 def chain_figures(sessions, n=20, depth=4):
-    """Fraction of flat or black children over chains of ``depth`` evolve clicks, each from one
-    random picture of the generation before (children checked, fraction)."""
-    checked = flat = 0
+    """Flat or black children, and one-colour children, over chains of ``depth`` evolve clicks, each
+    from one random picture of the generation before (children checked, the two fractions)."""
+    checked = flat = single = 0
     for s in range(sessions):
         rng = np.random.default_rng(1000 + s)
         ev = Evolution(GalleryState(first_generation(rng, n)), rng)
@@ -137,8 +155,9 @@ def chain_figures(sessions, n=20, depth=4):
             assert ev.next_generation().startswith("generation")
             kids = _render(ev.state.population[1:])
             checked += len(kids)
-            flat += int(dull(kids).sum())
-    return checked, flat / checked
+            flat += int(flat_or_black(kids).sum())
+            single += int(one_colour(kids).sum())
+    return checked, flat / checked, single / checked
 
 
 def main(argv=None):
@@ -165,12 +184,13 @@ def main(argv=None):
     chain = chain_figures(args.sessions) if args.sessions > 0 else None
     t3 = time.perf_counter()
     print(f"random pictures: {args.genomes} genomes (seeds 0..{args.genomes - 1}) at {SIZE}^2")
-    print(f"{'':38s} {'flat':>6s} {'black':>6s} {'grey':>6s} {'photo':>6s} {'photo in tree':>14s}")
-    for name, (flat, black, grey, photo, tree) in rows:
-        print(f"{name:38s} {flat:6.1%} {black:6.1%} {grey:6.1%} {photo:6.1%} {tree:14.1%}")
+    print(f"{'':38s} {'flat':>6s} {'black':>6s} {'1 col.':>6s} {'grey':>6s} {'photo':>6s} {'photo in tree':>14s}")
+    for name, (flat, black, single, grey, photo, tree) in rows:
+        print(f"{name:38s} {flat:6.1%} {black:6.1%} {single:6.1%} {grey:6.1%} {photo:6.1%} {tree:14.1%}")
     if children is not None:
         _print_children(args.sessions, *children[:4])
-        print(f"  flat or black: {children[4]:.1%}; over chains of 4 evolve clicks ({chain[0]} children): {chain[1]:.1%}")
+        print(f"  flat or black: {children[4]:.1%}, one colour: {children[5]:.1%}; over chains of 4 evolve clicks "
+              f"({chain[0]} children): {chain[1]:.1%} and {chain[2]:.1%}")
     print(f"(seconds: Genome.random {t1 - t0:.1f}, random_population {t2 - t1:.1f}, sessions {t3 - t2:.1f})")
 
 

@@ -12,7 +12,7 @@ from hypothesis import given, settings, strategies as st
 
 from coursekit.pictures import Genome, operators as O, primitives, random_population, render
 from coursekit.pictures.gallery import Evolution, GalleryState
-from coursekit.pictures.variety import SAME, distinct_children, dull, greyscale, preview
+from coursekit.pictures.variety import LEVELS, ONE_COLOUR, SAME, distinct_children, dull, greyscale, preview
 
 
 @pytest.fixture(scope="module")
@@ -184,6 +184,35 @@ def test_children_breed_the_same_way_from_the_same_seed():
 
 
 # ---- random pictures worth a look ----------------------------------------------------------
+
+def test_a_field_of_one_colour_with_a_band_or_specks_is_dull_and_a_picture_of_two_is_not():
+    # black with a white band over the bottom 6 rows (9 %): far from flat by its standard deviation
+    band = np.zeros((1, 64, 64, 3))
+    band[0, -6:] = 1.0
+    assert band.reshape(-1, 3).std(axis=0).max() > 0.25  # far from flat by its standard deviation
+    specks = np.zeros((1, 64, 64, 3))
+    specks[0, ::8, ::8] = (1.0, 0.2, 0.6)                 # 1.6 % of the pixels lit
+    halves = np.zeros((1, 64, 64, 3))
+    halves[0, :, 32:] = (0.9, 0.5, 0.1)
+    assert dull(band)[0] and dull(specks)[0] and not dull(halves)[0]
+    assert not dull(band, one_colour=0.95)[0]             # 91 % black: under that share
+    band[0, -11:] = 1.0                                   # 83 % black, 17 % white: two colours, kept
+    assert not dull(band)[0]
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), share=st.floats(0.0, 1.0))
+def test_dull_flags_a_picture_exactly_when_its_commonest_colour_reaches_the_share(seed, share):
+    # a lively noise picture (no colour repeats much) with one colour painted on a share of its pixels
+    rng = np.random.default_rng(seed)
+    pic = rng.random((1, 32, 32, 3))
+    painted = rng.permutation(32 * 32)[: int(round(share * 32 * 32))]
+    colour = rng.integers(0, LEVELS, 3) / (LEVELS - 1)
+    pic.reshape(-1, 3)[painted] = colour
+    q = np.rint(pic.reshape(-1, 3) * (LEVELS - 1)).astype(int)
+    commonest = np.unique(q, axis=0, return_counts=True)[1].max() / len(q)
+    assert dull(pic)[0] == (commonest >= ONE_COLOUR or pic.reshape(-1, 3).std(axis=0).max() < 0.02)
+
 
 def test_random_population_names_a_bad_min_nodes():
     for bad in ("3", None, 1.5, -1):

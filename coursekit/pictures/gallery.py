@@ -115,7 +115,7 @@ class Gallery:
         rng: the random generator (the session is reproducible from its seed); ``None``
             with a saved :class:`GalleryState` continues its saved random state.
         population: starting genomes, or a :class:`GalleryState` (default: ``n`` random
-            ones, none flat or black: :func:`~coursekit.pictures.variety.random_population`).
+            ones, none flat, black or one colour: :func:`~coursekit.pictures.variety.random_population`).
         n: number of pictures (default 20, Sims' 4 x 5).
         columns: thumbnails per row.
         size: thumbnail size in pixels.

@@ -391,7 +391,7 @@ class Genome(_CachedHash):
             the only string) is a function drawn by the primitives' ``root`` weights, the
             other chromosomes by their ``weight`` (:mod:`.primitives`), so that random
             pictures are mostly coloured and structured. For a first generation that is also
-            never flat or black, use :func:`coursekit.pictures.variety.random_population`.
+            never flat, black or one colour, use :func:`coursekit.pictures.variety.random_population`.
         """
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng: expected numpy.random.Generator, got {type(rng).__name__}")

@@ -23,7 +23,7 @@ no origins, redo or random state, still load). :meth:`GalleryState.from_dict` ch
 field (types, indices, sizes) and names the bad one, so a broken file is refused before
 anything overwrites it.
 
-No slot is wasted (:mod:`.variety`): a random population is never flat or black, and a child
+No slot is wasted (:mod:`.variety`): a random population is never flat, black or one colour, and a child
 whose preview looks like a parent's or another child's is bred again.
 """
 
@@ -483,7 +483,7 @@ class Evolution:
         return self.commit(self.prepare("evolve"))
 
     def randomize(self) -> str:
-        """A new random population (the old one goes to the history), none flat or black."""
+        """A new random population (the old one goes to the history), none flat, black or one colour."""
         pop = random_population(self.rng, self.size, **self.genome_params)
         return self._commit(pop, [Origin("random")] * len(pop), "new random population")
 

@@ -1,17 +1,17 @@
 """Pictures worth a look: a first generation and children that never waste a slot (sections 3.3, 3.4).
 
 With the user as the fitness function (paper section 3.4) every picture on the screen costs a
-judgement, so a slot that shows a flat or black picture, or a copy of its parent or of a
+judgement, so a slot that shows a flat, black or one-colour picture, or a copy of its parent or of a
 sibling, is a wasted click. Two cheap previews prevent that; both render low-resolution
 thumbnails (:data:`PREVIEW`, 32 x 32) and never change what the genomes are:
 
 - :func:`random_population` draws random genomes (:meth:`Genome.random`, whose draw weights
   already favour colour and structure) and redraws those with a tiny coding part, those whose
-  preview is *dull* (flat or black, :func:`dull`) or repeats another picture of the
-  population, and a greyscale one once (grey pictures stay, as a minority).
+  preview is *dull* (flat, black, or one colour almost everywhere, :func:`dull`) or repeats
+  another picture of the population, and a greyscale one once (grey pictures stay, as a minority).
 - :func:`distinct_children` takes children from an operator and redraws those whose preview
   is within :data:`SAME` (mean absolute difference, 1/255) of a parent's or of another child's,
-  and those that are flat or black when a parent is not (a grey noise bred on by ``round``,
+  and those that are dull when a parent is not (a grey noise bred on by ``round``,
   ``mod`` or a bit operation easily gives flat children: ``benchmarks/picture_variety.py``
   measures them along chains of evolve clicks).
 
@@ -31,12 +31,14 @@ from .evaluate import render
 from .genome import Genome
 from .operators import coding
 
-__all__ = ["PREVIEW", "SAME", "FLAT", "MIN_NODES", "preview", "dull", "greyscale", "random_population",
+__all__ = ["PREVIEW", "SAME", "FLAT", "ONE_COLOUR", "LEVELS", "MIN_NODES", "preview", "dull", "greyscale", "random_population",
            "distinct_children"]
 
 PREVIEW = 32  # pixels of a preview's side
 SAME = 1.0 / 255.0  # mean absolute difference under which two pictures look the same
 FLAT = 0.02  # a picture whose every channel has a standard deviation below this is flat
+ONE_COLOUR = 0.9  # a picture with one colour on this share of its pixels is that colour, a speck or a line aside
+LEVELS = 16  # levels per channel at which two colours count as one
 MIN_NODES = 5  # coding chromosomes a random genome of a first generation has at least
 
 
@@ -45,12 +47,26 @@ def preview(genomes: Sequence[Genome], size: int = PREVIEW) -> np.ndarray:
     return render(list(genomes), size, workers=1)
 
 
-def dull(images: np.ndarray, flat: float = FLAT) -> np.ndarray:
+def dull(images: np.ndarray, flat: float = FLAT, one_colour: float = ONE_COLOUR) -> np.ndarray:
     """Per picture of ``images`` ``(N, H, W, 3)``: flat (every channel's standard deviation
-    below ``flat``) or black (no value above 1/255)."""
+    below ``flat``), black (no value above 1/255), or one colour (:data:`LEVELS` levels per
+    channel) on at least the share ``one_colour`` of its pixels: a black field with a few
+    specks or one thin line has a high standard deviation and is still not worth a click."""
     n = len(images)
-    return ((images.reshape(n, -1, 3).std(axis=1).max(axis=1) < flat)
-            | (images.reshape(n, -1).max(axis=1) <= SAME))
+    pixels = images.reshape(n, -1, 3)
+    return ((pixels.std(axis=1).max(axis=1) < flat)
+            | (pixels.reshape(n, -1).max(axis=1) <= SAME)
+            | (_commonest_share(pixels) >= one_colour))
+
+
+def _commonest_share(pixels: np.ndarray) -> np.ndarray:
+    """Per picture of ``pixels`` ``(N, P, 3)`` in [0, 1]: the share of its pixels in its commonest colour."""
+    n, p = pixels.shape[:2]
+    if p == 0:
+        return np.zeros(n)
+    q = np.clip(np.rint(np.nan_to_num(np.asarray(pixels, np.float64)) * (LEVELS - 1)), 0, LEVELS - 1).astype(np.int64)
+    colour = (q[..., 0] * LEVELS + q[..., 1]) * LEVELS + q[..., 2] + LEVELS**3 * np.arange(n)[:, None]
+    return np.bincount(colour.ravel(), minlength=n * LEVELS**3).reshape(n, -1).max(axis=1) / p
 
 
 def greyscale(images: np.ndarray, tolerance: float = 0.02) -> np.ndarray:
@@ -134,7 +150,7 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     expression (:func:`~coursekit.pictures.operators.coding`) is not one already there: a
     parent's or another child's. The ``n`` children are then previewed at ``size``; slot by
     slot, one within :data:`SAME` (mean absolute difference) of a parent or of an already
-    accepted child, or one that is dull (:func:`dull`: flat or black) while not every parent
+    accepted child, or one that is dull (:func:`dull`: flat, black or one colour) while not every parent
     is, is drawn again the same way, at most ``tries`` rounds (what is left then is the
     slot's best draw: a lively one before a flat one, then the most different); each
     distinct expression is previewed once (a picture depends on nothing else). From round ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is
