@@ -126,7 +126,8 @@ def _cmd_exercises(args: argparse.Namespace) -> int:
 
 
 #: What each benchmark needs beyond coursekit's own dependencies: (module, how to install it).
-BENCH_NEEDS = {"swimmers": [("mujoco", "pip install 'coursekit[mujoco]'")]}
+BENCH_NEEDS = {"swimmers": [("mujoco", "pip install 'coursekit[mujoco]'")],
+               "compiled_aba": [("numba", "pip install 'coursekit[compiled]'")]}
 
 
 def _has_cuda() -> bool:
@@ -168,7 +169,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     missing = [(n, mod, how) for n in names for mod, how in BENCH_NEEDS.get(n, []) if importlib.util.find_spec(mod) is None]
     if missing:
         for n, mod, how in missing:
-            print(f"coursekit bench: {n} needs {mod} (it measures against it); install it with: {how}", file=sys.stderr)
+            print(f"coursekit bench: {n} needs {mod}; install it with: {how}", file=sys.stderr)
         return 2
     rc = 0
     for name in names:
