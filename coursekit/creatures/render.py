@@ -45,6 +45,7 @@ from .body import PRISMATIC, BodyTree  # noqa: E402
 from .film import WRITERS, write_png  # noqa: E402
 from .neural import is_real  # noqa: E402
 from .phenotype import Phenotype, part_poses  # noqa: E402
+from .stroke import keyframe_picks, stroke_phase  # noqa: E402
 
 _BOX_CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
 
@@ -556,12 +557,15 @@ def animate(obj: Any, trajectory: ArrayLike, path: str | os.PathLike[str] | Sequ
 
 def keyframes(obj: Any, trajectory: ArrayLike, path: str | os.PathLike[str] | None = None, *, n: int = 4,
               size: tuple[int, int] = (320, 240), gap: int = 4, gap_colour: tuple[int, int, int] = (200, 200, 200),
-              progress: bool | None = None, **options: Any) -> np.ndarray | Path:
+              stroke: bool = True, progress: bool | None = None, **options: Any) -> np.ndarray | Path:
     """The paper's Figure 3: ``n`` key frames of a swim side by side, time increasing left to right.
 
-    The frames are evenly spaced from the first to the last, filmed with the clip's follow
-    camera (:class:`Clip`: the same size on screen, the centre-of-mass trail showing the way
-    come so far, the grid the motion against the water), each labelled with its time.
+    The frames are spread from the first to the last and, with ``stroke``, shifted (each by less
+    than one stroke) so that the panels after the first show the stroke at successive phases of one
+    cycle (:func:`~coursekit.creatures.stroke.keyframe_picks`; without ``stroke``, or with no stroke
+    to show, evenly spaced). They are filmed with the clip's follow camera (:class:`Clip`: the same
+    size on screen, the centre-of-mass trail showing the way come so far, the grid the motion
+    against the water), each labelled with its time.
 
     Args:
         obj, trajectory: as for :func:`animate`.
@@ -581,8 +585,8 @@ def keyframes(obj: Any, trajectory: ArrayLike, path: str | os.PathLike[str] | No
     if not (isinstance(gap, (int, np.integer)) and gap >= 0):
         raise ValueError(f"gap: must be an integer >= 0 (pixels), got {gap!r}")
     clip = Clip(obj, trajectory, size=size, **options)
-    picks = np.unique(np.round(np.linspace(0, len(clip) - 1, n)).astype(int))
-    if len(picks) != n:
+    picks = keyframe_picks(clip.times, n, stroke_phase(trajectory, clip.times) if stroke else None)
+    if len(np.unique(picks)) != n:
         raise ValueError(f"n: {n} key frames do not fit in {len(clip)} frames")
     w, h = size
     strip = np.empty((h, n * w + (n - 1) * gap, 3), dtype=np.uint8)
