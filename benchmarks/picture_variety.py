@@ -49,6 +49,7 @@ from coursekit.pictures.genome import Chromosome, ChromosomeString
 
 SIZE = 64
 SAME = 1.0 / 255.0
+ALIKE = 3.0 / 255.0  # mean absolute difference under which two pictures look alike on a contact sheet
 
 
 def flat_or_black(images):
@@ -114,7 +115,7 @@ def first_generation(rng, n):
 def children_figures(sessions, n=20):
     """(children checked, fraction repeating, fraction identical to a parent or sibling, and
     per operator the fraction identical)."""
-    checked = repeats = identical = flat = single = 0
+    checked = repeats = identical = flat = single = alike = 0
     per_op: dict = {}
     for s in range(sessions):
         rng = np.random.default_rng(s)
@@ -134,13 +135,14 @@ def children_figures(sessions, n=20):
                 checked += 1
                 repeats += min(d_par + d_earlier) < SAME
                 identical += min(d_par + d_sib) < SAME
+                alike += min(d_par + d_sib) < ALIKE
                 flat += bool(flat_or_black(kid[None])[0])
                 single += bool(one_colour(kid[None])[0])
                 per_op.setdefault(name, []).append(min(d_par + d_sib) < SAME)
             ev.undo()
             ev.state.selected.clear()
     return (checked, repeats / checked, identical / checked, {k: float(np.mean(v)) for k, v in per_op.items()},
-            flat / checked, single / checked)
+            flat / checked, single / checked, alike / checked)
 
 
 def chain_figures(sessions, n=20, depth=4):
@@ -188,16 +190,17 @@ def main(argv=None):
     for name, (flat, black, single, grey, photo, tree) in rows:
         print(f"{name:38s} {flat:6.1%} {black:6.1%} {single:6.1%} {grey:6.1%} {photo:6.1%} {tree:14.1%}")
     if children is not None:
-        _print_children(args.sessions, *children[:4])
+        _print_children(args.sessions, *children[:4], children[6])
         print(f"  flat or black: {children[4]:.1%}, one colour: {children[5]:.1%}; over chains of 4 evolve clicks "
               f"({chain[0]} children): {chain[1]:.1%} and {chain[2]:.1%}")
     print(f"(seconds: Genome.random {t1 - t0:.1f}, random_population {t2 - t1:.1f}, sessions {t3 - t2:.1f})")
 
 
-def _print_children(sessions, checked, repeats, identical, per_op):
+def _print_children(sessions, checked, repeats, identical, per_op, alike):
     print(f"children: {checked} checked ({sessions} sessions x 7 operators x 18 children) at {SIZE}^2:")
     print(f"  repeat a parent or an earlier child: {repeats:.1%}")
     print(f"  identical to a parent or a sibling:  {identical:.1%}")
+    print(f"  alike (within {ALIKE * 255:.0f}/255):               {alike:.1%}")
     print("  identical, per operator: " + ", ".join(f"{k} {v:.1%}" for k, v in per_op.items()))
 
 

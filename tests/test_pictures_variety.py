@@ -12,7 +12,7 @@ from hypothesis import given, settings, strategies as st
 
 from coursekit.pictures import Genome, operators as O, primitives, random_population, render
 from coursekit.pictures.gallery import Evolution, GalleryState
-from coursekit.pictures.variety import LEVELS, ONE_COLOUR, SAME, distinct_children, dull, greyscale, preview
+from coursekit.pictures.variety import BLACK, LEVELS, ONE_COLOUR, SAME, distinct_children, dull, greyscale, preview
 
 
 @pytest.fixture(scope="module")
@@ -225,7 +225,7 @@ def test_a_random_population_is_never_flat_or_black_and_mostly_coloured():
     pics = render(pop, 64, workers=1)
     n = len(pics)
     flat = np.mean(pics.reshape(n, -1, 3).std(axis=1).max(axis=1) < 0.02)
-    black = np.sum(pics.reshape(n, -1).max(axis=1) <= SAME)
+    black = np.sum(pics.reshape(n, -1).max(axis=1) <= BLACK)
     grey = np.mean(greyscale(pics))
     # measured on 600 seeds: 0.5 % flat, 0 black, 12.7 % greyscale (Genome.random alone: 11.7, 2.7, 36.2)
     assert flat <= 0.02 and black == 0 and grey <= 0.3, (flat, black, grey)

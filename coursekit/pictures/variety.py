@@ -10,7 +10,7 @@ thumbnails (:data:`PREVIEW`, 32 x 32) and never change what the genomes are:
   preview is *dull* (flat, black, or one colour almost everywhere, :func:`dull`) or repeats
   another picture of the population, and a greyscale one once (grey pictures stay, as a minority).
 - :func:`distinct_children` takes children from an operator and redraws those whose preview
-  is within :data:`SAME` (mean absolute difference, 1/255) of a parent's or of another child's,
+  is within :data:`SAME` (mean absolute difference, 2/255) of a parent's or of another child's,
   and those that are dull when a parent is not (a grey noise bred on by ``round``,
   ``mod`` or a bit operation easily gives flat children: ``benchmarks/picture_variety.py``
   measures them along chains of evolve clicks).
@@ -31,11 +31,12 @@ from .evaluate import render
 from .genome import Genome
 from .operators import coding
 
-__all__ = ["PREVIEW", "SAME", "FLAT", "ONE_COLOUR", "LEVELS", "MIN_NODES", "preview", "dull", "greyscale", "random_population",
+__all__ = ["PREVIEW", "SAME", "BLACK", "FLAT", "ONE_COLOUR", "LEVELS", "MIN_NODES", "preview", "dull", "greyscale", "random_population",
            "distinct_children"]
 
 PREVIEW = 32  # pixels of a preview's side
-SAME = 1.0 / 255.0  # mean absolute difference under which two pictures look the same
+SAME = 2.0 / 255.0  # mean absolute difference under which two pictures look the same (on contact sheets of near pairs)
+BLACK = 1.0 / 255.0  # a picture with no value above this is black
 FLAT = 0.02  # a picture whose every channel has a standard deviation below this is flat
 ONE_COLOUR = 0.9  # a picture with one colour on this share of its pixels is that colour, a speck or a line aside
 LEVELS = 16  # levels per channel at which two colours count as one
@@ -49,13 +50,13 @@ def preview(genomes: Sequence[Genome], size: int = PREVIEW) -> np.ndarray:
 
 def dull(images: np.ndarray, flat: float = FLAT, one_colour: float = ONE_COLOUR) -> np.ndarray:
     """Per picture of ``images`` ``(N, H, W, 3)``: flat (every channel's standard deviation
-    below ``flat``), black (no value above 1/255), or one colour (:data:`LEVELS` levels per
+    below ``flat``), black (no value above :data:`BLACK`), or one colour (:data:`LEVELS` levels per
     channel) on at least the share ``one_colour`` of its pixels: a black field with a few
     specks or one thin line has a high standard deviation and is still not worth a click."""
     n = len(images)
     pixels = images.reshape(n, -1, 3)
     return ((pixels.std(axis=1).max(axis=1) < flat)
-            | (pixels.reshape(n, -1).max(axis=1) <= SAME)
+            | (pixels.reshape(n, -1).max(axis=1) <= BLACK)
             | (_commonest_share(pixels) >= one_colour))
 
 
