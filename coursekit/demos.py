@@ -323,8 +323,8 @@ Computer Graphics Education</em> and Karl Sims' <em>Evolving Virtual Creatures</
 the grid stays put in the water). Also as a <a href="{gif}">GIF</a>; its genome: <a href="{json}">best.json</a>.</figcaption></figure>
 <figure><img src="{fitness}" alt="fitness per generation"><figcaption>Best, mean and median fitness per generation.</figcaption></figure>
 </div>
-<figure><img src="{keyframes}" alt="key frames"><figcaption>Key frames, time increasing from left to right (the paper's Figure 3); after the first, each shows
-the stroke a further part of a cycle on.</figcaption></figure>
+<figure><img src="{keyframes}" alt="key frames"><figcaption>Key frames, time increasing from left to right (the paper's Figure 3); after the first, the panels
+show the stroke at successive phases of one cycle.</figcaption></figure>
 <h2>Shipped champions</h2>
 {champions}
 <h2>Pictures: a breeding session</h2>
