@@ -91,7 +91,9 @@ def test_no_stroke_leaves_the_frames_evenly_spaced():
     tiny = beating(3, times, lambda t: t * 8)
     tiny[:, 7:] *= MIN_AMPLITUDE / 10
     slow = beating(3, times, lambda t: 2 * np.pi * t / 3.0)           # a 3 s stroke: longer than the spacing
-    for traj in (rigid, still, tiny):
+    broken = beating(3, times, lambda t: t * 8)
+    broken[40, 8] = np.nan                                            # a frame that is not finite
+    for traj in (rigid, still, tiny, broken):
         assert stroke_phase(traj, times) is None
     assert stroke_phase(slow, times) is not None
     for traj in (rigid, still, tiny, slow):

@@ -26,7 +26,8 @@ MIN_AMPLITUDE = 1e-3
 def stroke_phase(trajectory: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, float] | None:
     """``(phase, period)``: the phase (rad, one per frame, growing) of the joints' main mode of
     motion and the stroke's mean period (s), or ``None`` when there is no stroke to show: no
-    joints, fewer than 8 frames, a main mode under :data:`MIN_AMPLITUDE`, or fewer than 3 beats.
+    joints, fewer than 8 frames, a value that is not finite, a main mode under
+    :data:`MIN_AMPLITUDE`, or fewer than 3 beats.
 
     A beat is an upward zero crossing of the main mode after it has been below ``-0.3`` of its
     standard deviation (so that a wiggle about zero is not a beat); the phase grows by one turn
@@ -39,7 +40,7 @@ def stroke_phase(trajectory: np.ndarray, times: np.ndarray) -> tuple[np.ndarray,
     """
     q = np.asarray(trajectory, dtype=np.float64)[:, 7:]
     times = np.asarray(times, dtype=np.float64)
-    if q.shape[1] == 0 or len(q) < 8:
+    if q.shape[1] == 0 or len(q) < 8 or not np.all(np.isfinite(q)):
         return None
     q = q - q.mean(axis=0)
     mode = q @ np.linalg.svd(q, full_matrices=False)[2][0]
