@@ -18,9 +18,10 @@ of the batch (relative difference at most 1e-10, or the script fails).
 The reference is what the simulator runs for one evaluation of the dynamics:
 :func:`~coursekit.creatures.physics.aba.articulated_inertias` then
 :func:`~coursekit.creatures.physics.aba.aba` with water damping, on the same creatures, packed
-once. Both are timed in this process, one thread, best of several windows. The creatures are the
-evolved population of ``benchmarks/data/evolved_swimmers.json`` (the realistic workload of
-``benchmarks/swimmers.py``), repeated to fill the batch.
+once. Both are timed as ``benchmarks/swimmers.py`` times its engines (``_timed``: the best window
+of this process's CPU time, the two taking turns, one thread), on its evolved workload
+(``evolved_population``: the evolved champion at batch 1, else the population of
+``benchmarks/data/evolved_swimmers.json`` repeated to fill the batch).
 
 numba is not a dependency of coursekit: ``pip install 'coursekit[compiled]'``.
 
@@ -30,27 +31,27 @@ numba is not a dependency of coursekit: ``pip install 'coursekit[compiled]'``.
 from __future__ import annotations
 
 import argparse
-import json
-import time
+import sys
 from pathlib import Path
 
-import numpy as np
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from swimmers import _timed, evolved_population  # noqa: E402  (one thread for BLAS, before numpy loads)
 
-from coursekit.cli import number
-from coursekit.creatures import Creature
-from coursekit.creatures.body import REVOLUTE
-from coursekit.creatures.physics import reference
-from coursekit.creatures.physics import spatial as sp
-from coursekit.creatures.physics.aba import aba, articulated_inertias
-from coursekit.creatures.physics.model import Model
-from coursekit.creatures.physics.water import DRAG_COEFFICIENT, drag_diagonal, drag_matrix
+import numpy as np  # noqa: E402
+
+from coursekit.cli import number  # noqa: E402
+from coursekit.creatures.body import REVOLUTE  # noqa: E402
+from coursekit.creatures.physics import reference  # noqa: E402
+from coursekit.creatures.physics import spatial as sp  # noqa: E402
+from coursekit.creatures.physics.aba import aba, articulated_inertias  # noqa: E402
+from coursekit.creatures.physics.model import Model  # noqa: E402
+from coursekit.creatures.physics.water import DRAG_COEFFICIENT, drag_diagonal, drag_matrix  # noqa: E402
 
 try:
     import numba
 except ImportError:  # pragma: no cover - said at the command line
     numba = None
 
-EVOLVED = Path(__file__).parent / "data" / "evolved_swimmers.json"
 TOLERANCE = 1e-10
 
 
@@ -235,28 +236,11 @@ def compiled_aba(packed: dict, q, qd, v0, tau):
     return a0, qdd
 
 
-def _best(fn, seconds: float, windows: int = 5) -> float:
-    """Best per-call time over ``windows`` windows of about ``seconds`` each."""
-    fn()
-    start, n = time.perf_counter(), 0
-    while time.perf_counter() - start < seconds / 4 or n < 3:
-        fn()
-        n += 1
-    per = (time.perf_counter() - start) / n
-    reps = max(3, int(seconds / per))
-    best = float("inf")
-    for _ in range(windows):
-        t = time.perf_counter()
-        for _ in range(reps):
-            fn()
-        best = min(best, (time.perf_counter() - t) / reps)
-    return best
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--batches", type=number(int, 1), nargs="+", default=[1, 3, 60, 300])
-    parser.add_argument("--seconds", type=number(float, 0, above=True), default=0.5, help="length of a timing window")
+    parser.add_argument("--seconds", type=number(float, 0, above=True), default=1.0,
+                        help="CPU seconds each of the two is timed for, in turns of 0.25 s windows")
     parser.add_argument("--quick", action="store_true", help="batches 1 and 3, short windows (CI)")
     args = parser.parse_args(argv)
     if numba is None:
@@ -264,13 +248,11 @@ def main(argv=None) -> int:
         return 2
     if args.quick:
         args.batches, args.seconds = [1, 3], 0.05
-    data = json.loads(EVOLVED.read_text())
-    creatures = [Creature.from_json(json.dumps(c) if not isinstance(c, str) else c) for c in data["creatures"]]
     rng = np.random.default_rng(0)
     print(f"one evaluation of the dynamics (all three sweeps, water damping), evolved creatures, numba {numba.__version__}")
     print(f"{'batch':>6} {'bodies':>7} {'numpy batched ms':>17} {'compiled ms':>12} {'speed-up':>9} {'max rel. diff':>14}")
     for batch in args.batches:
-        trees = [creatures[i % len(creatures)].expand().body for i in range(batch)]
+        trees = [c.expand().body for c in evolved_population(batch)]
         joints = [t.n_bodies - 1 for t in trees]
         q, qd, tau = (np.concatenate([f(n) for n in joints]) for f in (
             lambda n: rng.uniform(-0.5, 0.5, n), lambda n: rng.normal(0.0, 1.0, n), lambda n: rng.normal(0.0, 0.1, n)))
@@ -296,8 +278,8 @@ def main(argv=None) -> int:
         def batched():
             return aba(model, qi, qdi, v0, ti, damping=damping, inertias=articulated_inertias(model, qi))
 
-        t_numpy = _best(batched, args.seconds)
-        t_compiled = _best(lambda: compiled_aba(packed, q, qd, v0, tau), args.seconds)
+        times = _timed({"numpy": batched, "compiled": lambda: compiled_aba(packed, q, qd, v0, tau)}, args.seconds)
+        t_numpy, t_compiled = times["numpy"], times["compiled"]
         print(f"{batch:6d} {model.n_bodies:7d} {t_numpy * 1e3:17.3f} {t_compiled * 1e3:12.4f} {t_numpy / t_compiled:8.1f}x {worst:14.2g}")
     return 0
 
