@@ -92,7 +92,9 @@ def swimmer_sizes(population: int | None = None, generations: int | None = None,
 
     population = sized(classroom=40, ci=6) if population is None else population
     generations = sized(classroom=8, ci=1) if generations is None else generations
-    seconds = seconds or sized(classroom=10.0, ci=0.5)
+    seconds = sized(classroom=10.0, ci=0.5) if seconds is None else seconds
+    if not (isinstance(seconds, (int, float)) and not isinstance(seconds, bool) and 0 < seconds < float("inf")):
+        raise ValueError(f"seconds: must be a number of seconds > 0, got {seconds!r}")
     if not (is_int(population) and population >= 2):
         raise ValueError(f"population: must be an integer >= 2, got {population!r}")
     if workers is None:

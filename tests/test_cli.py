@@ -273,6 +273,8 @@ def test_the_swimmer_demo_keeps_to_its_budget_by_breeding_fewer_generations_of_t
     assert demos._bred(tight) == "0 generations of Sims' recipe (of 2: the next would have ended after the 1e-09 s budget)"
     with pytest.raises(ValueError, match="budget: must be a number of seconds >= 0"):
         demos.swimmers(tmp_path / "bad", budget=-1.0)
+    with pytest.raises(ValueError, match="seconds: must be a number of seconds > 0, got 0"):
+        demos.swimmers(tmp_path / "bad", seconds=0)  # not the default in disguise
 
 
 @pytest.mark.parametrize("option, message", [("--budget=-1", "argument --budget: must be a number >= 0, got -1"),
