@@ -563,6 +563,28 @@ def test_a_click_writes_the_session_once_after_its_pictures_are_on_the_widgets(g
     assert saved(tmp_path).generation == gallery.state.generation
 
 
+
+def test_branching_back_several_generations_writes_the_autosave_once_with_the_branch_made(gallery, tmp_path, monkeypatch):
+    # A reader of the autosave (a browser test, a second notebook) must never see a branch half
+    # made: a generation on the way back, or the ancestor's generation with its old picks.
+    from coursekit.pictures import session
+
+    for i in (1, 4, 2):
+        gallery.click(i)
+        gallery.apply("evolve")
+    writes = []
+    original = session.atomic_write
+
+    def write(path, text):
+        writes.append(json.loads(text))
+        original(path, text)
+
+    monkeypatch.setattr(session, "atomic_write", write)
+    gallery.branch(1, 3)
+    assert [(w["generation"], w["selected"]) for w in writes] == [(1, [3])]
+    gallery.apply("undo")  # undo still saves its step
+    assert [(w["generation"], w["selected"]) for w in writes][1:] == [(0, [1])]
+
 def test_a_click_that_fails_still_saves_what_changed(gallery, tmp_path, monkeypatch):
     gallery.click(0)
     monkeypatch.setattr(Gallery, "_sync", lambda self, *a, **k: (_ for _ in ()).throw(RuntimeError("page gone")))

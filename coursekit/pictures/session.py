@@ -490,14 +490,18 @@ class Evolution:
     # ---- undo, redo, branch ---------------------------------------------------------------
     def undo(self) -> str:
         """Back to the previous generation (any number of steps; redo goes forward again)."""
-        s = self.state
-        if not s.history:
+        if not self.state.history:
             return "nothing to undo"
+        self._back()
+        self.save()
+        return f"back to generation {self.state.generation}"
+
+    def _back(self) -> None:
+        """One generation back, not yet saved."""
+        s = self.state
         s.future.append(s.current)
         s.population, s.selected, s.origins = s.history.pop()
         s.generation -= 1
-        self.save()
-        return f"back to generation {s.generation}"
 
     def redo(self) -> str:
         """Forward again to the generation the last undo left."""
@@ -520,9 +524,9 @@ class Evolution:
         if not _is_int(index) or not 0 <= index < self.size:
             raise ValueError(f"index: {index!r} is not a picture index (0..{self.size - 1})")
         while s.generation > generation:
-            self.undo()
+            self._back()
         s.selected[:] = [int(index)]
-        self.save()
+        self.save()  # once: the autosave never holds a branch half made
         return f"branch from generation {generation}, picture #{index}: choose an operator"
 
     def lineage(self, i: int) -> list[Ancestor]:
