@@ -11,7 +11,11 @@ second half's distance over the first half's) and its audit (:mod:`coursekit.cre
 Throughput is creature-seconds simulated per wall-second, counting the generation's evaluations
 (the re-scoring of the top three at half the step is extra work, not counted).
 
-    python benchmarks/sims_scale.py [--seeds 0 1 2] [--workers N] [--out DIR]
+The creatures swim with the simulator's default step, compiled with numba
+(:mod:`~coursekit.creatures.physics.compiled`); ``--numpy-step`` runs the numpy step instead: the
+same physics up to rounding, so another run (``benchmarks/NOTES.md`` times the two).
+
+    python benchmarks/sims_scale.py [--seeds 0 1 2] [--workers N] [--out DIR] [--numpy-step]
     python benchmarks/sims_scale.py --quick          # 24 creatures x 3 generations x 2 s (CI)
 """
 
@@ -33,11 +37,14 @@ from coursekit.creatures.audit import audit, body_length
 
 
 def run(seed: int, population: int, generations: int, seconds: float, workers: int, checkpoint: Path | None = None,
-        torch_device: str | None = None):
+        torch_device: str | None = None, numpy_step: bool = False):
     """One seed's run; with ``checkpoint`` it saves every generation and resumes a killed run; with
     ``torch_device`` the generation swims in this process on torch there, with the graph-ready step
-    (a CUDA graph on a GPU)."""
-    options = {} if torch_device is None else dict(backend="torch", device=torch_device, graph=True)
+    (a CUDA graph on a GPU); with ``numpy_step`` the workers run the numpy step instead of the
+    compiled one (``World(compiled=False)``)."""
+    options = dict(compiled=False) if numpy_step else {}
+    if torch_device is not None:
+        options = dict(backend="torch", device=torch_device, graph=True)
     if torch_device is not None:
         workers = 1
     rows, start = [], time.perf_counter()
@@ -73,13 +80,13 @@ def _row(r: dict) -> str:
     return f"{r['generation']:3d} {r['wall']:8.1f} {r['best']:10.4f} {r['best_per_length']:10.4f} {r['mean']:10.4f}"
 
 
-def champion(creature, seconds: float = 10.0) -> dict:
-    """Speed, pace and audit of a champion over ``seconds``."""
-    r = simulate([creature], seconds)
+def champion(creature, seconds: float = 10.0, **options) -> dict:
+    """Speed, pace and audit of a champion over ``seconds`` (``options``: the simulator's)."""
+    r = simulate([creature], seconds, **options)
     com = r.com[0]
     half = len(com) // 2
     first, second = (np.linalg.norm(com[b] - com[a]) for a, b in ((0, half), (half, -1)))
-    report = audit([creature], seconds)[0]
+    report = audit([creature], seconds, **options)[0]
     return dict(speed=report.speed, body_lengths_per_second=report.body_lengths_per_second, pace=second / max(first, 1e-12),
                 audit=str(report), passed=report.passed)
 
@@ -94,6 +101,8 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="24 creatures x 3 generations x 2 s")
     parser.add_argument("--torch-device", help="swim on torch on this device (e.g. cuda), in this process, "
                                                "with the graph-ready step (World(graph=True)), instead of numpy in worker processes")
+    parser.add_argument("--numpy-step", action="store_true", help="the numpy step (World(compiled=False)) instead of the "
+                                                                   "compiled one: the same physics up to rounding, so another run")
     parser.add_argument("--out", type=Path, help="folder for each seed's champion (JSON) and table")
     args = parser.parse_args(argv)
     if args.quick:
@@ -107,9 +116,9 @@ def main(argv=None) -> int:
         if args.out:
             args.out.mkdir(parents=True, exist_ok=True)
         result, rows, wall = run(seed, args.population, args.generations, args.seconds, args.workers, checkpoint,
-                                 args.torch_device)
+                                 args.torch_device, args.numpy_step)
         evaluations = sum(result.history.evaluations[len(result.history.evaluations) - len(rows):])  # this process's
-        champ = champion(result.best, max(args.seconds, 10.0))
+        champ = champion(result.best, max(args.seconds, 10.0), **(dict(compiled=False) if args.numpy_step else {}))
         g0, gN = result.history.best[0], result.history.best[-1]
         print(f"wall {wall:.0f} s; {evaluations * args.seconds / wall:.1f} creature-seconds per wall-second; "
               f"best fitness {g0:.4f} -> {gN:.4f} m/s ({gN / max(g0, 1e-12):.1f}x)")
@@ -117,7 +126,7 @@ def main(argv=None) -> int:
               f"pace {champ['pace']:.2f}; audit: {champ['audit']}")
         entry = dict(seed=seed, wall=wall, evaluations=evaluations, generations=rows, champion=champ,
                      command=f"python benchmarks/sims_scale.py --seeds {seed} --population {args.population} "
-                             f"--generations {args.generations} --seconds {args.seconds:g}")
+                             f"--generations {args.generations} --seconds {args.seconds:g}" + (" --numpy-step" if args.numpy_step else ""))
         summary.append(entry)
         if args.out:
             atomic_write(args.out / f"champion-seed{seed}.json", result.best.to_json())

@@ -107,9 +107,10 @@ def _timed(steps: dict, seconds: float, window: float = 0.25, clock=time.process
     return best
 
 
-def ours(trees, states, backend, device=None, contacts=False, limits=True, graph=False):
-    """One step of our simulator on the population (a function to time)."""
-    w = World(trees, dt=DT, backend=backend, device=device, contacts=contacts, limits=limits, graph=graph)
+def ours(trees, states, backend, device=None, contacts=False, limits=True, graph=False, compiled=False):
+    """One step of our simulator on the population (a function to time); ``compiled``: the
+    numba-compiled step (``World(compiled=True)``) instead of the numpy one."""
+    w = World(trees, dt=DT, backend=backend, device=device, contacts=contacts, limits=limits, graph=graph, compiled=compiled)
     w.set_state([s[0] for s in states], [s[1] for s in states])
     if device is not None and "cuda" in str(device):
         import torch
@@ -167,10 +168,10 @@ class Swim:
     joint rates, per-face contact sensors) and their outputs drive the joints.
     """
 
-    def __init__(self, creatures, contacts=True):
+    def __init__(self, creatures, contacts=True, compiled=False):
         phenotypes = [c.expand() for c in creatures]
         self.brain = BrainBatch(phenotypes)
-        self.world = World([p.body for p in phenotypes], dt=DT, contacts=contacts)
+        self.world = World([p.body for p in phenotypes], dt=DT, contacts=contacts, compiled=compiled)
         m = self.world.model
         self.revolute = m.joint_type_np[m.joint_order] == REVOLUTE
         self.effector = np.zeros(m.n_joints)
@@ -227,20 +228,21 @@ def evolved_engines(creatures, warmup: float) -> tuple[dict, int]:
     tau, gain = w.tau[w.model.joint_order], w.gain[w.model.joint_order]
     ctrl = np.clip(np.divide(tau, gain, out=np.zeros_like(tau), where=gain != 0), -1.0, 1.0)
 
-    def ours():
-        s = Swim(creatures)
+    def ours(compiled=False):
+        s = Swim(creatures, compiled=compiled)
         s.world.set_state(qpos, qvel)
         s.brain = copy.deepcopy(start.brain)
         s.world.set_effectors(start.effector)
         return s
 
-    held, swim, alone = ours(), ours(), ours()
     return {
         "mujoco RK4 +collisions (1 thread)": mujoco_step(trees, states, contacts=True, ctrl=ctrl),
         "mujoco RK4 +collisions +brains": mujoco_step(trees, states, contacts=True, brain=copy.deepcopy(start.brain)),
-        "ours numpy RKN +collisions": held.world.step,
-        "ours numpy RKN +collisions +brains": swim.swim,
-        "our brains alone (2 ticks + sensors)": alone.think,
+        "ours numpy RKN +collisions": ours().world.step,
+        "ours numpy RKN +collisions +brains": ours().swim,
+        "ours compiled RKN +collisions": ours(True).world.step,
+        "ours compiled RKN +collisions +brains": ours(True).swim,
+        "our brains alone (2 ticks + sensors)": ours().think,
     }, sum(t.n_bodies for t in trees)
 
 
@@ -284,10 +286,12 @@ def main(argv=None) -> None:
         trees, states = _population(batch)
         bodies = sum(t.n_bodies for t in trees)
         steps = {"mujoco RK4 (1 thread)": mujoco_step(trees, states)}
-        for backend, device, contacts, limits in [("numpy", None, False, True), ("numpy", None, False, False),
-                                                  ("numpy", None, True, True), ("torch", "cpu", False, True)]:
-            name = f"ours {backend}{'/' + device if device else ''} RKN{' +collisions' if contacts else ''}{' -limits' if not limits else ''}"
-            steps[name] = ours(trees, states, backend, device=device, contacts=contacts, limits=limits)
+        for backend, device, contacts, limits, compiled in [
+                ("numpy", None, False, True, False), ("numpy", None, False, False, False), ("numpy", None, True, True, False),
+                ("numpy", None, False, True, True), ("numpy", None, True, True, True), ("torch", "cpu", False, True, False)]:
+            engine = "compiled" if compiled else f"{backend}{'/' + device if device else ''}"
+            name = f"ours {engine} RKN{' +collisions' if contacts else ''}{' -limits' if not limits else ''}"
+            steps[name] = ours(trees, states, backend, device=device, contacts=contacts, limits=limits, compiled=compiled)
         for step in steps.values():
             for _ in range(warm):
                 step()

@@ -126,8 +126,7 @@ def _cmd_exercises(args: argparse.Namespace) -> int:
 
 
 #: What each benchmark needs beyond coursekit's own dependencies: (module, how to install it).
-BENCH_NEEDS = {"swimmers": [("mujoco", "pip install 'coursekit[mujoco]'")],
-               "compiled_aba": [("numba", "pip install 'coursekit[compiled]'")]}
+BENCH_NEEDS = {"swimmers": [("mujoco", "pip install 'coursekit[mujoco]'")]}
 
 
 def _has_cuda() -> bool:

@@ -16,9 +16,7 @@ arrays rows, so NaNs cannot leak between them.
 On a GPU the host waits for the device at every value Python reads and every output whose size
 depends on the data; ``World(graph=True)`` steps without either, so that a CUDA graph can record a
 step once and replay it (:meth:`World._graph_step`; :class:`~coursekit.operations.CountHostSyncs`
-counts the waits on any machine). Graph capture is hand-written here because what a step hands
-the next (state, locks, contact anchors, reused inertias) is this simulator's own; torch's
-``torch.cuda.graphs.make_graphed_callables`` is for autograd modules with fixed inputs and outputs.
+counts the waits on any machine; :mod:`~coursekit.creatures.physics.graph` records it).
 """
 
 from __future__ import annotations
@@ -37,6 +35,8 @@ from . import backend as bk
 from . import spatial as sp
 from .aba import aba, articulated_inertias, body_velocities, impulse
 from .jcalc import forward_kinematics, joint_transform_matrices, joint_transforms, pose_stacks, poses_rows
+from .compiled import Dynamics, available
+from .graph import CudaGraph
 from .contact import Contacts
 from .dynamics import flatten_layout, split_layout, join_velocity_layout
 from .integrate import INTEGRATORS, State, step
@@ -48,45 +48,6 @@ from .water import DRAG_COEFFICIENT, STABLE_DRAG_STEP, drag_matrix, max_drag_rat
 MAX_SPEED = 20.0
 MAX_ANGULAR_SPEED = 100.0
 MAX_JOINT_SPEED = 100.0
-
-
-class CudaGraph:
-    """How :class:`World` records its graph-ready step on CUDA: a ``torch.cuda.CUDAGraph``.
-
-    The interface :meth:`World._graph_step` uses (:attr:`World.GRAPH`): ``applies(world)``, ``warm(world,
-    step)`` for an eager step before the capture, ``CudaGraph(world)``, ``capture(record)`` and
-    ``replay()``.
-    """
-
-    def __init__(self, world: World):
-        import torch
-
-        self.graph = torch.cuda.CUDAGraph()
-
-    @staticmethod
-    def applies(world: World) -> bool:
-        return bk.is_torch(world.xp) and world.model.device is not None and str(world.model.device).startswith("cuda")
-
-    @staticmethod
-    def warm(world: World, step: Callable[[], None]) -> None:
-        """An eager step on a side stream (torch asks for a warm-up there before a capture)."""
-        import torch
-
-        device = world.model.device
-        side = torch.cuda.Stream(device=device)
-        side.wait_stream(torch.cuda.current_stream(device))
-        with torch.cuda.stream(side):
-            step()
-        torch.cuda.current_stream(device).wait_stream(side)
-
-    def capture(self, record: Callable[[], None]) -> None:
-        import torch
-
-        with torch.cuda.graph(self.graph):
-            record()
-
-    def replay(self) -> None:
-        self.graph.replay()
 
 
 class World:
@@ -115,6 +76,9 @@ class World:
             ``torch.cuda.CUDAGraph`` after a few eager steps and replayed (a custom integrator then
             sees the time of the capture; the forces do not depend on time); elsewhere it runs as
             it is. The motion is the ordinary step's up to rounding.
+        compiled: the step compiled with numba (:mod:`~coursekit.creatures.physics.compiled`;
+            numpy backend, not ``graph``): the same physics up to rounding, 2-4 times faster.
+            ``None`` (default): compiled wherever it can run; ``False``: the numpy step.
     """
 
     def __init__(
@@ -135,6 +99,7 @@ class World:
         max_joint_speed: float = MAX_JOINT_SPEED,
         substeps: int = 1,
         graph: bool = False,
+        compiled: bool | None = None,
     ):
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt: must be a positive number of seconds, got {dt!r}")
@@ -142,9 +107,9 @@ class World:
             raise ValueError(f"integrator: got {integrator!r}; allowed: {', '.join(INTEGRATORS)} or a function rkn_step(f, t, y, v, h)")
         if not (isinstance(drag, (bool, np.bool_)) or callable(drag)):
             raise TypeError(f"drag: must be True, False or a function box_drag(half_extents, k), got {type(drag).__name__}")
-        for name, flag in (("graph", graph), ("limits", limits), ("contacts", contacts)):
-            if not isinstance(flag, (bool, np.bool_)):
-                raise TypeError(f"{name}: must be True or False, got {type(flag).__name__}")
+        for name, flag in (("graph", graph), ("limits", limits), ("contacts", contacts), ("compiled", compiled)):
+            if not isinstance(flag, (bool, np.bool_)) and not (name == "compiled" and flag is None):
+                raise TypeError(f"{name}: must be True or False{' (or None)' if name == 'compiled' else ''}, got {type(flag).__name__}")
         if not (isinstance(substeps, (int, np.integer)) and not isinstance(substeps, bool) and substeps >= 1):
             raise ValueError(f"substeps: must be an integer >= 1, got {substeps!r}")
         for name, cap in (("max_speed", max_speed), ("max_angular_speed", max_angular_speed), ("max_joint_speed", max_joint_speed)):
@@ -157,6 +122,11 @@ class World:
         self.integrator = integrator
         box_drag = drag if callable(drag) else None
         self.damping = drag_matrix(m, drag_coefficient, box_drag) if drag else None
+        if compiled is None:
+            compiled = bk.is_numpy(xp) and not graph and available()
+        if compiled and (not bk.is_numpy(xp) or graph):
+            raise ValueError(f"compiled: the compiled step runs on the numpy backend without graph, got backend={m.backend!r}, graph={graph!r}")
+        self._compiled = Dynamics(m, self.damping) if compiled else None
         rate = max_drag_rate(m, drag_coefficient, box_drag) if drag else 0.0
         water_steps = max(1, math.ceil(self.dt * rate / STABLE_DRAG_STEP))  # what the water needs
         self.substeps = water_steps * int(substeps)
@@ -225,7 +195,11 @@ class World:
         vb = sp.mv(R.mT, lin)
         tau = self.tau
         if q is not self._inertia_q:  # RKN stages 2 and 3 share positions, hence inertias
-            self._inertia_q, self._inertia = q, articulated_inertias(m, q, self._lock, self.graph)
+            self._inertia_q, self._inertia = q, self._inertias(q)
+        if self._compiled is not None:
+            lin_acc, ang_acc, qdd, need = self._compiled.accel(self._inertia, R, qd, lin, omega, tau, self._lock, self.active_contacts)
+            self._force = lambda: need
+            return lin_acc, ang_acc, qdd
         f_ext = v = None
         if self.active_contacts is not None:  # the step's contacts, followed through this stage
             if q is not self._poses_q:  # stages 2 and 3 share positions, hence poses
@@ -240,6 +214,31 @@ class World:
             self._force = force  # the step's last evaluation is what the limits remember
         lin_acc = sp.mv(R, a0[:, 3:] + sp.cross3(xp, omega, vb))
         return lin_acc, a0[:, :3], qdd
+
+    def _integrate(self, s: State, t: float) -> State:
+        """One (sub-)step of the integrator from ``s`` (compiled whole with ``compiled`` and RKN)."""
+        if self._compiled is None or self.integrator != "rkn":
+            return step(self.xp, s, self.h, self._accel, self.integrator, t)
+        held = self._inertia if self._inertia_q is s.q else None
+        new, need = self._compiled.step(s, self.h, self.tau, self._lock, self.active_contacts, held)
+        self._force, self._inertia_q = (lambda: need), None
+        return new
+
+    def _inertias(self, q):
+        """The articulated inertias at ``q`` with the current locks (numpy's or the compiled ones)."""
+        if self._compiled is not None:
+            return self._compiled.inertias(q, self._lock)
+        return articulated_inertias(self.model, q, self._lock, self.graph)
+
+    def _rows(self, R0, p0, q):
+        """Every body's world pose, component-major (:func:`~.jcalc.poses_rows`)."""
+        return poses_rows(self.model, R0, p0, q) if self._compiled is None else self._compiled.poses_rows(R0, p0, q)
+
+    def _impulse(self, change):
+        """The response to a change ``change`` of the locked joints' rates, from rest (:func:`.aba.impulse`)."""
+        if self._compiled is not None:
+            return self._compiled.impulse(self._inertia, self._lock, change)
+        return impulse(self.model, self._inertia, self._lock, change, self.graph)
 
     def sensors(self, native: bool = False) -> tuple[Any, Any, Any]:
         """What the creatures' sensors read now, in the layout controllers take.
@@ -306,12 +305,12 @@ class World:
                 self.state = self._stop_at_limits(self.state)
             if self.contacts is not None:
                 s = self.state
-                rows = poses_rows(m, sp.quat_to_mat(xp, s.quat), s.pos, s.q) if self.contacts.n_pairs else None
+                rows = self._rows(sp.quat_to_mat(xp, s.quat), s.pos, s.q) if self.contacts.n_pairs else None
                 self.active_contacts, self.contact_sensors = self.contacts.begin(s, rows)
                 if self.active_contacts is not None:  # the first stage's poses (it passes s.q on)
                     self._poses_q, self._poses = s.q, pose_stacks(xp, rows)
             prev = self.state
-            new = self._guard(prev, step(xp, prev, self.h, self._accel, self.integrator, self.time + i * self.h))
+            new = self._guard(prev, self._integrate(prev, self.time + i * self.h))
             if self._lock is not None:
                 self.limits.end(self._force(), self.tau)
                 new = self._stop_at_limits(new)
@@ -417,15 +416,16 @@ class World:
         of mass is kept where it was (:meth:`_put_back`). The inertias are those the next step's
         first stage reuses.
         """
-        xp, m = self.xp, self.model
+        xp = self.xp
         self._lock, at = self.limits.begin(s.q, s.qd, self.tau)
-        self._inertia = articulated_inertias(m, s.q, self._lock, self.graph)
+        self._inertia = self._inertias(s.q)
         rate = self.limits.rate(at, s.qd)
-        dv0, dqd = impulse(m, self._inertia, self._lock, rate - s.qd, self.graph)
+        dv0, dqd = self._impulse(rate - s.qd)
         R = sp.quat_to_mat(xp, s.quat)
         new = State(s.pos, s.quat, s.q, s.lin + sp.mv(R, dv0[:, 3:]), s.omega + dv0[:, :3], xp.where(self._lock, rate, s.qd + dqd))
         if self.graph or bool(xp.any(at != s.q)):  # a joint to put back; with none the sweep would move nothing, bit for bit
             new = self._put_back(s, R, at, new)
+            self._inertia = self._inertias(new.q)  # the next step starts from the pose put back
         self._inertia_q = new.q
         return new
 
@@ -442,17 +442,18 @@ class World:
         creature's motion does not depend on its batch.
         """
         xp, m = self.xp, self.model
-        dx0, dq = impulse(m, self._inertia, self._lock, at - s.q, self.graph)
+        dx0, dq = self._impulse(at - s.q)
         q = xp.where(self._lock, at, self.limits.within(s.q, s.q + dq))
         pos, quat = s.pos + sp.mv(R, dx0[:, 3:]), sp.quat_mul(xp, s.quat, sp.quat_exp(xp, dx0[:, :3]))  # the next step normalises
         R1 = sp.quat_to_mat(xp, quat)
-        before = poses_rows(m, R, s.pos, s.q)
-        after = poses_rows(m, R1, pos, q)
+        before = self._rows(R, s.pos, s.q)
+        after = self._rows(R1, pos, q)
         com = self._com_rows(before)
         shift = com - self._com_rows(after)
         pos = pos + shift
         after = (after[0], after[1] + xp.take(shift, m.body_creature, axis=0).T)
-        h0 = self._momentum(before, self._inertia[0], R, s.lin, s.omega, s.qd)
+        X = self._inertia[0] if self._compiled is None else self._compiled.transforms(self._inertia)
+        h0 = self._momentum(before, X, R, s.lin, s.omega, s.qd)
         h1 = self._momentum(after, joint_transform_matrices(m, q), R1, stopped.lin, stopped.omega, stopped.qd)
         # a rigid velocity (w, u) about the centre of mass adds (M u, Ic w) to the momentum about it
         dh = h0 - h1
@@ -526,7 +527,7 @@ class World:
 
     def _com(self, R0, p0, q):
         """(C, 3) centre of mass of every creature at root pose ``(R0, p0)`` and joints ``q`` (backend array)."""
-        return self._com_rows(poses_rows(self.model, R0, p0, q))
+        return self._com_rows(self._rows(R0, p0, q))
 
     def _com_rows(self, rows):
         """(C, 3) centres of mass from the component-major poses of :func:`~.jcalc.poses_rows`."""

@@ -1,0 +1,285 @@
+"""The step compiled with numba: one loop over the bodies instead of stacked arrays.
+
+:class:`~coursekit.creatures.physics.world.World` runs it by default on the numpy backend
+(``compiled=None``; ``compiled=False`` gives the numpy step). :func:`rkn` is a whole
+Runge-Kutta-Nystrom step: each of its four stages (:func:`stage`) computes the joint transforms,
+the body velocities, the contact springs' forces and Featherstone's articulated-body algorithm with
+locked joints in one pass, and the joint limits' impulses (:func:`impulse`) and the poses
+(:meth:`Dynamics.poses_rows`) are compiled too. What stays in numpy is what happens once a step:
+contact detection, the limits' decisions and their projection, the guards and the brains.
+
+It is the algorithm of :mod:`~coursekit.creatures.physics.aba` (hybrid dynamics, water damping,
+contact wrenches) and :mod:`~coursekit.creatures.physics.integrate`, written body by body in the
+book's terms, so the states agree with the numpy step to rounding (the tests hold them to 1e-10
+over 100 steps, and every stage to the textbook ABA of
+:mod:`~coursekit.creatures.physics.reference`), not bit for bit: a run with it is a different run
+of the same physics. A creature's motion does not depend on its batch, bit for bit, as with numpy.
+
+Why hand-written: the numpy step pays Python's and numpy's overhead on each of its thousands of
+array operations a step, which dominates at a lesson's batch of one and at evolution's refinement
+of three, and whole-array passes over memory at big batches (``benchmarks/NOTES.md``, "The
+compiled step"). No library compiles this simulator's own data layout; numba compiles these loops
+as they are.
+
+The packed model's order makes the loops simple: every parent comes before its children (roots,
+then inner bodies level by level, then leaves), so an outward sweep runs over the bodies in order
+and an inward one in reverse. A joint transform ``Xup = [[E, 0], [-E rx, E]]`` is kept as ``E``
+and ``r`` (from the model's fast forms, :func:`~coursekit.creatures.physics.jcalc.joint_basis`)
+and applied as such.
+
+numba compiles the kernels on their first call (about 10 s) and caches them beside this module
+(in ``__pycache__``, or numba's user cache folder); where no folder is writable, as in the
+grader's sandbox, each session compiles them anew.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import kernels
+from . import spatial as sp
+from .kernels import _jit, available, impulse, inertias, stage, transforms
+
+__all__ = ["Dynamics", "available", "rkn"]
+
+
+# ---------------------------------------------------------------- the Runge-Kutta-Nystrom step
+
+
+@_jit
+def _chart(theta, R0, R, dinv, coef):  # pragma: no cover - compiled
+    """:func:`~.spatial.chart_maps` at one ``theta`` (3,): ``R = R0 exp(theta)``, ``dinv`` =
+    ``dexp(theta)^-1`` and ``coef = (alpha, beta, dalpha, dbeta)``."""
+    t0, t1, t2 = theta[0], theta[1], theta[2]
+    p2 = t0 * t0 + t1 * t1 + t2 * t2
+    p = np.sqrt(p2)
+    p4 = p2 * p2
+    if p < 1e-3:
+        alpha = 0.5 - p2 / 24.0 + p4 / 720.0
+        beta = 1.0 / 6.0 - p2 / 120.0 + p4 / 5040.0
+        dalpha = -1.0 / 12.0 + p2 / 180.0 - p4 / 6720.0
+        dbeta = -1.0 / 60.0 + p2 / 1260.0 - p4 / 60480.0
+        gamma = 1.0 / 12.0 + p2 / 720.0 + p4 / 30240.0
+    else:
+        sn, cs = np.sin(p), np.cos(p)
+        inv2 = 1.0 / (p * p)
+        alpha = (1 - cs) * inv2
+        beta = (p - sn) * inv2 / p
+        dalpha = (p * sn - 2 * (1 - cs)) * inv2 * inv2
+        dbeta = (3 * sn - p * cs - 2 * p) * inv2 * inv2 / p
+        half = 0.5 * p
+        gamma = (1 - half * np.cos(half) / np.sin(half)) * inv2
+    coef[0], coef[1], coef[2], coef[3] = alpha, beta, dalpha, dbeta
+    K = np.array([[0.0, -t2, t1], [t2, 0.0, -t0], [-t1, t0, 0.0]])
+    ex = np.empty((3, 3))
+    for a in range(3):
+        for b in range(3):
+            K2 = theta[a] * theta[b] - (p2 if a == b else 0.0)
+            one = 1.0 if a == b else 0.0
+            ex[a, b] = one + (1.0 - p2 * beta) * K[a, b] + alpha * K2
+            dinv[a, b] = one + 0.5 * K[a, b] + gamma * K2
+    for a in range(3):
+        for b in range(3):
+            R[a, b] = R0[a, 0] * ex[0, b] + R0[a, 1] * ex[1, b] + R0[a, 2] * ex[2, b]
+
+
+@_jit
+def _cross(a, b, out):  # pragma: no cover - compiled
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@_jit
+def _quat_to_mat(q, R):  # pragma: no cover - compiled
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    x2, y2, z2 = x + x, y + y, z + z
+    xx, yy, zz, xy, xz, yz = x * x2, y * y2, z * z2, x * y2, x * z2, y * z2
+    wx, wy, wz = w * x2, w * y2, w * z2
+    R[0, 0], R[0, 1], R[0, 2] = 1 - (yy + zz), xy - wz, xz + wy
+    R[1, 0], R[1, 1], R[1, 2] = xy + wz, 1 - (xx + zz), yz - wx
+    R[2, 0], R[2, 1], R[2, 2] = xz - wy, yz + wx, 1 - (xx + yy)
+
+
+@_jit
+def rkn(P, revolute, parent, S, inertia, damping, lock, tau, held, E1, r1, IA1, U1, d1, chol1, pos, quat, q, lin, omega, qd, h,
+        contacts, a, b, xa, xb, n0, depth0, cap, k, c, new_pos, new_quat, new_q, new_lin, new_omega, new_qd, need):  # pragma: no cover - compiled
+    """One step of :func:`~.integrate.step` with the 4-stage Nystrom method, every stage a
+    :func:`stage` in the chart ``R = R_n exp(theta)``. ``held``: the inertias ``E1 .. chol1`` are
+    those of ``q`` already (else they are computed into them). ``need``: the locked joints' forces
+    of the last stage."""
+    C, M, N = pos.shape[0], q.shape[0], parent.shape[0]
+    if not held:
+        transforms(P, revolute, q, E1, r1)
+        inertias(parent, E1, r1, S, inertia, lock, IA1, U1, d1, chol1)
+    E, r, IA, U, d, chol = np.empty((M, 3, 3)), np.empty((M, 3)), np.empty((N, 6, 6)), np.empty((M, 6)), np.empty(M), np.empty((C, 6, 6))
+    R0, R = np.empty((C, 3, 3)), np.empty((C, 3, 3))
+    for i in range(C):
+        _quat_to_mat(quat[i], R0[i])
+    # the stages' accelerations in chart coordinates: (C, 3) root, (C, 3) theta, (M,) joints
+    A_l, A_w, A_q = np.empty((4, C, 3)), np.empty((4, C, 3)), np.empty((4, M))
+    stage(parent, E1, r1, S, inertia, damping, IA1, U1, d1, chol1, lock, tau, R0, lin, omega, qd,
+          contacts, a, b, xa, xb, n0, depth0, cap, k, c, A_l[0], A_w[0], A_q[0], need)  # theta = 0: the chart is the identity
+    h2, hh8, hh2 = h / 2, h * h / 8, h * h / 2
+    y_t, y_q = np.empty((C, 3)), np.empty(M)  # the root's position moves no force
+    v_l, v_t, v_q = np.empty((C, 3)), np.empty((C, 3)), np.empty(M)
+    om, wd, cr, t1, t2 = np.empty((C, 3)), np.empty((C, 3)), np.empty(3), np.empty(3), np.empty(3)
+    dinv, coef = np.empty((C, 3, 3)), np.empty((C, 4))
+    for s in range(1, 4):
+        g = s - 1  # the stage whose acceleration moves this one: a1 for 2 and 3's positions, a3 for 4's
+        if s != 2:  # stages 2 and 3 share positions, hence the chart and the inertias
+            ky, kp, e = (h2, hh8, 0) if s == 1 else (h, hh2, 2)  # y + h/2 y' + h^2/8 a1, or y + h y' + h^2/2 a3
+            for i in range(C):
+                for m in range(3):
+                    y_t[i, m] = ky * omega[i, m] + kp * A_w[e, i, m]
+                _chart(y_t[i], R0[i], R[i], dinv[i], coef[i])
+            for j in range(M):
+                y_q[j] = q[j] + ky * qd[j] + kp * A_q[e, j]
+            transforms(P, revolute, y_q, E, r)
+            inertias(parent, E, r, S, inertia, lock, IA, U, d, chol)
+        kv = h if s == 3 else h2
+        for i in range(C):
+            for m in range(3):
+                v_l[i, m] = lin[i, m] + kv * A_l[g, i, m]
+                v_t[i, m] = omega[i, m] + kv * A_w[g, i, m]
+            # omega = dexp(theta) theta_d and the curvature (spatial.chart_rates_at)
+            th, td = y_t[i], v_t[i]
+            _cross(th, td, t1)
+            _cross(th, t1, t2)
+            al, be, dal, dbe = coef[i, 0], coef[i, 1], coef[i, 2], coef[i, 3]
+            pdot = th[0] * td[0] + th[1] * td[1] + th[2] * td[2]
+            n2 = td[0] * td[0] + td[1] * td[1] + td[2] * td[2]
+            for m in range(3):
+                om[i, m] = td[m] - al * t1[m] + be * t2[m]
+            for m in range(3):
+                cr[m] = (dbe * pdot) * t2[m] - (dal * pdot) * t1[m] + be * (th[m] * n2 - td[m] * pdot)
+            for m in range(3):
+                wd[i, m] = cr[m]  # kept until the stage's angular acceleration is known
+        for j in range(M):
+            v_q[j] = qd[j] + kv * A_q[g, j]
+        stage(parent, E, r, S, inertia, damping, IA, U, d, chol, lock, tau, R, v_l, om, v_q,
+              contacts, a, b, xa, xb, n0, depth0, cap, k, c, A_l[s], A_w[s], A_q[s], need)
+        for i in range(C):  # theta'' = dexp^-1 (omega' - curvature)
+            for m in range(3):
+                t1[m] = A_w[s, i, m] - wd[i, m]
+            for m in range(3):
+                A_w[s, i, m] = dinv[i, m, 0] * t1[0] + dinv[i, m, 1] * t1[1] + dinv[i, m, 2] * t1[2]
+    h6, h3, hh6 = h / 6, h / 3, h * h / 6
+    th = np.empty(3)
+    td = np.empty(3)
+    for i in range(C):
+        for m in range(3):
+            new_pos[i, m] = pos[i, m] + h * lin[i, m] + hh6 * (A_l[0, i, m] + A_l[1, i, m] + A_l[2, i, m])
+            new_lin[i, m] = lin[i, m] + h6 * (A_l[0, i, m] + A_l[3, i, m]) + h3 * (A_l[1, i, m] + A_l[2, i, m])
+            th[m] = h * omega[i, m] + hh6 * (A_w[0, i, m] + A_w[1, i, m] + A_w[2, i, m])
+            td[m] = omega[i, m] + h6 * (A_w[0, i, m] + A_w[3, i, m]) + h3 * (A_w[1, i, m] + A_w[2, i, m])
+        # the new orientation q_n exp(theta) (normalised, w >= 0) and its body rate dexp(theta) theta_d
+        p2 = th[0] * th[0] + th[1] * th[1] + th[2] * th[2]
+        phi = np.sqrt(p2)
+        kq = 0.5 - p2 / 48.0 + p2 * p2 / 3840.0 if phi < 1e-4 else np.sin(0.5 * phi) / phi
+        ew, ex, ey, ez = np.cos(0.5 * phi), kq * th[0], kq * th[1], kq * th[2]
+        aw, ax, ay, az = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
+        w = aw * ew - (ax * ex + ay * ey + az * ez)
+        x = aw * ex + ew * ax + (ay * ez - az * ey)
+        y = aw * ey + ew * ay + (az * ex - ax * ez)
+        z = aw * ez + ew * az + (ax * ey - ay * ex)
+        norm = np.sqrt(w * w + x * x + y * y + z * z)
+        sign = -1.0 if w / norm < 0 else 1.0
+        new_quat[i, 0], new_quat[i, 1], new_quat[i, 2], new_quat[i, 3] = sign * w / norm, sign * x / norm, sign * y / norm, sign * z / norm
+        _chart(th, R0[i], R[i], dinv[i], coef[i])
+        _cross(th, td, t1)
+        _cross(th, t1, t2)
+        for m in range(3):
+            new_omega[i, m] = td[m] - coef[i, 0] * t1[m] + coef[i, 1] * t2[m]
+    for j in range(M):
+        new_q[j] = q[j] + h * qd[j] + hh6 * (A_q[0, j] + A_q[1, j] + A_q[2, j])
+        new_qd[j] = qd[j] + h6 * (A_q[0, j] + A_q[3, j]) + h3 * (A_q[1, j] + A_q[2, j])
+
+
+# ---------------------------------------------------------------- what the world calls
+
+
+class Dynamics:
+    """The compiled kernels bound to one packed numpy :class:`~.model.Model` (``World(compiled=True)``).
+
+    :meth:`inertias` returns ``(E, r, IA, U, d, chol)``; :meth:`transforms` the joint
+    transforms ``Xup`` of them as matrices, for the numpy code that reads them.
+    """
+
+    def __init__(self, model, damping=None):
+        if not available():
+            raise ImportError("compiled: the compiled step needs numba (a dependency of coursekit): pip install numba")
+        m = self.model = model
+        self.parent = np.ascontiguousarray(m.parent, dtype=np.int64)
+        self.P = np.ascontiguousarray(np.transpose(m.pose_rows_basis, (2, 0, 1)))  # (M, 3, 12)
+        self.revolute = np.ascontiguousarray(m.revolute)
+        self.S = np.ascontiguousarray(m.S)
+        self.inertia = np.ascontiguousarray(m.inertia_diag)
+        self.damping = np.zeros_like(self.inertia) if damping is None else np.ascontiguousarray(damping)
+        self.free = np.zeros(m.n_joints, dtype=bool)  # no joint locked (a world without limits)
+
+    def inertias(self, q, lock=None):
+        m = self.model
+        M, N, C = m.n_joints, m.n_bodies, m.n_creatures
+        E, r = np.empty((M, 3, 3)), np.empty((M, 3))
+        transforms(self.P, self.revolute, np.ascontiguousarray(q), E, r)
+        IA, U, d, chol = np.empty((N, 6, 6)), np.empty((M, 6)), np.empty(M), np.empty((C, 6, 6))
+        inertias(self.parent, E, r, self.S, self.inertia, self.free if lock is None else lock, IA, U, d, chol)
+        return E, r, IA, U, d, chol
+
+    def poses_rows(self, R0, p0, q):
+        """:func:`~.jcalc.poses_rows`: world rotations (3, 3, N) and positions (3, N), component-major."""
+        m = self.model
+        E, r = np.empty((m.n_joints, 3, 3)), np.empty((m.n_joints, 3))
+        transforms(self.P, self.revolute, np.ascontiguousarray(q), E, r)
+        R, p = np.empty((m.n_bodies, 3, 3)), np.empty((m.n_bodies, 3))
+        kernels._poses(self.parent, E, r, np.ascontiguousarray(R0), np.ascontiguousarray(p0), R, p)
+        return np.ascontiguousarray(R.transpose(1, 2, 0)), np.ascontiguousarray(p.T)
+
+    @staticmethod
+    def transforms(held):
+        """The joint transforms ``Xup`` (M, 6, 6) of :meth:`inertias`' ``held``."""
+        return sp.transform_matrix(np, held[0], held[1])
+
+    def _pairs(self, active):
+        if active is None:
+            no, none = np.zeros(0, np.int64), np.zeros((0, 3))
+            return (no, no, none, none, none, np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0))
+        return tuple(active[key] for key in ("a", "b", "xa", "xb", "n", "depth", "cap", "k", "c"))
+
+    def step(self, state, h, tau, lock, active, held=None):
+        """``(new state, need)``: one :func:`rkn` step from ``state``; ``held``: the
+        :meth:`inertias` at ``state.q`` with this ``lock``, if known."""
+        from .integrate import State
+
+        m = self.model
+        C, M, N = m.n_creatures, m.n_joints, m.n_bodies
+        lock = self.free if lock is None else lock
+        if held is None:
+            held = (np.empty((M, 3, 3)), np.empty((M, 3)), np.empty((N, 6, 6)), np.empty((M, 6)), np.empty(M), np.empty((C, 6, 6)))
+            known = False
+        else:
+            known = True
+        new = State(np.empty((C, 3)), np.empty((C, 4)), np.empty(M), np.empty((C, 3)), np.empty((C, 3)), np.empty(M))
+        need = np.empty(M)
+        rkn(self.P, self.revolute, self.parent, self.S, self.inertia, self.damping, lock, tau, known, *held,
+            state.pos, state.quat, state.q, state.lin, state.omega, state.qd, float(h), active is not None, *self._pairs(active),
+            new.pos, new.quat, new.q, new.lin, new.omega, new.qd, need)
+        return new, need
+
+    def accel(self, held, R, qd, lin, omega, tau, lock, active):
+        """``(lin_acc, ang_acc, qdd, need)`` of :func:`stage` at a state whose :meth:`inertias` are ``held``."""
+        E, r, IA, U, d, chol = held
+        C, M = self.model.n_creatures, self.model.n_joints
+        out = np.empty((C, 3)), np.empty((C, 3)), np.empty(M), np.empty(M)
+        lock = self.free if lock is None else lock
+        stage(self.parent, E, r, self.S, self.inertia, self.damping, IA, U, d, chol, lock, tau,
+              np.ascontiguousarray(R), lin, omega, qd, active is not None, *self._pairs(active), *out)
+        return out
+
+    def impulse(self, held, lock, change):
+        """``(dv0, dqd)`` of :func:`impulse`."""
+        E, r, IA, U, d, chol = held
+        dv0, dqd = np.empty((self.model.n_creatures, 6)), np.empty(self.model.n_joints)
+        impulse(self.parent, E, r, self.S, self.inertia, IA, U, d, chol, lock, np.ascontiguousarray(change), dv0, dqd)
+        return dv0, dqd
