@@ -413,8 +413,8 @@ class World:
         (exactly momentum-conserving at the pose it is computed at), the projection a
         displacement. A displacement changes what the same joint rates mean, so a creature that
         was put back gets its momentum back as a rigid motion of the whole body, and its centre
-        of mass is kept where it was (:meth:`_put_back`). The inertias are those the next step's
-        first stage reuses.
+        of mass is kept where it was (:meth:`_put_back`). The inertias, at the pose it ends in, are
+        those the next step's first stage reuses.
         """
         xp = self.xp
         self._lock, at = self.limits.begin(s.q, s.qd, self.tau)
