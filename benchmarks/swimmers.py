@@ -170,7 +170,7 @@ class Swim:
 
     def __init__(self, creatures, contacts=True, compiled=False):
         phenotypes = [c.expand() for c in creatures]
-        self.brain = BrainBatch(phenotypes)
+        self.brain = BrainBatch(phenotypes, compiled=compiled)
         self.world = World([p.body for p in phenotypes], dt=DT, contacts=contacts, compiled=compiled)
         m = self.world.model
         self.revolute = m.joint_type_np[m.joint_order] == REVOLUTE

@@ -139,6 +139,27 @@ def test_a_stage_gives_the_textbook_accelerations_and_locked_forces(seed, n, spe
         at += t.n_bodies - 1
 
 
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), first=st.booleans(), scale=st.sampled_from([1e-8, 1.0, 30.0, 1e4]))
+def test_the_compiled_neurons_compute_every_function_as_evaluate_does(seed, first, scale):
+    from coursekit.creatures.neural import FUNCTION_NAMES, OUTPUT_LIMIT, evaluate
+
+    rng = np.random.default_rng(seed)
+    N = 4 * len(FUNCTION_NAMES)
+    code = np.arange(N) % len(FUNCTION_NAMES)  # every function, four times
+    x = rng.normal(0.0, scale, (N, 3))
+    x[rng.random((N, 3)) < 0.05] = 0.0  # a divide by zero, a sign of zero
+    x[rng.random((N, 3)) < 0.03] = np.nan  # a NaN input
+    n_inputs = rng.integers(1, 4, N)
+    param, y_prev, s_prev = rng.uniform(0.2, 3.0, N), rng.normal(0.0, scale, N), rng.normal(0.0, scale, N)
+    t, dt = float(rng.uniform(0, 10)), 1 / 120
+    want, want_sums = evaluate(code, x, n_inputs, param, y_prev, s_prev, first, t, dt)
+    out, sums = np.empty(N), np.empty(N)
+    kernels.neurons(code, x, n_inputs, param, y_prev, s_prev, first, t, dt, OUTPUT_LIMIT, out, sums)
+    np.testing.assert_allclose(sums, want_sums, rtol=1e-12, atol=0, equal_nan=True)
+    np.testing.assert_allclose(out, want, rtol=1e-12, atol=1e-300)
+
+
 def test_a_creature_swims_the_same_alone_and_in_a_batch_bit_for_bit():
     # what lets evolution split a generation over worker processes with the same results
     doc = json.loads(EVOLVED.read_text(encoding="utf-8"))

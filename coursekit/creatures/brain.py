@@ -26,8 +26,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .neural import FUNCTION_CODE, FUNCTION_NAMES, MAX_INPUTS, MAX_NEURONS, N_SENSORS, SENSORS, evaluate, function_groups, sensor_dof
+from .neural import FUNCTION_CODE, FUNCTION_NAMES, MAX_INPUTS, MAX_NEURONS, N_SENSORS, OUTPUT_LIMIT, SENSORS, evaluate, function_groups, sensor_dof
 from .physics import backend as bk
+from .physics import kernels
 
 if TYPE_CHECKING:
     from .phenotype import Phenotype
@@ -172,13 +173,17 @@ class BrainBatch:
             the brain's arrays live there, so a torch simulation's sensors and effectors never
             travel to the host and back.
         device: torch device (ignored for numpy).
+        compiled: evaluate the neurons with the compiled kernel
+            (:func:`coursekit.creatures.physics.kernels.neurons`, numpy backend): the same outputs
+            to rounding. ``None`` (default): wherever it can run.
 
     ``step`` takes the joints of all creatures concatenated (within a creature, joints are parts
     1..B-1 in body order) and the parts of all creatures concatenated, and returns the effector
     outputs per joint, before gain and strength clamping, as arrays of the backend.
     """
 
-    def __init__(self, brains: Sequence[Brain | Phenotype], backend: str = "numpy", device: Any | None = None) -> None:
+    def __init__(self, brains: Sequence[Brain | Phenotype], backend: str = "numpy", device: Any | None = None,
+                 compiled: bool | None = None) -> None:
         if isinstance(brains, (str, bytes)) or not hasattr(brains, "__iter__"):
             raise TypeError(f"BrainBatch.brains: expected a non-empty list of Brain (or Phenotype) objects, got {type(brains).__name__}")
         brains = [getattr(b, "brain", b) for b in brains]
@@ -187,6 +192,11 @@ class BrainBatch:
         self.brains = brains
         self.backend = backend
         self.xp = xp = bk.namespace(backend)
+        if compiled is None:
+            compiled = bk.is_numpy(xp) and kernels.available()
+        if compiled and not (bk.is_numpy(xp) and kernels.available()):
+            raise ValueError(f"BrainBatch.compiled: the compiled neurons need the numpy backend and numba, got backend={backend!r}")
+        self.compiled = bool(compiled)
         self.device = device
         nb = np.array([b.n_bodies for b in brains], dtype=np.int64)
         nn = np.array([b.n_neurons for b in brains], dtype=np.int64)
@@ -269,8 +279,14 @@ class BrainBatch:
         sens[:, 2:] = ct
         x = v[self.src] * self.weight
         y_prev = v[self._neurons]
-        out, self._s_prev = evaluate(self.func, x, self.n_inputs, self.param, y_prev, self._s_prev, self._first,
-                                     self.time, dt, self.groups, xp=xp)
+        if self.compiled:
+            out, sums = np.empty(self.total_neurons), np.empty(self.total_neurons)
+            kernels.neurons(self.func, x, self.n_inputs, self.param, y_prev, self._s_prev, self._first, self.time, dt,
+                            OUTPUT_LIMIT, out, sums)
+            self._s_prev = sums
+        else:
+            out, self._s_prev = evaluate(self.func, x, self.n_inputs, self.param, y_prev, self._s_prev, self._first,
+                                         self.time, dt, self.groups, xp=xp)
         v[self._neurons] = out
         self._first = False
         self.time += dt

@@ -137,7 +137,7 @@ def simulate(
     # (no trip to the host on torch); a controller passed in gets numpy arrays, as documented.
     native = brains is not None
     if native:
-        controller = BrainBatch(brains, backend=m.backend, device=m.device)
+        controller = BrainBatch(brains, backend=m.backend, device=m.device, compiled=world.compiled)
     if initial_state is not None:
         world.set_state(*initial_state)
     tick = getattr(controller, "step", controller)

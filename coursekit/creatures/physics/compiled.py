@@ -37,7 +37,6 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernels
-from . import spatial as sp
 from .kernels import _jit, available, impulse, inertias, stage, transforms
 
 __all__ = ["Dynamics", "available", "rkn"]
@@ -217,6 +216,7 @@ class Dynamics:
         self.inertia = np.ascontiguousarray(m.inertia_diag)
         self.damping = np.zeros_like(self.inertia) if damping is None else np.ascontiguousarray(damping)
         self.free = np.zeros(m.n_joints, dtype=bool)  # no joint locked (a world without limits)
+        self.creature = np.ascontiguousarray(m.creature, dtype=np.int64)
 
     def inertias(self, q, lock=None):
         m = self.model
@@ -236,10 +236,30 @@ class Dynamics:
         kernels._poses(self.parent, E, r, np.ascontiguousarray(R0), np.ascontiguousarray(p0), R, p)
         return np.ascontiguousarray(R.transpose(1, 2, 0)), np.ascontiguousarray(p.T)
 
-    @staticmethod
-    def transforms(held):
-        """The joint transforms ``Xup`` (M, 6, 6) of :meth:`inertias`' ``held``."""
-        return sp.transform_matrix(np, held[0], held[1])
+    def mass_properties(self, R0, p0, q, lin, omega, qd):
+        """``(com, h, Ic)`` of :func:`~.kernels.mass_properties` at this pose and these rates."""
+        m = self.model
+        C = m.n_creatures
+        E, r = np.empty((m.n_joints, 3, 3)), np.empty((m.n_joints, 3))
+        transforms(self.P, self.revolute, np.ascontiguousarray(q), E, r)
+        com, h, Ic = np.empty((C, 3)), np.empty((C, 6)), np.empty((C, 3, 3))
+        kernels.mass_properties(self.parent, E, r, self.S, self.inertia, self.creature, np.ascontiguousarray(R0),
+                                np.ascontiguousarray(p0), np.ascontiguousarray(lin), np.ascontiguousarray(omega),
+                                np.ascontiguousarray(qd), com, h, Ic)
+        return com, h, Ic
+
+    def detector(self, contacts):
+        """``detect(R, p)``: :meth:`~.contact.Contacts.detect` of ``contacts``' candidate pairs, compiled."""
+        a, b = np.ascontiguousarray(contacts.a, dtype=np.int64), np.ascontiguousarray(contacts.b, dtype=np.int64)
+        reach2, half, P = np.ascontiguousarray(contacts.reach2), np.ascontiguousarray(contacts.half_extents), len(a)
+
+        def detect(R, p):
+            pair, n, depth, x = np.empty(P, np.int64), np.empty((P, 3)), np.empty(P), np.empty((P, 3))
+            k = kernels.detect(a, b, reach2, half, np.ascontiguousarray(R), np.ascontiguousarray(p), pair, n, depth, x)
+            pair = pair[:k]
+            return pair, a[pair], b[pair], n[:k], depth[:k], x[:k]
+
+        return detect
 
     def _pairs(self, active):
         if active is None:

@@ -99,6 +99,7 @@ class Contacts:
         self._edge_rows = tuple(bk.index(xp, k, device=m.device) for k in rows)
         self.held = None  # contacts touching at the end of the last step, with their anchors
         self.anchor = None  # static: every pair's anchors and whether it touches (``on``)
+        self.detector = None  # detect(R, p) in place of :meth:`detect` (the compiled step's), if set
         self._set_pairs(a, b, w)
         # Parts that interpenetrate in the creature's own rest pose are fused, not colliding: a
         # deep overlap has no meaningful normal (the axis of least overlap flips as the parts
@@ -235,8 +236,11 @@ class Contacts:
         if self.n_pairs == 0:
             return None, sensors
         Rr, pr = poses_rows(m, sp.quat_to_mat(xp, state.quat), state.pos, state.q) if rows is None else rows
-        pair, a, b, n, depth, x = self._detect_rows(xp.reshape(Rr, (9, m.n_bodies)), pr)
         R, p = pose_stacks(xp, (Rr, pr))
+        if self.detector is not None and not self.static:
+            pair, a, b, n, depth, x = self.detector(R, p)
+        else:
+            pair, a, b, n, depth, x = self._detect_rows(xp.reshape(Rr, (9, m.n_bodies)), pr)
         if self.static:
             return self._begin_static(pair, n, x, R, p, sensors)
         # a new contact's spring is relaxed at first touch (depth 0 there): the overlap it is found

@@ -127,6 +127,7 @@ class World:
         if compiled and (not bk.is_numpy(xp) or graph):
             raise ValueError(f"compiled: the compiled step runs on the numpy backend without graph, got backend={m.backend!r}, graph={graph!r}")
         self._compiled = Dynamics(m, self.damping) if compiled else None
+        self.compiled = bool(compiled)  # the step compiled (the creatures' brains follow it in simulate)
         rate = max_drag_rate(m, drag_coefficient, box_drag) if drag else 0.0
         water_steps = max(1, math.ceil(self.dt * rate / STABLE_DRAG_STEP))  # what the water needs
         self.substeps = water_steps * int(substeps)
@@ -140,6 +141,8 @@ class World:
         self.contacts = None
         if contacts:
             self.contacts = Contacts(m, stiffness=contact_stiffness, dt=self.dt / water_steps, static=self.graph)
+            if self._compiled is not None:
+                self.contacts.detector = self._compiled.detector(self.contacts)
         self.caps = (float(max_speed), float(max_angular_speed), float(max_joint_speed))
         self._graph = None  # the captured CUDA graph and its buffers (graph=True on CUDA)
         self._graph_failed = None  # why the step could not be captured (it then runs eagerly)
@@ -441,25 +444,21 @@ class World:
         and the angular momentum. Only the creatures that had a joint to put back change, so a
         creature's motion does not depend on its batch.
         """
-        xp, m = self.xp, self.model
+        xp = self.xp
         dx0, dq = self._impulse(at - s.q)
         q = xp.where(self._lock, at, self.limits.within(s.q, s.q + dq))
         pos, quat = s.pos + sp.mv(R, dx0[:, 3:]), sp.quat_mul(xp, s.quat, sp.quat_exp(xp, dx0[:, :3]))  # the next step normalises
         R1 = sp.quat_to_mat(xp, quat)
-        before = self._rows(R, s.pos, s.q)
-        after = self._rows(R1, pos, q)
-        com = self._com_rows(before)
-        shift = com - self._com_rows(after)
+        com, h0, _ = self._mass_properties(R, s.pos, s.q, s.lin, s.omega, s.qd, None if self._compiled else self._inertia[0])
+        com1, h1, Ic = self._mass_properties(R1, pos, q, stopped.lin, stopped.omega, stopped.qd)
+        shift = com - com1  # the whole body moves by it: the linear momentum stays, the angular one about the origin gains shift x P
         pos = pos + shift
-        after = (after[0], after[1] + xp.take(shift, m.body_creature, axis=0).T)
-        X = self._inertia[0] if self._compiled is None else self._compiled.transforms(self._inertia)
-        h0 = self._momentum(before, X, R, s.lin, s.omega, s.qd)
-        h1 = self._momentum(after, joint_transform_matrices(m, q), R1, stopped.lin, stopped.omega, stopped.qd)
+        h1 = xp.concat([h1[:, :3], h1[:, 3:] + sp.cross3(xp, shift, h1[:, :3])], axis=1)
         # a rigid velocity (w, u) about the centre of mass adds (M u, Ic w) to the momentum about it
         dh = h0 - h1
         dP = dh[:, :3]
         dL = dh[:, 3:] - sp.cross3(xp, com, dP)  # about the centre of mass (com is the same before and after)
-        w = bk.solve(xp, self._composite_inertia(after, com), dL, self.graph)
+        w = bk.solve(xp, Ic, dL, self.graph)
         lin = stopped.lin + dP / self._total_mass + sp.cross3(xp, w, pos - com)
         omega = stopped.omega + sp.mv(R1.mT, w)
         moved = self._per_creature_any(at != s.q)
@@ -533,6 +532,17 @@ class World:
         """(C, 3) centres of mass from the component-major poses of :func:`~.jcalc.poses_rows`."""
         m = self.model
         return m.segment_sum((rows[1] * m.mass).T) / self._total_mass
+
+    def _mass_properties(self, R0, p0, q, lin, omega, qd, X=None):
+        """``(com (C, 3), h (C, 6), Ic (C, 3, 3))``: every creature's centre of mass, momentum
+        (:meth:`_momentum`) and rotational inertia about its centre of mass at this pose and
+        these rates (``X``: the joint transforms at ``q``, if known)."""
+        if self._compiled is not None:
+            return self._compiled.mass_properties(R0, p0, q, lin, omega, qd)
+        rows = self._rows(R0, p0, q)
+        com = self._com_rows(rows)
+        X = joint_transform_matrices(self.model, q) if X is None else X
+        return com, self._momentum(rows, X, R0, lin, omega, qd), self._composite_inertia(rows, com)
 
     def _momentum(self, rows, X, R0, lin, omega, qd):
         """(C, 6) world linear momentum and angular momentum about the world origin, at the poses
