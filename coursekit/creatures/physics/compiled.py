@@ -248,18 +248,26 @@ class Dynamics:
                                 np.ascontiguousarray(qd), com, h, Ic)
         return com, h, Ic
 
-    def detector(self, contacts):
-        """``detect(R, p)``: :meth:`~.contact.Contacts.detect` of ``contacts``' candidate pairs, compiled."""
+    def begin(self, contacts):
+        """``begin(R, p, held) -> (found, sensors)``: :meth:`~.contact.Contacts.begin`'s detection,
+        anchors and face sensors for ``contacts``' candidate pairs, compiled (``found``: the
+        contacts held for the step, as ``Contacts.held`` keeps them)."""
         a, b = np.ascontiguousarray(contacts.a, dtype=np.int64), np.ascontiguousarray(contacts.b, dtype=np.int64)
-        reach2, half, P = np.ascontiguousarray(contacts.reach2), np.ascontiguousarray(contacts.half_extents), len(a)
+        reach2, half, P, N = np.ascontiguousarray(contacts.reach2), np.ascontiguousarray(contacts.half_extents), len(a), self.model.n_bodies
+        none = {"pair": np.zeros(0, np.int64), "xa": np.zeros((0, 3)), "xb": np.zeros((0, 3)), "n": np.zeros((0, 3)), "depth": np.zeros(0)}
 
-        def detect(R, p):
+        def begin(R, p, held):
+            R, p = np.ascontiguousarray(R), np.ascontiguousarray(p)
             pair, n, depth, x = np.empty(P, np.int64), np.empty((P, 3)), np.empty(P), np.empty((P, 3))
-            k = kernels.detect(a, b, reach2, half, np.ascontiguousarray(R), np.ascontiguousarray(p), pair, n, depth, x)
-            pair = pair[:k]
-            return pair, a[pair], b[pair], n[:k], depth[:k], x[:k]
+            k = kernels.detect(a, b, reach2, half, R, p, pair, n, depth, x)
+            held = none if held is None else held
+            out = {"pair": np.empty(P, np.int64), "xa": np.empty((P, 3)), "xb": np.empty((P, 3)), "n": np.empty((P, 3)), "depth": np.empty(P)}
+            sensors = np.full((N, 6), -1.0)
+            k = kernels.anchors(a, b, held["pair"], held["xa"], held["xb"], held["n"], held["depth"], pair[:k], n[:k], x[:k], R, p,
+                                out["pair"], out["xa"], out["xb"], out["n"], out["depth"], sensors)
+            return {key: v[:k] for key, v in out.items()}, sensors
 
-        return detect
+        return begin
 
     def _pairs(self, active):
         if active is None:

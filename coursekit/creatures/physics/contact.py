@@ -99,7 +99,7 @@ class Contacts:
         self._edge_rows = tuple(bk.index(xp, k, device=m.device) for k in rows)
         self.held = None  # contacts touching at the end of the last step, with their anchors
         self.anchor = None  # static: every pair's anchors and whether it touches (``on``)
-        self.detector = None  # detect(R, p) in place of :meth:`detect` (the compiled step's), if set
+        self.compiled = None  # the compiled step's begin(R, p, held) -> (found, sensors), if set
         self._set_pairs(a, b, w)
         # Parts that interpenetrate in the creature's own rest pose are fused, not colliding: a
         # deep overlap has no meaningful normal (the axis of least overlap flips as the parts
@@ -237,10 +237,9 @@ class Contacts:
             return None, sensors
         Rr, pr = poses_rows(m, sp.quat_to_mat(xp, state.quat), state.pos, state.q) if rows is None else rows
         R, p = pose_stacks(xp, (Rr, pr))
-        if self.detector is not None and not self.static:
-            pair, a, b, n, depth, x = self.detector(R, p)
-        else:
-            pair, a, b, n, depth, x = self._detect_rows(xp.reshape(Rr, (9, m.n_bodies)), pr)
+        if self.compiled is not None and not self.static:
+            return self._active(*self.compiled(R, p, self.held))
+        pair, a, b, n, depth, x = self._detect_rows(xp.reshape(Rr, (9, m.n_bodies)), pr)
         if self.static:
             return self._begin_static(pair, n, x, R, p, sensors)
         # a new contact's spring is relaxed at first touch (depth 0 there): the overlap it is found
@@ -255,15 +254,22 @@ class Contacts:
             old[held["pair"]] = True
             new = ~xp.take(old, pair, axis=0)
             found = {k: xp.concat([held[k], v[new]]) for k, v in found.items()}
-        if found["pair"].shape[0] == 0:
+        if found["pair"].shape[0]:
+            a, b = xp.take(self.a, found["pair"], axis=0), xp.take(self.b, found["pair"], axis=0)
+            n = sp.mv(R[a], found["n"])
+            for body, direction in ((b, -n), (a, n)):
+                sensors[body, _face(xp, R[body], direction)] = 1.0
+        return self._active(found, sensors)
+
+    def _active(self, found, sensors):
+        """Hold the contacts ``found`` for the next step; ``(active, sensors)`` of :meth:`begin`."""
+        xp = self.xp
+        if found is None or found["pair"].shape[0] == 0:
             self.held = None
             return None, sensors
         self.held = found
         pair = found["pair"]
         a, b = xp.take(self.a, pair, axis=0), xp.take(self.b, pair, axis=0)
-        n = sp.mv(R[a], found["n"])
-        for body, direction in ((b, -n), (a, n)):
-            sensors[body, _face(xp, R[body], direction)] = 1.0
         active = dict(found, a=a, b=b, cap=self.depth_cap[pair], k=self.k[pair], c=self.c[pair])
         return active, sensors
 

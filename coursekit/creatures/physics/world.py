@@ -142,7 +142,7 @@ class World:
         if contacts:
             self.contacts = Contacts(m, stiffness=contact_stiffness, dt=self.dt / water_steps, static=self.graph)
             if self._compiled is not None:
-                self.contacts.detector = self._compiled.detector(self.contacts)
+                self.contacts.compiled = self._compiled.begin(self.contacts)
         self.caps = (float(max_speed), float(max_angular_speed), float(max_joint_speed))
         self._graph = None  # the captured CUDA graph and its buffers (graph=True on CUDA)
         self._graph_failed = None  # why the step could not be captured (it then runs eagerly)
