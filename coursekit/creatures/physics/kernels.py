@@ -107,10 +107,8 @@ def inertias(parent, E, r, S, inertia, lock, IA, U, d, chol):  # pragma: no cove
     whole ``Xup' IA Xup`` (Featherstone 2008, section 9.3)."""
     N, C = parent.shape[0], chol.shape[0]
     Ia = np.empty((6, 6))
-    T = np.empty((6, 6))
-    X = np.empty((6, 6))
-    col = np.empty(6)
-    out = np.empty(6)
+    B = np.empty((3, 3))
+    Y = np.empty((4, 3, 3))  # Ia Xup in 3 x 3 blocks: [[Y0, Y1], [Y2, Y3]]
     for i in range(N):
         for a in range(6):
             for b in range(6):
@@ -126,29 +124,43 @@ def inertias(parent, E, r, S, inertia, lock, IA, U, d, chol):  # pragma: no cove
             U[j, a] = acc
             dd += S[j, a] * acc
         d[j] = dd
+        inv = 0.0 if lock[j] else 1.0 / dd  # a locked joint passes its whole IA
         for a in range(6):
+            ua = U[j, a] * inv
             for b in range(6):
-                Ia[a, b] = IA[i, a, b] if lock[j] else IA[i, a, b] - U[j, a] * U[j, b] / dd
-        for b in range(3):  # Xup = [[E, 0], [-E rx, E]]; rows of -E rx are r x (rows of E)
-            for a in range(3):
-                X[a, b] = X[a + 3, b + 3] = E[j, a, b]
-                X[a, b + 3] = 0.0
+                Ia[a, b] = IA[i, a, b] - ua * U[j, b]
+        # Xup = [[E, 0], [B, E]] with B = -E rx (rows of B are r x rows of E), so with Ia =
+        # [[P, Q], [Q', D]]: Xup' Ia Xup = [[E'Y0 + B'Y2, E'Y1 + B'Y3], [., E'Y3]] (symmetric),
+        # Y0 = P E + Q B, Y1 = Q E, Y2 = Q'E + D B, Y3 = D E
         for a in range(3):
-            X[a + 3, 0] = r[j, 1] * E[j, a, 2] - r[j, 2] * E[j, a, 1]
-            X[a + 3, 1] = r[j, 2] * E[j, a, 0] - r[j, 0] * E[j, a, 2]
-            X[a + 3, 2] = r[j, 0] * E[j, a, 1] - r[j, 1] * E[j, a, 0]
-        for a in range(6):  # T = Ia Xup
-            for b in range(6):
-                acc = 0.0
-                for m in range(6):
-                    acc += Ia[a, m] * X[m, b]
-                T[a, b] = acc
-        for b in range(6):  # IA[parent] += Xup' T, column by column
-            for a in range(6):
-                col[a] = T[a, b]
-            _xt_apply(E[j], r[j], col, out)
-            for a in range(6):
-                IA[k, a, b] += out[a]
+            B[a, 0] = r[j, 1] * E[j, a, 2] - r[j, 2] * E[j, a, 1]
+            B[a, 1] = r[j, 2] * E[j, a, 0] - r[j, 0] * E[j, a, 2]
+            B[a, 2] = r[j, 0] * E[j, a, 1] - r[j, 1] * E[j, a, 0]
+        for a in range(3):
+            for b in range(3):
+                y0 = y1 = y2 = y3 = 0.0
+                for m in range(3):
+                    e, bb = E[j, m, b], B[m, b]
+                    y0 += Ia[a, m] * e + Ia[a, m + 3] * bb
+                    y1 += Ia[a, m + 3] * e
+                    y2 += Ia[m, a + 3] * e + Ia[a + 3, m + 3] * bb
+                    y3 += Ia[a + 3, m + 3] * e
+                Y[0, a, b], Y[1, a, b], Y[2, a, b], Y[3, a, b] = y0, y1, y2, y3
+        for a in range(3):
+            for b in range(3):
+                top = right = 0.0
+                for m in range(3):
+                    e, bb = E[j, m, a], B[m, a]
+                    top += e * Y[0, m, b] + bb * Y[2, m, b]
+                    right += e * Y[1, m, b] + bb * Y[3, m, b]
+                IA[k, a, b] += top
+                IA[k, a, b + 3] += right
+                IA[k, b + 3, a] += right
+                if b >= a:  # E'Y3 is symmetric
+                    low = E[j, 0, a] * Y[3, 0, b] + E[j, 1, a] * Y[3, 1, b] + E[j, 2, a] * Y[3, 2, b]
+                    IA[k, a + 3, b + 3] += low
+                    if b != a:
+                        IA[k, b + 3, a + 3] += low
     for c in range(C):  # the roots' IA = L L'
         for a in range(6):
             for b in range(a + 1):
