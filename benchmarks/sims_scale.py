@@ -9,7 +9,7 @@ body lengths per second; then the champion of each seed: its speed over 10 s, it
 second half's distance over the first half's) and its audit (:mod:`coursekit.creatures.audit`).
 
 Throughput is creature-seconds simulated per wall-second, counting the generation's evaluations
-(the re-scoring of the top three at half the step is extra work, not counted).
+(the re-scoring of the top three at an eighth of the step is extra work, not counted).
 
 The creatures swim with the simulator's default step, compiled with numba
 (:mod:`~coursekit.creatures.physics.compiled`); ``--numpy-step`` runs the numpy step instead: the

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from coursekit.creatures import Creature, operators
+from coursekit.creatures import Creature, audit, operators
 from coursekit.creatures.evolution import Mated, evolve_swimmers
 from coursekit.creatures.simulate import simulate
 
@@ -18,12 +18,15 @@ def test_evolution_is_deterministic_elitist_and_scores_what_the_simulator_scores
     best = a.history.best
     assert len(best) == 3 and all(x <= y + 1e-12 for x, y in zip(best, best[1:]))  # survivors are kept
     # the recorded fitness is exactly the simulator's score of the final population, except that
-    # the fittest are re-scored with the physics in two sub-steps and keep the lower score
+    # the fittest are re-scored with the physics in the audit's eight sub-steps and keep the lower
+    # score, or 0 where the finer step takes more than the audit allows
     again = simulate(a.population, 0.5, settle=0.1).fitness
-    fine = simulate(a.population, 0.5, settle=0.1, substeps=2).fitness
+    fine = simulate(a.population, 0.5, settle=0.1, substeps=audit.REFINE).fitness
+    floor = np.array([audit.NEGLIGIBLE * audit.body_length(c.expand().body) for c in a.population]) / 0.5
+    exploit = (fine < audit.FINE_SPEED_SHARE * again) & (again - fine > floor)
     refined = a.fitness != again
     assert refined.sum() <= 3 * 3  # at most the top three of each of the 3 batches
-    np.testing.assert_array_equal(a.fitness[refined], np.minimum(again, fine)[refined])
+    np.testing.assert_array_equal(a.fitness[refined], np.where(exploit, 0.0, np.minimum(again, fine))[refined])
     assert np.all(a.fitness <= again)
 
 
@@ -32,9 +35,21 @@ def test_a_speed_that_comes_from_the_time_step_does_not_survive_selection():
 
     snake = Creature.figure1_snake()
     coarse = simulate([snake], 2.0, dt=1 / 20).fitness[0]
-    fine = simulate([snake], 2.0, dt=1 / 20, substeps=2).fitness[0]
+    fine = simulate([snake], 2.0, dt=1 / 20, substeps=audit.REFINE).fitness[0]
     scored = SwimmerFitness(2.0, {"dt": 1 / 20}, refine=1)(None, [snake])[0]
-    assert scored == min(coarse, fine) and coarse != fine
+    assert scored == min(coarse, fine) and coarse != fine and fine >= audit.FINE_SPEED_SHARE * coarse
+
+
+def test_a_creature_that_swims_on_the_time_step_scores_nothing():
+    # A Sims-scale champion of an evolution that refined its best in two sub-steps only: it swims
+    # 1.31 m/s in one sub-step, 1.21 in two to seven and 0.73 from eight on (the audit failed it)
+    from coursekit.creatures.evolution import SwimmerFitness
+    from coursekit.data import creature
+
+    cheat = creature("step_exploit_creature")
+    coarse, fine = (simulate([cheat], 10.0, substeps=k).fitness[0] for k in (1, audit.REFINE))
+    assert fine < audit.FINE_SPEED_SHARE * coarse and coarse > 1.0
+    assert SwimmerFitness(10.0, refine=1)(None, [cheat]) == [0.0]
 
 
 def test_student_operators_plug_in():

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from coursekit.creatures import evolution, simulate
-from coursekit.creatures.audit import body_length
+from coursekit.creatures.audit import REFINE, body_length
 from coursekit.creatures.experiments import paper_experiments
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -62,7 +62,7 @@ def test_the_final_champions_score_what_the_simulator_scores_them(data):
     assert all(c.expand().body.n_parts == r.champion_parts for c, r in zip(champions, runs))
     seconds = data.sizes["seconds"]
     raw = simulate(champions, seconds).fitness
-    fine = simulate(champions, seconds, substeps=2).fitness  # the evaluation re-scores its best in 2 sub-steps
+    fine = simulate(champions, seconds, substeps=REFINE).fitness  # the evaluation re-scores its best in 8 sub-steps
     # scored either as it swam, or (if it was among the best of its batch) the lower of the two
     off = np.array([min(abs(r.best_ms[-1] - a), abs(r.best_ms[-1] - min(a, b))) / a for r, a, b in zip(runs, raw, fine)])
     # The file was made on a machine with AVX-512: on one (an Intel Xeon) all 35 score its figures

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from coursekit import ga
-from coursekit.creatures import operators
+from coursekit.creatures import audit, operators
 from coursekit.creatures.genotype import Creature
 from coursekit.creatures.neural import is_int, is_real
 from coursekit.creatures.simulate import simulate
@@ -68,12 +68,14 @@ class SwimmerFitness:
     one serial batch.
 
     Exploits of the time step are scored out: the ``refine`` fittest creatures of every batch are
-    simulated again with the physics in twice the sub-steps (the brains tick as before,
-    :class:`~coursekit.creatures.physics.world.World`'s ``substeps``), and each
-    keeps the lower of its two scores. A speed that came from integration error -- the one leak
-    an exact simulator still has, and the first thing evolution finds
-    (:mod:`coursekit.creatures.audit`) -- does not survive the finer integration; a swimmer's
-    does.
+    simulated again with the physics in the audit's eightfold sub-steps (the brains tick as before,
+    :class:`~coursekit.creatures.physics.world.World`'s ``substeps``), and each keeps the lower
+    of its two scores -- or 0 if the finer integration takes more of its score than the audit
+    allows (:data:`~coursekit.creatures.audit.FINE_SPEED_SHARE`, beyond a negligible distance). A
+    speed that came from integration error -- the one leak an exact simulator still has, and the
+    first thing evolution finds (:mod:`coursekit.creatures.audit`) -- does not survive the finer
+    integration; a swimmer's does. (Twice the sub-steps let through a champion that swam
+    1.21 m/s from one to seven sub-steps and 0.73 m/s from eight on: ``benchmarks/NOTES.md``.)
     """
 
     seconds: float = 10.0
@@ -96,8 +98,12 @@ class SwimmerFitness:
                 fitness[k::n] = f
         if self.refine > 0:
             top = np.argsort(-fitness, kind="stable")[: self.refine]
-            fine = {**self.options, "substeps": 2 * self.options.get("substeps", 1)}
-            fitness[top] = np.minimum(fitness[top], simulate([creatures[i] for i in top], self.seconds, **fine).fitness)
+            fine = {**self.options, "substeps": audit.REFINE * self.options.get("substeps", 1)}
+            best = [creatures[i] for i in top]
+            refined = simulate(best, self.seconds, **fine).fitness
+            floor = np.array([audit.NEGLIGIBLE * audit.body_length(c.expand().body) for c in best]) / self.seconds
+            exploit = (refined < audit.FINE_SPEED_SHARE * fitness[top]) & (fitness[top] - refined > floor)
+            fitness[top] = np.where(exploit, 0.0, np.minimum(fitness[top], refined))
         return [float(f) for f in fitness]
 
 

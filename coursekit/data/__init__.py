@@ -2,6 +2,9 @@
 
 - ``limit_exploit_creature.json`` -- the 3-box swimmer that evolution bred to push its prismatic
   joints far past their limits before joint limits were constraints (lesson 08's exploit);
+- ``step_exploit_creature.json`` -- a Sims-scale champion that swam on the time step: 1.31 m/s in
+  one sub-step, 1.21 in two to seven, 0.73 from eight on; evolution's refinement in two
+  sub-steps let it through, the audit did not (the test that the refinement now scores it 0);
 - ``paper_experiments.json`` -- the paper's section 4.1 experiments, run per setting and seed
   (``benchmarks/data/paper_experiments.py``; read with :func:`coursekit.creatures.experiments.paper_experiments`).
 """

@@ -2,11 +2,13 @@
 
 :class:`~coursekit.creatures.physics.world.World` runs it by default on the numpy backend
 (``compiled=None``; ``compiled=False`` gives the numpy step). :func:`rkn` is a whole
-Runge-Kutta-Nystrom step: each of its four stages (:func:`stage`) computes the joint transforms,
+Runge-Kutta-Nystrom step: each of its four stages (:func:`~.kernels.stage`) computes the joint transforms,
 the body velocities, the contact springs' forces and Featherstone's articulated-body algorithm with
-locked joints in one pass, and the joint limits' impulses (:func:`impulse`) and the poses
-(:meth:`Dynamics.poses_rows`) are compiled too. What stays in numpy is what happens once a step:
-contact detection, the limits' decisions and their projection, the guards and the brains.
+locked joints in one pass. Once a step, the contact detection and anchors (:meth:`Dynamics.begin`),
+the joint limits' impulses (:func:`~.kernels.impulse`), the projection's centres of mass, momenta
+and inertias (:meth:`Dynamics.mass_properties`) and the poses (:meth:`Dynamics.poses_rows`) are
+compiled too, and so are the brains' neurons (:class:`~coursekit.creatures.brain.BrainBatch`). What
+stays in numpy is the glue between them: the limits' decisions, the guards, the sensors.
 
 It is the algorithm of :mod:`~coursekit.creatures.physics.aba` (hybrid dynamics, water damping,
 contact wrenches) and :mod:`~coursekit.creatures.physics.integrate`, written body by body in the
