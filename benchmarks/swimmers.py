@@ -1,7 +1,9 @@
 """Swimmer simulator throughput vs MuJoCo, same creatures, same step, same run (issue #5).
 
 For batches of random creatures (10-20 boxes each) this prints body-steps and creature-steps per
-second of our batched simulator (numpy, torch CPU, torch CUDA when present) next to MuJoCo
+second of our simulator -- its default step compiled with numba
+(:mod:`coursekit.creatures.physics.compiled`) and the batched array step (numpy, torch CPU, torch
+CUDA when present) -- next to MuJoCo
 stepping the very same exported creatures (``to_mjcf``, all creatures in one model) with its RK4
 integrator, the same step and one thread, and the ratio. Ours runs the full swimmer physics
 (water drag, joint limits as constraints; self-collisions in a separate row, and a row with
@@ -35,7 +37,8 @@ rest; its default solver). All engines start from one mid-swim state (our simula
 and swims ``--warmup`` s with the brains first). Rows with ``+brains`` tick the creatures' brains
 twice per step on the sensors and drive the joints with them, as ``simulate`` does (MuJoCo's with
 the contact sensors off); the rows without hold the joint forces of that state. The brains'
-share is also timed alone (two ticks and the sensors, on a fixed state).
+share is also timed alone (two ticks and the sensors, on a fixed state, with numpy's neurons).
+``ours compiled`` rows swim with the compiled step and, with brains, the compiled neurons.
 
 It also counts the computing tensor operations of one step: on a GPU each is a kernel launch,
 which bounds the speed there, so the count tells on any machine what a GPU will pay. On a GPU,

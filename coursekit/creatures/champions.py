@@ -5,21 +5,21 @@ holds each champion's genotype with the command and seed that evolved it, the co
 with, and what it measured then: its speed over 10 s (m/s) and its body length (m), hence body
 lengths per second. A run is deterministic for its seed, its code and the machine's floating-point
 kernels, but evolution is chaotic: any change to the physics sends it down another path, and so
-does a difference in the last bit of one function. Two such differences exist between x86-64
-machines with the same packages: numpy's AVX-512 kernels of ``tan`` (every joint transform,
-:mod:`~coursekit.creatures.physics.jcalc`), ``exp``, ``log`` and ``arctan`` (the brains' neurons)
-round differently from its AVX2 ones, and OpenBLAS's ``solve`` of the roots' 6 x 6 systems
-depends on the kernels it picks for the processor. The shipped runs were made on machines with
-AVX-512 (numpy's ``X86_V4``, OpenBLAS's ``SkylakeX`` kernels), where their commands follow them
-generation by generation; there,
-``NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" OPENBLAS_CORETYPE=Haswell`` (read when
-numpy loads) takes the path of an AVX2-only machine instead, to every digit (benchmarks/NOTES.md). So a
-champion is not re-derived on every change. What the tests check is what a student sees now: every
+does a difference in the last bit of one function. Such differences exist between x86-64 machines
+with the same packages: numpy's AVX-512 kernels of ``tan``, ``exp``, ``log`` and ``arctan`` round
+differently from its AVX2 ones, and OpenBLAS's ``solve`` depends on the kernels it picks for the
+processor. The Sims-scale runs were made with the compiled step
+(:mod:`~coursekit.creatures.physics.compiled`) on an Intel Xeon with AVX-512 (numpy's ``X86_V4``,
+OpenBLAS's ``SkylakeX`` kernels), where their commands follow them generation by generation;
+there, ``NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" OPENBLAS_CORETYPE=Haswell``
+(read when numpy loads) takes another path (benchmarks/NOTES.md). The demo's champion was evolved
+with the numpy step of an earlier commit; today's command breeds another swimmer. So a champion
+is not re-derived on every change. What the tests check is what a student sees now: every
 champion still swims at its recorded pace, steadily, and passes the audit
 (:mod:`~coursekit.creatures.audit`).
 
 >>> [round(c.body_lengths_per_second, 2) for c in hall_of_fame()]
-[0.12, 0.65, 0.9, 1.2]
+[0.12, 0.74, 0.54, 1.22]
 """
 
 from __future__ import annotations
