@@ -106,7 +106,7 @@ def _quat_to_mat(q, R):  # pragma: no cover - compiled
 def rkn(P, revolute, parent, S, inertia, damping, lock, tau, held, E1, r1, IA1, U1, d1, chol1, pos, quat, q, lin, omega, qd, h,
         contacts, a, b, xa, xb, n0, depth0, cap, k, c, new_pos, new_quat, new_q, new_lin, new_omega, new_qd, need):  # pragma: no cover - compiled
     """One step of :func:`~.integrate.step` with the 4-stage Nystrom method, every stage a
-    :func:`stage` in the chart ``R = R_n exp(theta)``. ``held``: the inertias ``E1 .. chol1`` are
+    :func:`~.kernels.stage` in the chart ``R = R_n exp(theta)``. ``held``: the inertias ``E1 .. chol1`` are
     those of ``q`` already (else they are computed into them). ``need``: the locked joints' forces
     of the last stage."""
     C, M, N = pos.shape[0], q.shape[0], parent.shape[0]

@@ -432,6 +432,59 @@ def detect(a, b, reach2, half, R, p, pair, n, depth, x):  # pragma: no cover - c
     return found
 
 
+@_jit
+def _face_of(R, body, n0, n1, n2, sign):  # pragma: no cover - compiled
+    """The face (0-5: -x, +x, -y, +y, -z, +z) of ``body`` whose outward normal is closest to ``sign n``."""
+    best, value = 0, 0.0
+    for k in range(3):
+        dl = sign * (R[body, 0, k] * n0 + R[body, 1, k] * n1 + R[body, 2, k] * n2)
+        if k == 0 or abs(dl) > abs(value):
+            best, value = k, dl
+    return 2 * best + (1 if value > 0 else 0)
+
+
+@_jit
+def anchors(a, b, held_pair, held_xa, held_xb, held_n, held_depth, pair, n, x, R, p,
+            out_pair, out_xa, out_xb, out_n, out_depth, sensors):  # pragma: no cover - compiled
+    """:meth:`~coursekit.creatures.physics.contact.Contacts.begin` after detection: the held
+    contacts still touching keep their anchors, the pairs newly found in contact (``pair, n, x``)
+    are anchored relaxed (depth 0), in that order; the faces touching are set in ``sensors``
+    (N, 6). Returns how many contacts there are."""
+    seen = np.zeros(a.shape[0], dtype=np.bool_)
+    k = 0
+    for i in range(held_pair.shape[0]):
+        A, B = a[held_pair[i]], b[held_pair[i]]
+        depth = held_depth[i]
+        for m in range(3):
+            nw = R[A, m, 0] * held_n[i, 0] + R[A, m, 1] * held_n[i, 1] + R[A, m, 2] * held_n[i, 2]
+            xa = R[A, m, 0] * held_xa[i, 0] + R[A, m, 1] * held_xa[i, 1] + R[A, m, 2] * held_xa[i, 2] + p[A, m]
+            xb = R[B, m, 0] * held_xb[i, 0] + R[B, m, 1] * held_xb[i, 1] + R[B, m, 2] * held_xb[i, 2] + p[B, m]
+            depth += nw * (xa - xb)
+        if depth > 0:
+            out_pair[k], out_depth[k] = held_pair[i], held_depth[i]
+            out_xa[k], out_xb[k], out_n[k] = held_xa[i], held_xb[i], held_n[i]
+            seen[held_pair[i]] = True
+            k += 1
+    for j in range(pair.shape[0]):
+        if seen[pair[j]]:
+            continue
+        A, B = a[pair[j]], b[pair[j]]
+        for m in range(3):  # in the boxes' own frames: xa, xb from the point, n from A
+            out_xa[k, m] = R[A, 0, m] * (x[j, 0] - p[A, 0]) + R[A, 1, m] * (x[j, 1] - p[A, 1]) + R[A, 2, m] * (x[j, 2] - p[A, 2])
+            out_xb[k, m] = R[B, 0, m] * (x[j, 0] - p[B, 0]) + R[B, 1, m] * (x[j, 1] - p[B, 1]) + R[B, 2, m] * (x[j, 2] - p[B, 2])
+            out_n[k, m] = R[A, 0, m] * n[j, 0] + R[A, 1, m] * n[j, 1] + R[A, 2, m] * n[j, 2]
+        out_pair[k], out_depth[k] = pair[j], 0.0
+        k += 1
+    for i in range(k):
+        A, B = a[out_pair[i]], b[out_pair[i]]
+        n0 = R[A, 0, 0] * out_n[i, 0] + R[A, 0, 1] * out_n[i, 1] + R[A, 0, 2] * out_n[i, 2]
+        n1 = R[A, 1, 0] * out_n[i, 0] + R[A, 1, 1] * out_n[i, 1] + R[A, 1, 2] * out_n[i, 2]
+        n2 = R[A, 2, 0] * out_n[i, 0] + R[A, 2, 1] * out_n[i, 1] + R[A, 2, 2] * out_n[i, 2]
+        sensors[B, _face_of(R, B, n0, n1, n2, -1.0)] = 1.0
+        sensors[A, _face_of(R, A, n0, n1, n2, 1.0)] = 1.0
+    return k
+
+
 # ---------------------------------------------------------------- the brains' neurons
 
 
@@ -553,56 +606,3 @@ def mass_properties(parent, E, r, S, inertia, creature, R0, p0, lin, omega, qd, 
                 db = d0 if b == 0 else (d1 if b == 1 else d2)
                 acc = R[i, a, 0] * inertia[i, 0] * R[i, b, 0] + R[i, a, 1] * inertia[i, 1] * R[i, b, 1] + R[i, a, 2] * inertia[i, 2] * R[i, b, 2]
                 Ic[c, a, b] += acc + mass * ((dd if a == b else 0.0) - da * db)
-
-
-@_jit
-def _face_of(R, body, n0, n1, n2, sign):  # pragma: no cover - compiled
-    """The face (0-5: -x, +x, -y, +y, -z, +z) of ``body`` whose outward normal is closest to ``sign n``."""
-    best, value = 0, 0.0
-    for k in range(3):
-        dl = sign * (R[body, 0, k] * n0 + R[body, 1, k] * n1 + R[body, 2, k] * n2)
-        if k == 0 or abs(dl) > abs(value):
-            best, value = k, dl
-    return 2 * best + (1 if value > 0 else 0)
-
-
-@_jit
-def anchors(a, b, held_pair, held_xa, held_xb, held_n, held_depth, pair, n, x, R, p,
-            out_pair, out_xa, out_xb, out_n, out_depth, sensors):  # pragma: no cover - compiled
-    """:meth:`~coursekit.creatures.physics.contact.Contacts.begin` after detection: the held
-    contacts still touching keep their anchors, the pairs newly found in contact (``pair, n, x``)
-    are anchored relaxed (depth 0), in that order; the faces touching are set in ``sensors``
-    (N, 6). Returns how many contacts there are."""
-    seen = np.zeros(a.shape[0], dtype=np.bool_)
-    k = 0
-    for i in range(held_pair.shape[0]):
-        A, B = a[held_pair[i]], b[held_pair[i]]
-        depth = held_depth[i]
-        for m in range(3):
-            nw = R[A, m, 0] * held_n[i, 0] + R[A, m, 1] * held_n[i, 1] + R[A, m, 2] * held_n[i, 2]
-            xa = R[A, m, 0] * held_xa[i, 0] + R[A, m, 1] * held_xa[i, 1] + R[A, m, 2] * held_xa[i, 2] + p[A, m]
-            xb = R[B, m, 0] * held_xb[i, 0] + R[B, m, 1] * held_xb[i, 1] + R[B, m, 2] * held_xb[i, 2] + p[B, m]
-            depth += nw * (xa - xb)
-        if depth > 0:
-            out_pair[k], out_depth[k] = held_pair[i], held_depth[i]
-            out_xa[k], out_xb[k], out_n[k] = held_xa[i], held_xb[i], held_n[i]
-            seen[held_pair[i]] = True
-            k += 1
-    for j in range(pair.shape[0]):
-        if seen[pair[j]]:
-            continue
-        A, B = a[pair[j]], b[pair[j]]
-        for m in range(3):  # in the boxes' own frames: xa, xb from the point, n from A
-            out_xa[k, m] = R[A, 0, m] * (x[j, 0] - p[A, 0]) + R[A, 1, m] * (x[j, 1] - p[A, 1]) + R[A, 2, m] * (x[j, 2] - p[A, 2])
-            out_xb[k, m] = R[B, 0, m] * (x[j, 0] - p[B, 0]) + R[B, 1, m] * (x[j, 1] - p[B, 1]) + R[B, 2, m] * (x[j, 2] - p[B, 2])
-            out_n[k, m] = R[A, 0, m] * n[j, 0] + R[A, 1, m] * n[j, 1] + R[A, 2, m] * n[j, 2]
-        out_pair[k], out_depth[k] = pair[j], 0.0
-        k += 1
-    for i in range(k):
-        A, B = a[out_pair[i]], b[out_pair[i]]
-        n0 = R[A, 0, 0] * out_n[i, 0] + R[A, 0, 1] * out_n[i, 1] + R[A, 0, 2] * out_n[i, 2]
-        n1 = R[A, 1, 0] * out_n[i, 0] + R[A, 1, 1] * out_n[i, 1] + R[A, 1, 2] * out_n[i, 2]
-        n2 = R[A, 2, 0] * out_n[i, 0] + R[A, 2, 1] * out_n[i, 1] + R[A, 2, 2] * out_n[i, 2]
-        sensors[B, _face_of(R, B, n0, n1, n2, -1.0)] = 1.0
-        sensors[A, _face_of(R, A, n0, n1, n2, 1.0)] = 1.0
-    return k
