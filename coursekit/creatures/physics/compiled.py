@@ -39,9 +39,9 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernels
-from .kernels import _jit, available, impulse, inertias, stage, transforms
+from .kernels import _jit, _poses, _velocities, available, impulse, inertias, stage, transforms
 
-__all__ = ["Dynamics", "available", "rkn"]
+__all__ = ["Dynamics", "available", "mass_properties", "rkn"]
 
 
 # ---------------------------------------------------------------- the Runge-Kutta-Nystrom step
@@ -197,6 +197,56 @@ def rkn(P, revolute, parent, S, inertia, damping, lock, tau, held, E1, r1, IA1, 
         new_qd[j] = qd[j] + h6 * (A_q[0, j] + A_q[3, j]) + h3 * (A_q[1, j] + A_q[2, j])
 
 
+# ---------------------------------------------------------------- what the limits' projection keeps
+
+
+@_jit
+def mass_properties(parent, E, r, S, inertia, creature, R0, p0, lin, omega, qd, com, h, Ic):  # pragma: no cover - compiled
+    """Every creature's centre of mass ``com`` (C, 3), world linear momentum and angular momentum
+    about the world origin ``h`` (C, 6), and rotational inertia about its centre of mass ``Ic``
+    (C, 3, 3), at root poses ``R0, p0``, joints ``q`` (in ``E, r``) and the given rates."""
+    N, C, M = parent.shape[0], R0.shape[0], qd.shape[0]
+    R, p = np.empty((N, 3, 3)), np.empty((N, 3))
+    _poses(parent, E, r, R0, p0, R, p)
+    v0, v, cJ = np.empty((C, 6)), np.empty((N, 6)), np.empty((M, 6))
+    for c in range(C):
+        for m in range(3):
+            v0[c, m] = omega[c, m]
+            v0[c, m + 3] = R0[c, 0, m] * lin[c, 0] + R0[c, 1, m] * lin[c, 1] + R0[c, 2, m] * lin[c, 2]
+    _velocities(parent, E, r, S, v0, qd, v, cJ)
+    total = np.zeros(C)
+    com[:] = 0.0
+    h[:] = 0.0
+    Ic[:] = 0.0
+    P, L = np.empty(3), np.empty(3)
+    for i in range(N):
+        c, mass = creature[i], inertia[i, 3]
+        total[c] += mass
+        for a in range(3):
+            com[c, a] += mass * p[i, a]
+            P[a] = R[i, a, 0] * mass * v[i, 3] + R[i, a, 1] * mass * v[i, 4] + R[i, a, 2] * mass * v[i, 5]
+            L[a] = R[i, a, 0] * inertia[i, 0] * v[i, 0] + R[i, a, 1] * inertia[i, 1] * v[i, 1] + R[i, a, 2] * inertia[i, 2] * v[i, 2]
+        L[0] += p[i, 1] * P[2] - p[i, 2] * P[1]
+        L[1] += p[i, 2] * P[0] - p[i, 0] * P[2]
+        L[2] += p[i, 0] * P[1] - p[i, 1] * P[0]
+        for a in range(3):
+            h[c, a] += P[a]
+            h[c, a + 3] += L[a]
+    for c in range(C):
+        for a in range(3):
+            com[c, a] /= total[c]
+    for i in range(N):  # R diag(I) R' + m (|d|^2 - d d'), d from the centre of mass (parallel axes)
+        c, mass = creature[i], inertia[i, 3]
+        d0, d1, d2 = p[i, 0] - com[c, 0], p[i, 1] - com[c, 1], p[i, 2] - com[c, 2]
+        dd = d0 * d0 + d1 * d1 + d2 * d2
+        for a in range(3):
+            da = d0 if a == 0 else (d1 if a == 1 else d2)
+            for b in range(3):
+                db = d0 if b == 0 else (d1 if b == 1 else d2)
+                acc = R[i, a, 0] * inertia[i, 0] * R[i, b, 0] + R[i, a, 1] * inertia[i, 1] * R[i, b, 1] + R[i, a, 2] * inertia[i, 2] * R[i, b, 2]
+                Ic[c, a, b] += acc + mass * ((dd if a == b else 0.0) - da * db)
+
+
 # ---------------------------------------------------------------- what the world calls
 
 
@@ -235,17 +285,17 @@ class Dynamics:
         E, r = np.empty((m.n_joints, 3, 3)), np.empty((m.n_joints, 3))
         transforms(self.P, self.revolute, np.ascontiguousarray(q), E, r)
         R, p = np.empty((m.n_bodies, 3, 3)), np.empty((m.n_bodies, 3))
-        kernels._poses(self.parent, E, r, np.ascontiguousarray(R0), np.ascontiguousarray(p0), R, p)
+        _poses(self.parent, E, r, np.ascontiguousarray(R0), np.ascontiguousarray(p0), R, p)
         return np.ascontiguousarray(R.transpose(1, 2, 0)), np.ascontiguousarray(p.T)
 
     def mass_properties(self, R0, p0, q, lin, omega, qd):
-        """``(com, h, Ic)`` of :func:`~.kernels.mass_properties` at this pose and these rates."""
+        """``(com, h, Ic)`` of :func:`mass_properties` at this pose and these rates."""
         m = self.model
         C = m.n_creatures
         E, r = np.empty((m.n_joints, 3, 3)), np.empty((m.n_joints, 3))
         transforms(self.P, self.revolute, np.ascontiguousarray(q), E, r)
         com, h, Ic = np.empty((C, 3)), np.empty((C, 6)), np.empty((C, 3, 3))
-        kernels.mass_properties(self.parent, E, r, self.S, self.inertia, self.creature, np.ascontiguousarray(R0),
+        mass_properties(self.parent, E, r, self.S, self.inertia, self.creature, np.ascontiguousarray(R0),
                                 np.ascontiguousarray(p0), np.ascontiguousarray(lin), np.ascontiguousarray(omega),
                                 np.ascontiguousarray(qd), com, h, Ic)
         return com, h, Ic
