@@ -264,7 +264,7 @@ class Contacts:
     def _active(self, found, sensors):
         """Hold the contacts ``found`` for the next step; ``(active, sensors)`` of :meth:`begin`."""
         xp = self.xp
-        if found is None or found["pair"].shape[0] == 0:
+        if found["pair"].shape[0] == 0:
             self.held = None
             return None, sensors
         self.held = found
