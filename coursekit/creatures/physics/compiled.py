@@ -29,7 +29,7 @@ and an inward one in reverse. A joint transform ``Xup = [[E, 0], [-E rx, E]]`` i
 and ``r`` (from the model's fast forms, :func:`~coursekit.creatures.physics.jcalc.joint_basis`)
 and applied as such.
 
-numba compiles the kernels on their first call (about 10 s) and caches them beside this module
+numba compiles the kernels on their first call (10-20 s) and caches them beside this module
 (in ``__pycache__``, or numba's user cache folder); where no folder is writable, as in the
 grader's sandbox, each session compiles them anew.
 """
