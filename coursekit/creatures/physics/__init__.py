@@ -3,8 +3,10 @@
 Modules: :mod:`.spatial` (spatial vectors), :mod:`.model` (a population packed by tree depth),
 :mod:`.aba` (Featherstone's articulated-body algorithm), :mod:`.water` (Sims' drag),
 :mod:`.limits` (joint limits as constraints), :mod:`.contact` (OBB self-collisions), :mod:`.integrate`
-(RKN / RK4), :mod:`.world` (stepping a batch with guards), :mod:`.dynamics` (MuJoCo-layout
-forward dynamics), :mod:`.backend` (numpy / torch), :mod:`.samples` (random bodies).
+(RKN / RK4), :mod:`.world` (stepping a batch with guards), :mod:`.compiled` and :mod:`.kernels`
+(the default step, compiled with numba), :mod:`.graph` (the step as a CUDA graph), :mod:`.jcalc`
+(joint transforms), :mod:`.reference` (the book's ABA), :mod:`.dynamics` (MuJoCo-layout forward
+dynamics), :mod:`.backend` (numpy / torch), :mod:`.samples` (random bodies).
 """
 
 from .dynamics import forward_dynamics
