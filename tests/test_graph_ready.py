@@ -43,11 +43,12 @@ def _largest_relative_difference(a, b) -> float:
                for f in FIELDS)
 
 
-def _steps(plain, ready, rng, n=100) -> int:
+def _steps(plain, ready, rng, n=100) -> tuple[int, int]:
     """``n`` steps of both worlds with the same random effectors every step and the state set
     anew half way (the limits and the contacts forget their history); the contact sensors and the
-    frozen creatures must agree at every step. Returns the touching faces counted over the steps."""
-    touched = 0
+    frozen creatures must agree at every step. Returns the touching faces and the locked joints,
+    counted over the steps (the contacts and the limits were exercised)."""
+    touched = locked = 0
     for i in range(n):
         if i == n // 2:
             qpos, qvel = plain.get_state()
@@ -61,7 +62,8 @@ def _steps(plain, ready, rng, n=100) -> int:
         assert np.array_equal(sensed, ready.sensors()[2]), f"contact sensors differ at step {i}"
         assert np.array_equal(plain.diverged, ready.diverged)
         touched += int(np.sum(sensed > 0))
-    return touched
+        locked += 0 if plain._lock is None else int(np.sum(bk.to_numpy(plain._lock)))
+    return touched, locked
 
 
 @pytest.mark.parametrize("backend", ["numpy", "torch"])
@@ -69,7 +71,7 @@ def _steps(plain, ready, rng, n=100) -> int:
 def test_the_graph_ready_step_equals_the_ordinary_one(backend, contacts):
     # as the CUDA graph must reproduce the CPU: to 1e-10 over 100 steps
     (plain, ready), rng = _worlds(3, contacts=contacts, backend=backend)
-    touched = _steps(plain, ready, rng)
+    touched, _ = _steps(plain, ready, rng)
     assert _largest_relative_difference(plain.state, ready.state) < 1e-10
     np.testing.assert_allclose(bk.to_numpy(ready.overshoot), bk.to_numpy(plain.overshoot), rtol=1e-9, atol=1e-12)
     if contacts:  # the creatures did touch themselves: the contact path was exercised

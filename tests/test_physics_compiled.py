@@ -17,16 +17,9 @@ from hypothesis import strategies as st
 from coursekit.creatures import Creature, simulate
 from coursekit.creatures.physics import compiled, kernels, random_body_tree, random_state
 from coursekit.creatures.physics.world import World
+from tests.test_graph_ready import _largest_relative_difference, _steps
 
-FIELDS = ("pos", "quat", "q", "lin", "omega", "qd")
 EVOLVED = Path(__file__).resolve().parents[1] / "benchmarks" / "data" / "evolved_swimmers.json"
-
-
-def _relative_difference(a, b) -> float:
-    def largest(x):
-        return float(np.max(np.abs(x), initial=0.0))
-
-    return max(largest(getattr(a, f) - getattr(b, f)) / max(largest(getattr(a, f)), 1e-300) for f in FIELDS)
 
 
 def _pair(trees, states=None, **options):
@@ -45,21 +38,8 @@ def test_the_compiled_step_follows_the_numpy_step_for_100_steps(integrator, cont
     trees = [random_body_tree(rng, (4, 12)) for _ in range(6)]
     states = [random_state(rng, t, speed=1.0, inside=0.9) for t in trees]
     plain, fast = _pair(trees, states, contacts=contacts, integrator=integrator)
-    touched = locked = 0
-    for i in range(100):
-        if i == 50:  # set anew: the limits and the contacts forget their history
-            qpos, qvel = plain.get_state()
-            for w in (plain, fast):
-                w.set_state(qpos, qvel)
-        e = rng.uniform(-1.0, 1.0, plain.model.n_joints)
-        for w in (plain, fast):
-            w.set_effectors(e)
-            w.step()
-        assert np.array_equal(plain.sensors()[2], fast.sensors()[2]), f"contact sensors differ at step {i}"
-        assert np.array_equal(plain.diverged, fast.diverged)
-        touched += int(np.sum(plain.sensors()[2] > 0))
-        locked += int(np.sum(plain._lock))
-    assert _relative_difference(plain.state, fast.state) < 1e-10
+    touched, locked = _steps(plain, fast, rng)
+    assert _largest_relative_difference(plain.state, fast.state) < 1e-10
     np.testing.assert_allclose(fast.overshoot, plain.overshoot, rtol=1e-9, atol=1e-12)
     assert locked > 0 and (touched > 0) == contacts  # the limits and the contacts were exercised
 
@@ -85,7 +65,7 @@ def test_every_step_of_an_evolved_swim_agrees_with_the_numpy_step():
             for x in (plain, fast):
                 x._inertia_q = None  # each computes its own inertias
                 x.step()
-            worst = max(worst, _relative_difference(plain.state, fast.state))
+            worst = max(worst, _largest_relative_difference(plain.state, fast.state))
             contacts += 0 if w.active_contacts is None else len(w.active_contacts["a"])
             locks += int(np.sum(w._lock))
     assert worst < 1e-12
@@ -103,7 +83,7 @@ def test_one_step_of_random_creatures_agrees_with_the_numpy_step(seed, n, speed)
     for w in (plain, fast):
         w.set_effectors(e)
         w.step()
-    assert _relative_difference(plain.state, fast.state) < 1e-10
+    assert _largest_relative_difference(plain.state, fast.state) < 1e-10
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])

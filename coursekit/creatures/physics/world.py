@@ -77,7 +77,7 @@ class World:
             sees the time of the capture; the forces do not depend on time); elsewhere it runs as
             it is. The motion is the ordinary step's up to rounding.
         compiled: the step compiled with numba (:mod:`~coursekit.creatures.physics.compiled`;
-            numpy backend, not ``graph``): the same physics up to rounding, 3.5 to 15 times faster
+            numpy backend, not ``graph``): the same physics up to rounding, 3 to 17 times faster
             (``benchmarks/swimmers.py``).
             ``None`` (default): compiled wherever it can run; ``False``: the numpy step.
     """
@@ -311,7 +311,7 @@ class World:
                 s = self.state
                 rows = self._rows(sp.quat_to_mat(xp, s.quat), s.pos, s.q) if self.contacts.n_pairs else None
                 self.active_contacts, self.contact_sensors = self.contacts.begin(s, rows)
-                if self.active_contacts is not None:  # the first stage's poses (it passes s.q on)
+                if self.active_contacts is not None and self._compiled is None:  # the first stage's poses (it passes s.q on)
                     self._poses_q, self._poses = s.q, pose_stacks(xp, rows)
             prev = self.state
             new = self._guard(prev, self._integrate(prev, self.time + i * self.h))
