@@ -44,9 +44,7 @@ def run(seed: int, population: int, generations: int, seconds: float, workers: i
     compiled one (``World(compiled=False)``)."""
     options = dict(compiled=False) if numpy_step else {}
     if torch_device is not None:
-        options = dict(backend="torch", device=torch_device, graph=True)
-    if torch_device is not None:
-        workers = 1
+        options, workers = dict(backend="torch", device=torch_device, graph=True), 1
     rows, start = [], time.perf_counter()
 
     def record(result):
