@@ -12,14 +12,14 @@ processor. The Sims-scale runs were made with the compiled step
 (:mod:`~coursekit.creatures.physics.compiled`) on an Intel Xeon with AVX-512 (numpy's ``X86_V4``,
 OpenBLAS's ``SkylakeX`` kernels), where their commands follow them generation by generation;
 there, ``NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" OPENBLAS_CORETYPE=Haswell``
-(read when numpy loads) takes another path (benchmarks/NOTES.md). The demo's champion was evolved
-with the numpy step of an earlier commit; today's command breeds another swimmer. So a champion
-is not re-derived on every change. What the tests check is what a student sees now: every
-champion still swims at its recorded pace, steadily, and passes the audit
-(:mod:`~coursekit.creatures.audit`).
+(read when numpy loads) takes another path (benchmarks/NOTES.md). The demo's champion is the
+demo's seed-0 run at its classroom sizes with ``--budget 0`` (all 40 generations), made with the
+same step on the same machine. So a champion is not re-derived on every change. What the tests
+check is what a student sees now: every champion still swims at its recorded pace, steadily, and
+passes the audit (:mod:`~coursekit.creatures.audit`).
 
 >>> [round(c.body_lengths_per_second, 2) for c in hall_of_fame()]
-[0.12, 0.74, 0.54, 1.22]
+[0.38, 0.74, 0.54, 1.22]
 """
 
 from __future__ import annotations
