@@ -29,6 +29,9 @@ scores, and never imports or runs student code:
   written in the notebook's folder, the wall time of the whole notebook; ``RLIMIT_FSIZE`` bounds
   any one file, and ``RLIMIT_NPROC`` the processes: inside the sandbox's own user namespace for a
   grader who is not root (:func:`.sandbox.limit_processes`), for the user ``nobody`` when root.
+- The simulator's compiled kernels are compiled once per grader, outside the sandbox, from the
+  library's own code, and each notebook gets a copy of its own (:mod:`.warm`): a notebook that
+  simulates does not spend 10-20 s compiling them.
 - A graded function must be written in the notebook (:mod:`.runner` refuses one whose code comes
   from coursekit or any other file), and coursekit's own versions of it raise in the process
   that runs it, which is locked down against fetching them afresh (:mod:`.lockdown`). Beyond
@@ -81,7 +84,7 @@ from pathlib import Path
 import numpy as np
 
 from coursekit.grading import checks as registry
-from coursekit.grading import sandbox, supervisor, withheld
+from coursekit.grading import sandbox, supervisor, warm, withheld
 from coursekit.grading.channel import MAX_CHANNEL_BYTES, Collector, read_report, read_results, read_untrusted
 from coursekit.grading.checks import Judgement, Verdict
 from coursekit.grading.report import (NotebookResult, check_results_path, clean, gradescope, summary,
@@ -232,6 +235,12 @@ def grade_notebook(path: str | os.PathLike[str], *, timeout: float = 60.0, cell_
         if sandboxed:
             cmd += ["--max-processes", str(max_processes)]  # RLIMIT_NPROC inside, where it holds (sandbox.limit_processes)
             replace, compiled = withheld.withhold(withheld.of(checks), private / "withheld")
+            kernels = warm.copy_into(box / "numba", [module for _, module in replace])  # the simulator compiled once, not per notebook
+            if kernels is not None:
+                env["NUMBA_CACHE_DIR"] = str(kernels)
+                if ids:
+                    for f in [kernels, *kernels.rglob("*")]:
+                        os.chown(f, *ids)
             cmd = sandbox.command(box, show=[PKG_ROOT / "coursekit"], hide_dirs=[PKG_ROOT / "solutions", PKG_ROOT / ".git"],
                                   hide_files=[*hide_files, *compiled], replace=replace) + cmd
         # The child bounds every cell and call itself; this bounds the notebook as a whole.
