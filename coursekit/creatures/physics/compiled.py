@@ -30,8 +30,9 @@ and ``r`` (from the model's fast forms, :func:`~coursekit.creatures.physics.jcal
 and applied as such.
 
 numba compiles the kernels on their first call (10-20 s) and caches them beside this module
-(in ``__pycache__``, or numba's user cache folder); where no folder is writable, as in the
-grader's sandbox, each session compiles them anew.
+(in ``__pycache__``, or numba's user cache folder); where no folder is writable, each session
+compiles them anew. The grader's sandbox is read-only: the grader compiles them once and gives
+each notebook a copy (:mod:`coursekit.grading.warm`).
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ def _jit(f):
     # error_model="numpy": a division by zero gives inf or NaN, as numpy's does, for the guards to see
     try:
         return numba.njit(cache=True, error_model="numpy")(f)
-    except RuntimeError:  # no folder to cache in (a read-only install, the grader's sandbox): compiled anew each session
+    except RuntimeError:  # no folder to cache in (a read-only install): compiled anew each session
         return numba.njit(error_model="numpy")(f)
 
 
