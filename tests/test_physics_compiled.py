@@ -175,3 +175,65 @@ def test_the_step_is_compiled_by_default_and_what_it_cannot_do_is_refused_by_nam
     with pytest.raises(ImportError, match="compiled: .*pip install numba"):
         World([tree], compiled=True)
     assert World([tree])._compiled is None  # by default the numpy step, where numba is missing
+
+
+def _glue_inputs(data, n):
+    """Random joints for the limits' and the guards' glue: within, at and beyond their limits,
+    moving and locked, with a NaN or an infinity now and then."""
+    floats = st.floats(-3.0, 3.0, allow_nan=False)
+    lo = np.array(data.draw(st.lists(st.floats(-2.0, 0.0), min_size=n, max_size=n)))
+    hi = lo + np.array(data.draw(st.lists(st.floats(0.1, 2.0), min_size=n, max_size=n)))
+    q = np.array(data.draw(st.lists(st.one_of(floats, st.sampled_from([0.0, np.nan, np.inf])), min_size=n, max_size=n)))
+    pick = np.array(data.draw(st.lists(st.integers(0, 3), min_size=n, max_size=n)))
+    q = np.where(pick == 1, lo, np.where(pick == 2, hi, q))  # exactly at a limit
+    rates = st.one_of(floats, st.sampled_from([0.0, -0.0]))  # a force or a rate of exactly zero
+    draw = lambda: np.array(data.draw(st.lists(rates, min_size=n, max_size=n)))  # noqa: E731
+    return lo, hi, q, draw
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data())
+def test_the_compiled_limits_decide_and_stop_exactly_as_numpys(data):
+    from coursekit.creatures.physics.limits import Limits
+
+    n = data.draw(st.integers(1, 12))
+    lo, hi, q, draw = _glue_inputs(data, n)
+    qd, tau, push = draw() * 10, draw(), draw()
+    model = type("M", (), {"xp": np, "device": None, "limits_np": np.stack([lo, hi], axis=1)})()
+    mine, theirs = Limits(model, 1 / 480), Limits(model, 1 / 480)
+    dynamics = compiled.Dynamics.__new__(compiled.Dynamics)
+    locked = np.array(data.draw(st.lists(st.booleans(), min_size=n, max_size=n)))
+    target = np.where(np.array(data.draw(st.lists(st.booleans(), min_size=n, max_size=n))), hi, lo)
+    for lim in (mine, theirs):
+        lim.push, lim.lock, lim.target = push, locked, target
+    lock, at = theirs.begin(q, qd, tau)
+    rate = theirs.rate(at, qd)
+    got = dynamics.limits(mine, q, qd, tau)
+    for a, b in [(got[0], lock), (got[1], at), (got[2], rate), (mine.up, theirs.up), (mine.target, theirs.target),
+                 (mine.beyond, theirs.beyond), (mine.lock, theirs.lock)]:
+        np.testing.assert_array_equal(a, b)  # bit for bit, NaNs in the same places
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data(), creatures=st.integers(1, 4))
+def test_the_compiled_guard_and_rotations_are_numpys_bit_for_bit(data, creatures):
+    from coursekit.creatures.physics import spatial as sp
+    from coursekit.creatures.physics.integrate import State
+
+    rng = np.random.default_rng(data.draw(st.integers(0, 2**32 - 1)))
+    trees = [random_body_tree(rng, (2, 5)) for _ in range(creatures)]
+    plain, fast = _pair(trees)
+    C, M = creatures, plain.model.n_joints
+    scale = lambda shape: rng.normal(size=shape) * 10.0 ** rng.uniform(-1, 3, size=shape[:1] + (1,) * (len(shape) - 1))  # noqa: E731
+    quat = rng.normal(size=(C, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    new = State(scale((C, 3)), quat, scale((M,)), scale((C, 3)), scale((C, 3)), scale((M,)))
+    for field in data.draw(st.lists(st.sampled_from(["pos", "quat", "q", "lin", "qd"]), max_size=2)):
+        getattr(new, field).flat[rng.integers(getattr(new, field).size)] = rng.choice([np.nan, np.inf])
+    np.testing.assert_array_equal(fast._rotations(new.quat), sp.quat_to_mat(np, new.quat))
+    fields = ("pos", "quat", "q", "lin", "omega", "qd")
+    prev = State(*(np.zeros_like(getattr(new, f)) for f in fields))
+    mine, theirs = fast._guard(prev, new), plain._guard(prev, new)
+    for f in fields:
+        np.testing.assert_array_equal(getattr(mine, f), getattr(theirs, f))
+    np.testing.assert_array_equal(fast._diverged, plain._diverged)

@@ -248,6 +248,61 @@ def mass_properties(parent, E, r, S, inertia, creature, R0, p0, lin, omega, qd, 
                 Ic[c, a, b] += acc + mass * ((dd if a == b else 0.0) - da * db)
 
 
+# ---------------------------------------------------------------- the glue around them, once a (sub-)step
+# The same arithmetic as numpy's, in the same order, so the step is the numpy glue's bit for bit.
+
+
+@_jit
+def rotations(quat, R):  # pragma: no cover - compiled
+    """``R[c]``: the rotation of the unit quaternion ``quat[c]`` (:func:`~.spatial.quat_to_mat`)."""
+    for c in range(quat.shape[0]):
+        _quat_to_mat(quat[c], R[c])
+
+
+@_jit
+def diverged(pos, quat, lin, omega, q, qd, joint_creature, vmax2, wmax2, qmax, bad):  # pragma: no cover - compiled
+    """``bad[c]``: creature ``c``'s state is not finite, or past a speed cap (``World._guard``'s test)."""
+    for c in range(pos.shape[0]):
+        finite = np.isfinite(pos[c, 0]) and np.isfinite(pos[c, 1]) and np.isfinite(pos[c, 2])
+        for a in range(4):
+            finite = finite and np.isfinite(quat[c, a])
+        v2 = lin[c, 0] * lin[c, 0] + lin[c, 1] * lin[c, 1] + lin[c, 2] * lin[c, 2]
+        w2 = omega[c, 0] * omega[c, 0] + omega[c, 1] * omega[c, 1] + omega[c, 2] * omega[c, 2]
+        bad[c] = not (finite and v2 <= vmax2 and w2 <= wmax2)
+    for j in range(q.shape[0]):
+        if not (np.isfinite(q[j]) and abs(qd[j]) <= qmax):
+            bad[joint_creature[j]] = True
+
+
+@_jit
+def _maximum(a, b):  # pragma: no cover - compiled
+    return a if (a >= b or a != a) else b  # numpy's maximum: a NaN wins
+
+
+@_jit
+def _minimum(a, b):  # pragma: no cover - compiled
+    return a if (a <= b or a != a) else b
+
+
+@_jit
+def limits(q, qd, tau, h, lo, hi, mid, tol, push, lock, target, new_lock, up, new_target, beyond, at, rate):  # pragma: no cover - compiled
+    """:meth:`~.limits.Limits.begin` (the locks, where the locked joints stand) and the rates
+    :meth:`~.limits.Limits.rate` gives the joints there, joint by joint."""
+    for j in range(q.shape[0]):
+        ahead = q[j] + h * qd[j]
+        toward = 1.0 if target[j] == hi[j] else -1.0
+        held = lock[j] and (push[j] * toward <= 0 or tau[j] * toward > 0)
+        beyond[j] = _maximum(_maximum(q[j] - hi[j], lo[j] - q[j]), 0.0)
+        out = beyond[j] > tol[j]
+        new_lock[j] = held or out or _maximum(ahead - hi[j], lo[j] - ahead) > tol[j]
+        up[j] = (q[j] if (held or out) else ahead) > mid[j]
+        new_target[j] = hi[j] if up[j] else lo[j]
+        at[j] = new_target[j] if out else q[j]
+        reach = (new_target[j] - at[j]) / h
+        free = _minimum(qd[j], reach) if up[j] else _maximum(qd[j], reach)
+        rate[j] = free if new_lock[j] else qd[j]
+
+
 # ---------------------------------------------------------------- what the world calls
 
 
@@ -270,6 +325,7 @@ class Dynamics:
         self.damping = np.zeros_like(self.inertia) if damping is None else np.ascontiguousarray(damping)
         self.free = np.zeros(m.n_joints, dtype=bool)  # no joint locked (a world without limits)
         self.creature = np.ascontiguousarray(m.creature, dtype=np.int64)
+        self.joint_creature = np.ascontiguousarray(m.joint_creature, dtype=np.int64)
 
     def inertias(self, q, lock=None):
         m = self.model
@@ -357,6 +413,31 @@ class Dynamics:
         stage(self.parent, E, r, self.S, self.inertia, self.damping, IA, U, d, chol, lock, tau,
               np.ascontiguousarray(R), lin, omega, qd, active is not None, *self._pairs(active), *out)
         return out
+
+    def rotations(self, quat):
+        """(C, 3, 3) :func:`~.spatial.quat_to_mat` of the roots' ``quat``."""
+        R = np.empty((quat.shape[0], 3, 3))
+        rotations(np.ascontiguousarray(quat), R)
+        return R
+
+    def diverged(self, state, caps):
+        """(C,) bool: the creatures whose ``state`` is not finite or past ``caps`` (vmax, wmax, qmax)."""
+        vmax, wmax, qmax = caps
+        bad = np.empty(self.model.n_creatures, dtype=bool)
+        diverged(state.pos, state.quat, state.lin, state.omega, state.q, state.qd, self.joint_creature,
+                 float(vmax) ** 2, float(wmax) ** 2, float(qmax), bad)
+        return bad
+
+    def limits(self, lim, q, qd, tau):
+        """``(lock, at, rate)``: ``lim.begin(q, qd, tau)`` and ``lim.rate(at, qd)`` of a numpy
+        :class:`~.limits.Limits`, whose ``lock``, ``up``, ``target`` and ``beyond`` it sets as those do."""
+        M = q.shape[0]
+        lock, up, target, beyond, at, rate = (np.empty(M, dtype=bool), np.empty(M, dtype=bool), np.empty(M), np.empty(M),
+                                              np.empty(M), np.empty(M))
+        limits(q, qd, tau, float(lim.h), lim.lo, lim.hi, lim.mid, lim.tol, lim.push, lim.lock, lim.target,
+               lock, up, target, beyond, at, rate)
+        lim.lock, lim.up, lim.target, lim.beyond = lock, up, target, beyond
+        return lock, at, rate
 
     def impulse(self, held, lock, change):
         """``(dv0, dqd)`` of :func:`impulse`."""

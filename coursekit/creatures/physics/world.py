@@ -228,6 +228,10 @@ class World:
         self._force, self._inertia_q = (lambda: need), None
         return new
 
+    def _rotations(self, quat):
+        """(C, 3, 3) the roots' rotation matrices (numpy's or the compiled ones)."""
+        return sp.quat_to_mat(self.xp, quat) if self._compiled is None else self._compiled.rotations(quat)
+
     def _inertias(self, q):
         """The articulated inertias at ``q`` with the current locks (numpy's or the compiled ones)."""
         if self._compiled is not None:
@@ -309,7 +313,7 @@ class World:
                 self.state = self._stop_at_limits(self.state)
             if self.contacts is not None:
                 s = self.state
-                rows = self._rows(sp.quat_to_mat(xp, s.quat), s.pos, s.q) if self.contacts.n_pairs else None
+                rows = self._rows(self._rotations(s.quat), s.pos, s.q) if self.contacts.n_pairs else None
                 self.active_contacts, self.contact_sensors = self.contacts.begin(s, rows)
                 if self.active_contacts is not None and self._compiled is None:  # the first stage's poses (it passes s.q on)
                     self._poses_q, self._poses = s.q, pose_stacks(xp, rows)
@@ -421,11 +425,14 @@ class World:
         those the next step's first stage reuses.
         """
         xp = self.xp
-        self._lock, at = self.limits.begin(s.q, s.qd, self.tau)
+        if self._compiled is not None:
+            self._lock, at, rate = self._compiled.limits(self.limits, s.q, s.qd, self.tau)
+        else:
+            self._lock, at = self.limits.begin(s.q, s.qd, self.tau)
+            rate = self.limits.rate(at, s.qd)
         self._inertia = self._inertias(s.q)
-        rate = self.limits.rate(at, s.qd)
         dv0, dqd = self._impulse(rate - s.qd)
-        R = sp.quat_to_mat(xp, s.quat)
+        R = self._rotations(s.quat)
         new = State(s.pos, s.quat, s.q, s.lin + sp.mv(R, dv0[:, 3:]), s.omega + dv0[:, :3], xp.where(self._lock, rate, s.qd + dqd))
         if self.graph or bool(xp.any(at != s.q)):  # a joint to put back; with none the sweep would move nothing, bit for bit
             new = self._put_back(s, R, at, new)
@@ -449,7 +456,7 @@ class World:
         dx0, dq = self._impulse(at - s.q)
         q = xp.where(self._lock, at, self.limits.within(s.q, s.q + dq))
         pos, quat = s.pos + sp.mv(R, dx0[:, 3:]), sp.quat_mul(xp, s.quat, sp.quat_exp(xp, dx0[:, :3]))  # the next step normalises
-        R1 = sp.quat_to_mat(xp, quat)
+        R1 = self._rotations(quat)
         com, h0, _ = self._mass_properties(R, s.pos, s.q, s.lin, s.omega, s.qd, None if self._compiled else self._inertia[0])
         com1, h1, Ic = self._mass_properties(R1, pos, q, stopped.lin, stopped.omega, stopped.qd)
         shift = com - com1  # the whole body moves by it: the linear momentum stays, the angular one about the origin gains shift x P
@@ -477,15 +484,18 @@ class World:
 
     def _guard(self, prev: State, new: State) -> State:
         xp, m = self.xp, self.model
-        vmax, wmax, qmax = self.caps
-        # a NaN or infinite speed fails its cap (every comparison with NaN is false): only the
-        # positions need their own finiteness test
-        ok = xp.all(xp.isfinite(xp.concat([new.pos, new.quat], axis=1)), axis=1)
-        ok = ok & (xp.sum(new.lin * new.lin, axis=1) <= vmax**2) & (xp.sum(new.omega * new.omega, axis=1) <= wmax**2)
-        jbad = ~(xp.isfinite(new.q) & (xp.abs(new.qd) <= qmax))
-        if m.n_joints:
-            ok = ok & ~self._per_creature_any(jbad)
-        badC = ~ok
+        if self._compiled is not None:
+            badC = self._compiled.diverged(new, self.caps)
+        else:
+            vmax, wmax, qmax = self.caps
+            # a NaN or infinite speed fails its cap (every comparison with NaN is false): only the
+            # positions need their own finiteness test
+            ok = xp.all(xp.isfinite(xp.concat([new.pos, new.quat], axis=1)), axis=1)
+            ok = ok & (xp.sum(new.lin * new.lin, axis=1) <= vmax**2) & (xp.sum(new.omega * new.omega, axis=1) <= wmax**2)
+            jbad = ~(xp.isfinite(new.q) & (xp.abs(new.qd) <= qmax))
+            if m.n_joints:
+                ok = ok & ~self._per_creature_any(jbad)
+            badC = ~ok
         if self.graph:  # no look at the host: the picks below keep the good creatures' rows as they are
             self._diverged = self._diverged | badC
         else:
