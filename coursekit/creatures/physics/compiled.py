@@ -7,8 +7,10 @@ the body velocities, the contact springs' forces and Featherstone's articulated-
 locked joints in one pass. Once a step, the contact detection and anchors (:meth:`Dynamics.begin`),
 the joint limits' impulses (:func:`~.kernels.impulse`), the projection's centres of mass, momenta
 and inertias (:meth:`Dynamics.mass_properties`) and the poses (:meth:`Dynamics.poses_rows`) are
-compiled too, and so are the brains' neurons (:class:`~coursekit.creatures.brain.BrainBatch`). What
-stays in numpy is the glue between them: the limits' decisions, the guards, the sensors.
+compiled too, and so are the brains' neurons (:class:`~coursekit.creatures.brain.BrainBatch`), the
+limits' decisions (:func:`limits`), the guards (:func:`diverged`) and the roots' rotations, these
+three with numpy's own arithmetic in numpy's order, bit for bit. What stays in numpy is the rest
+of the glue: the sensors, and the small array operations that join the kernels.
 
 It is the algorithm of :mod:`~coursekit.creatures.physics.aba` (hybrid dynamics, water damping,
 contact wrenches) and :mod:`~coursekit.creatures.physics.integrate`, written body by body in the
