@@ -22,6 +22,7 @@ stages and of the limits' projection.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 import subprocess
@@ -34,22 +35,27 @@ _READY: dict = {}
 
 
 def folder() -> Path:
-    """Where the grader keeps the compiled kernels: ``$XDG_CACHE_HOME/coursekit/numba`` (default
-    ``~/.cache/coursekit/numba``), the grading user's own."""
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "coursekit" / "numba"
+    """Where the grader keeps the compiled kernels: ``$XDG_CACHE_HOME/coursekit/numba/KEY``
+    (default ``~/.cache/coursekit/numba/KEY``), the grading user's own; ``KEY`` is a hash of the
+    kernels' sources, so that a notebook's copy never carries the code of other versions."""
+    from coursekit.creatures.physics import compiled, kernels
+
+    key = hashlib.sha256(b"".join(Path(m.__file__).read_bytes() for m in (kernels, compiled))).hexdigest()[:16]
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "coursekit" / "numba" / key
 
 
 def cache() -> Path | None:
     """The folder of compiled kernels, warmed by a child process on the first call in this
     process; None where it could not be made (the notebooks then compile the kernels themselves)."""
     if "path" not in _READY:
-        path, ok = folder(), False
+        path, ok = None, False
         try:
+            path = folder()
             path.mkdir(parents=True, exist_ok=True)
             env = {**os.environ, "NUMBA_CACHE_DIR": str(path), "PYTHONNOUSERSITE": "1"}
             ok = subprocess.run([sys.executable, "-m", __name__], env=env, stdin=subprocess.DEVNULL,
                                 capture_output=True, timeout=TIMEOUT).returncode == 0
-        except (OSError, subprocess.SubprocessError):
+        except (OSError, RuntimeError, subprocess.SubprocessError):  # RuntimeError: no home folder
             pass
         _READY["path"] = path if ok else None
     return _READY["path"]
