@@ -128,7 +128,7 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
         budget: seconds the live evolution may take, so that the demo fits a lecture's break on
             any laptop: no generation is begun that, taking as long as the last one, would end
             after them (default by profile: classroom 75 s -- with the films and the audit after
-            it, about 2 minutes in all on 2 cores; ci and 0: no limit). The run is the same run
+            it, 1 to 1.5 minutes in all on 2 cores; ci and 0: no limit). The run is the same run
             either way, cut short: ``generations`` in the summary is what was bred, and
             ``--budget 0`` breeds them all.
         workers: processes the population swims in, at most one per creature (default: one per
