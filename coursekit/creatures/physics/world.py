@@ -77,7 +77,7 @@ class World:
             sees the time of the capture; the forces do not depend on time); elsewhere it runs as
             it is. The motion is the ordinary step's up to rounding.
         compiled: the step compiled with numba (:mod:`~coursekit.creatures.physics.compiled`;
-            numpy backend, not ``graph``): the same physics up to rounding, 3 to 17 times faster
+            numpy backend, not ``graph``): the same physics up to rounding, 3 to 29 times faster
             (``benchmarks/swimmers.py``).
             ``None`` (default): compiled wherever it can run; ``False``: the numpy step.
     """
