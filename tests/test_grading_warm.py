@@ -1,5 +1,6 @@
 """The simulator's kernels compiled once per grader, each sandboxed notebook given a copy (coursekit.grading.warm)."""
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -60,3 +61,16 @@ def test_without_a_cache_the_notebook_compiles_the_kernels_itself(tmp_path, monk
     (tmp_path / "not-a-folder").write_text("a file where the cache folder would be")
     assert warm.cache() is None and warm.copy_into(tmp_path / "box") is None
     assert not (tmp_path / "box").exists()
+
+
+@pytest.mark.skipif(not HAVE, reason=f"no sandbox here: {sandbox.available()}")
+def test_coursekit_grade_says_when_it_compiles_the_simulator_and_does_so_once(tmp_path):
+    bad = tmp_path / "01_selection.ipynb"
+    bad.write_text('{"cells": [')  # graded at once, not graded: no kernel needed
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "cache"), "PYTHONPATH": str(ROOT)}
+    runs = [subprocess.run([sys.executable, "-m", "coursekit", "grade", str(bad), "--json", str(tmp_path / "r.json")],
+                           cwd=tmp_path, capture_output=True, text=True, env=env, timeout=600) for _ in range(2)]
+    assert [r.returncode for r in runs] == [0, 0], runs[0].stderr[-2000:]  # graded at once: 0 points
+    said = "coursekit grade: compiling the simulator once"
+    assert said in runs[0].stderr and said not in runs[1].stderr  # the second run loads what the first compiled
+    assert any((tmp_path / "cache" / "coursekit" / "numba").rglob("*.nbc"))

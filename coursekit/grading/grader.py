@@ -339,6 +339,11 @@ def main(args: argparse.Namespace) -> int:
     if not supervisor.become_subreaper():
         print("coursekit grade: warning: cannot adopt orphaned processes (no PR_SET_CHILD_SUBREAPER); "
               "processes a notebook daemonises may outlive grading", file=sys.stderr)
+    if not unsafe:  # before the first notebook, so that its time is its own
+        if not warm.cached():
+            print("coursekit grade: compiling the simulator once, for every notebook to load (10-20 s, the first "
+                  "time on this machine)", file=sys.stderr, flush=True)
+        warm.cache()
     results = []
     try:
         for nb, exercise in zip(args.notebooks, exercises):

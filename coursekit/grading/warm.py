@@ -44,6 +44,14 @@ def folder() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "coursekit" / "numba" / key
 
 
+def cached() -> bool:
+    """Whether :func:`folder` holds compiled kernels already (the warm-up then only loads them)."""
+    try:
+        return any(folder().rglob("*.nbi"))
+    except (OSError, RuntimeError):
+        return False
+
+
 def cache() -> Path | None:
     """The folder of compiled kernels, warmed by a child process on the first call in this
     process; None where it could not be made (the notebooks then compile the kernels themselves)."""
