@@ -120,7 +120,7 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
 
     Sizes default by profile (classroom: 100 creatures, 40 generations, 10 s swims, Sims' own
     evaluation time -- in 5 s swims evolution bred creatures that unfold once and stop after the
-    5 s; ci: tiny). Within the 75 s budget on 2 cores, 100 creatures bred swimmers of 0.05 to
+    5 s; ci: tiny). Within the 75 s budget on 2 cores, 100 creatures bred swimmers of 0.065 to
     0.38 body lengths/s over five seeds, where 40 creatures bred 0.02 to 0.18, and 40 creatures
     stopped after 8 generations 0.008 to 0.05 (``benchmarks/NOTES.md``).
 

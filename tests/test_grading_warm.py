@@ -66,7 +66,7 @@ def test_without_a_cache_the_notebook_compiles_the_kernels_itself(tmp_path, monk
 @pytest.mark.skipif(not HAVE, reason=f"no sandbox here: {sandbox.available()}")
 def test_coursekit_grade_says_when_it_compiles_the_simulator_and_does_so_once(tmp_path):
     bad = tmp_path / "01_selection.ipynb"
-    bad.write_text('{"cells": [')  # graded at once, not graded: no kernel needed
+    bad.write_text('{"cells": [')  # unreadable: graded at once (0 points), no kernel started
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "cache"), "PYTHONPATH": str(ROOT)}
     runs = [subprocess.run([sys.executable, "-m", "coursekit", "grade", str(bad), "--json", str(tmp_path / "r.json")],
                            cwd=tmp_path, capture_output=True, text=True, env=env, timeout=600) for _ in range(2)]
