@@ -330,9 +330,10 @@ the grid stays put in the water). Also as a <a href="{gif}">GIF</a>; its genome:
 <figure><img src="{keyframes}" alt="key frames"><figcaption>Key frames, time increasing from left to right (the paper's Figure 3); after the first, the panels
 show the stroke at successive phases of one cycle.</figcaption></figure>
 <h2>Shipped champions</h2>
-<p>The same recipe, given time. A few generations in a lecture break mostly breed creatures that
-tumble or paddle in place; the champions below were bred by the commands under them, the largest by
-Karl Sims' full experiment (300 creatures, 100 generations, 10 s each), and swim with a steady stroke.</p>
+<p>The same recipe, given time. A lecture break's run breeds a first swimmer on a lucky seed and a
+creature that paddles in place on another; the champions below were bred by the commands under them,
+the fastest by Karl Sims' full experiment (300 creatures, 100 generations, 10 s each), and swim with a
+steady stroke.</p>
 {champions}
 <h2>Pictures: a breeding session</h2>
 <p>Sims' gallery of 20 random pictures. With no room to click, the script picked the {picks} most colourful
