@@ -519,12 +519,12 @@ class World:
     def body_poses(self) -> tuple[Any, Any]:
         """World rotations (N, 3, 3) and positions (N, 3) of all bodies (internal order)."""
         s = self.state
-        return forward_kinematics(self.model, sp.quat_to_mat(self.xp, s.quat), s.pos, s.q)
+        return forward_kinematics(self.model, self._rotations(s.quat), s.pos, s.q)
 
     def body_velocities(self) -> Any:
         """Body-frame spatial velocities (N, 6) of all bodies (internal order)."""
         xp, m, s = self.xp, self.model, self.state
-        R0 = sp.quat_to_mat(xp, s.quat)
+        R0 = self._rotations(s.quat)
         E, r = joint_transforms(m, s.q)
         return body_velocities(m, sp.transform_matrix(xp, E, r), xp.concat([s.omega, sp.mv(R0.mT, s.lin)], axis=1), s.qd)
 
@@ -532,7 +532,7 @@ class World:
         """(C, 3) centre of mass of every creature (numpy; with ``native`` an array of the
         world's backend, left on its device)."""
         s = self.state
-        com = self._com(sp.quat_to_mat(self.xp, s.quat), s.pos, s.q)
+        com = self._com(self._rotations(s.quat), s.pos, s.q)
         return com if native else bk.to_numpy(com)
 
     def _com(self, R0, p0, q):
