@@ -176,6 +176,21 @@ def test_wrong_implementations_fail_the_violated_property(name, fn, prop):
     assert j.score < j.check.points
 
 
+def truncation_one_short(fitness, k, rng, survival=0.2):
+    m = math.ceil(survival * len(fitness))
+    return np.argsort(fitness)[::-1][:m][rng.integers(0, max(m - 1, 1), size=k)]  # the last survivor never drawn
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_truncation_says_whether_survivors_were_rounded_down_or_the_upper_bound_drawn_one_short(seed):
+    def message(fn):
+        return next(v.message for v in evaluate("ga.truncation", fn, seed=seed).verdicts
+                    if v.prop == "rounds the survivor count up")
+
+    assert "integers(0, m)" in message(truncation_one_short) and "round up" not in message(truncation_one_short)
+    assert "round up" in message(truncation_floor) and "integers(0, m)" not in message(truncation_floor)
+
+
 def roulette_proportional_to_rank(fitness, k, rng):
     r = np.argsort(np.argsort(fitness)) * (np.asarray(fitness) > 0)
     return rng.choice(len(fitness), size=k, p=r / r.sum())

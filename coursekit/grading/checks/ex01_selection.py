@@ -147,6 +147,15 @@ def _truncation_ceil(ctx):
     m = math.ceil(0.2 * len(fitness))
     picked = len(set(out))
     if picked < m:
+        # An upper bound drawn one short (rng.integers(0, m - 1): its high end is already exclusive) also
+        # leaves the last survivor out; the large "uniform" case tells it from rounding down.
+        wide = ctx.arg("uniform", 0)
+        top = np.argsort(wide)[::-1][:math.ceil(0.25 * len(wide))]
+        seen = set(ctx.out("uniform")[0])
+        if int(top[-1]) not in seen and all(int(i) in seen for i in top[:-1]):
+            return False, (f"with {len(wide)} individuals and survival=0.25 the {len(top)} survivors were drawn {len(ctx.out('uniform')[0])} "
+                           f"times, and the last of them (index {int(top[-1])}) never: rng.integers(0, m) already leaves m out "
+                           f"(its upper end is exclusive), so the indices 0 .. m-1 need integers(0, m)")
         return False, (f"with {len(fitness)} individuals and survival=0.2, only {picked} distinct individual(s) were "
                        f"picked in {len(out)} draws; all of the best ceil(0.2*{len(fitness)}) = {m} should be (round up, not down)")
     return True, "keeps ceil(survival*n) survivors (rounds up)"
