@@ -114,6 +114,11 @@ def test_every_check_names_the_library_versions_it_refuses():
 
 COPY = types.FunctionType(ga.tournament.__code__, ga.tournament.__globals__, "copy")  # made "in a cell"
 SAVED_CODE = ga.tournament.__code__
+RENAMED = types.FunctionType(ga.tournament.__code__.replace(co_name="mine", co_firstlineno=1), ga.tournament.__globals__)
+
+
+def renamed_copy(fitness, k, rng, size=3):
+    return RENAMED(fitness, k, rng, size)  # another code object, made "in a cell": the same content
 
 
 def copied_earlier(fitness, k, rng, size=3):
@@ -144,6 +149,7 @@ def in_a_fresh_python(fitness, k, rng, size=3):
 
 @pytest.mark.parametrize("fn, message", [
     (copied_earlier, "coursekit's own tournament is not available while your copied_earlier is graded"),
+    (renamed_copy, "coursekit's own tournament is not available while your renamed_copy is graded"),
     (rebuilt_from_saved_code, "function.__new__ is not available while a function is graded"),
     (compiled_from_source, "coursekit's own code of the graded functions may not be compiled or loaded afresh"),
     (loaded_afresh, "coursekit's own code of the graded functions may not be compiled or loaded afresh"),
