@@ -78,3 +78,26 @@ def test_what_the_library_itself_needs_is_refused_but_not_withheld():
     assert "coursekit.grading.checks.ex02_picture_mutations:karva" in withheld  # the check's own oracle
     assert "coursekit.pictures.operators:transposition" in withheld
     assert "coursekit.grading.checks.ex07_swimming_physics:face_integral_drag" in of(registry.for_notebook("07_swimming_physics"))
+
+
+def test_a_graded_functions_own_helpers_are_withheld_with_it():
+    """A public operator that hands its work to a private one, or a constructor to the builder
+    behind it, would leave the answer one call away: what only withheld functions use goes too,
+    what the rest of the library uses stays."""
+    from coursekit.grading.withheld import helpers, of, refused
+
+    mutations = of(registry.for_notebook("02_picture_mutations"))
+    for helper in ("_mutated", "_transposition", "_root_transposition", "_head_tail_rotation"):
+        assert f"coursekit.pictures.operators:{helper}" in mutations
+    assert "coursekit.pictures.genome:karva" not in mutations  # the operators decode with it
+    assert "coursekit.pictures.genome:Genome.copy" not in mutations
+    assert "coursekit.creatures.generation:figure1_snake" in of(registry.for_notebook("06_wire_a_brain"))
+    assert "coursekit.creatures.generation:paddle_turtle" not in of(registry.for_notebook("06_wire_a_brain"))
+    physics = registry.for_notebook("07_swimming_physics")
+    assert "coursekit.creatures.physics.integrate:_rk4" in of(physics)
+    step = registry.get("physics.rkn_step")
+    assert "coursekit.creatures.physics.odes:solution" in refused(step, physics)  # the notebook plots with it
+    assert "coursekit.creatures.physics.odes:solution" not in of(physics)
+    # a helper shared with a function that is not withheld stays
+    assert helpers({"coursekit.pictures.operators:transposition"}) >= {"coursekit.pictures.operators:_transposition"}
+    assert "coursekit.pictures.operators:_mutated" not in helpers({"coursekit.pictures.operators:transposition"})

@@ -157,7 +157,8 @@ def make_plan(checks: Sequence, cases: dict, rng: np.random.Generator) -> tuple[
                 ids[call["id"]] = (case["id"], i, call)
                 calls.append(call)
         calls = [calls[k] for k in rng.permutation(len(calls))]
-        plans.append({"name": c.name, "function": c.function, "output": c.output, "refuse": list(c.reference), "calls": calls})
+        plans.append({"name": c.name, "function": c.function, "output": c.output, "refuse": withheld.refused(c, checks),
+                      "calls": calls})
         lookup[c.name] = ids
     return plans, lookup
 

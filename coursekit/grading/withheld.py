@@ -11,14 +11,24 @@ replaced by a ``raise``, for the sandbox to bind over the module (:func:`.sandbo
 ``replace``), and names the module's compiled files in ``__pycache__`` for it to mask. Nothing
 inside the kernel can then run the library's version: it is not on any disk the kernel sees.
 
+A graded function's own helpers go with it (:func:`helpers`): a public ``transposition`` that
+hands the work to a private ``_transposition``, or ``Creature.figure1_snake`` to
+``generation.figure1_snake``, would otherwise leave the answer one call away. A library function
+is withheld with the references when every function or module that refers to it is withheld:
+nothing the rest of the library runs needs it.
+
 Hand-written because it is a source transformation no library does: the definitions are found
 with :mod:`ast` (by qualified name, ``Class.method`` included) and only their bodies' lines are
-replaced, so every other line of the module -- and its line numbers, for tracebacks -- stays.
+replaced, so every other line of the module -- and its line numbers, for tracebacks -- stays. The
+references between the package's functions are read from the same syntax trees (names, module
+attributes, ``Class.method`` and ``self.method``), which is what a static call graph library
+would do for a whole program, with more machinery than one package needs.
 """
 
 from __future__ import annotations
 
 import ast
+import functools
 import importlib.util
 import os
 from pathlib import Path
@@ -42,9 +52,108 @@ def _definition(tree, qualname):
 
 
 def of(checks) -> list[str]:
-    """What the sandbox withholds while ``checks`` (one notebook's) are graded: their references,
-    except those the library itself needs for the other checks (``Check.library_uses``)."""
-    return sorted({r for c in checks for r in c.reference} - {r for c in checks for r in c.library_uses})
+    """What the sandbox withholds while ``checks`` (one notebook's) are graded: their references
+    with their helpers (:func:`helpers`), except those the library itself needs for the other
+    checks (``Check.library_uses``, and what only they use)."""
+    uses = {r for c in checks for r in c.library_uses}
+    return sorted(helpers({r for c in checks for r in c.reference} - uses) - uses)
+
+
+def refused(check, checks) -> list[str]:
+    """What the process that runs ``check``'s function refuses (:class:`.lockdown.Refusing`): its
+    references with their helpers, and what the sandbox withholds for its notebook's ``checks``
+    (a function the library needs for the other checks stays usable while they are graded)."""
+    return sorted(helpers(set(check.reference)) | set(of(checks)))
+
+
+def helpers(paths) -> set[str]:
+    """``paths`` (``"module:qualname"``) and the package's functions that only they use, all the way
+    down: a function every one of whose referrers (functions, or a module's own code) is in the
+    set joins it, until none does."""
+    held = set(paths)
+    users = _users()
+    grew = True
+    while grew:
+        grew = False
+        for target, who in users.items():
+            if target not in held and who <= held:
+                held.add(target)
+                grew = True
+    return held
+
+
+@functools.lru_cache(maxsize=1)
+def _users() -> dict[str, frozenset]:
+    """``{function: what refers to it}`` over the whole package: functions by ``"module:qualname"``,
+    a module's own code (outside its functions) as ``"module:"``. Functions nothing refers to are
+    left out (nothing in the library needs them, but nothing withheld leads to them either)."""
+    root = Path(importlib.util.find_spec("coursekit").origin).parent
+    modules = {}
+    for path in sorted(root.rglob("*.py")):
+        parts = path.relative_to(root.parent).with_suffix("").parts
+        if "_course" in parts:  # the course's copies in a wheel: benchmarks and notebooks, not the library
+            continue
+        package = path.name == "__init__.py"
+        name = ".".join(parts[:-1] if package else parts)
+        modules[name] = (ast.parse(path.read_text(encoding="utf-8"), str(path)), package)
+    defined = {}  # module -> {name: "function" | {method names}}
+    for name, (tree, _) in modules.items():
+        defined[name] = {n.name: ({m.name for m in n.body if isinstance(m, (ast.FunctionDef, ast.AsyncFunctionDef))}
+                                  if isinstance(n, ast.ClassDef) else "function")
+                         for n in tree.body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))}
+    users: dict[str, set] = {}
+    for name, (tree, package) in modules.items():
+        here = name if package else name.rpartition(".")[0]
+        scope = {k: (name, k) for k in defined[name]}  # local name -> (module, attribute), or (module, None)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    up = here.split(".")[:len(here.split(".")) - node.level + 1]
+                    base = ".".join(up + ([node.module] if node.module else []))
+                for a in node.names:
+                    full = f"{base}.{a.name}"
+                    scope[a.asname or a.name] = (full, None) if full in modules else (base, a.name)
+            elif isinstance(node, ast.Import):
+                for a in node.names:
+                    if a.asname and a.name in modules:
+                        scope[a.asname] = (a.name, None)
+
+        def refer(user, body, cls=None):
+            for node in (n for part in body for n in ast.walk(part)):
+                target = None
+                if isinstance(node, ast.Name) and node.id in scope:
+                    module, attr = scope[node.id]
+                    target = (module, attr)
+                elif isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name):
+                    owner = node.value.id
+                    if owner in ("self", "cls") and cls is not None:
+                        target = (name, f"{cls}.{node.attr}")
+                    elif owner in scope:
+                        module, attr = scope[owner]
+                        target = (module, node.attr) if attr is None else (module, f"{attr}.{node.attr}")
+                if target is None or target[1] is None or target[0] not in defined:
+                    continue
+                head, _, method = target[1].partition(".")
+                kind = defined[target[0]].get(head)
+                if kind == "function" and not method or isinstance(kind, set) and method in kind:
+                    users.setdefault(f"{target[0]}:{target[1]}", set()).add(user)
+
+        own = []
+        for node in tree.body:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                refer(f"{name}:{node.name}", [node])
+            elif isinstance(node, ast.ClassDef):
+                for item in node.body:
+                    if isinstance(item, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                        refer(f"{name}:{node.name}.{item.name}", [item], node.name)
+                    else:
+                        own.append(item)
+                own += node.decorator_list + node.bases
+            else:
+                own.append(node)
+        refer(f"{name}:", own)
+    return {k: frozenset(v) for k, v in users.items()}
 
 
 def withhold(paths, out: Path) -> tuple[list[tuple[Path, str]], list[str]]:
