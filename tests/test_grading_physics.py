@@ -172,6 +172,10 @@ WRONG = [
 ]
 
 
+#: Steps that evaluate f away from Nystrom's stages fail that property too.
+OFF_STAGE = {rkn_no_time_offsets, rkn_stage_position_without_a1, rkn_stage3_uses_a1}
+
+
 @pytest.mark.parametrize("name, fn, prop", WRONG, ids=[w[1].__name__ for w in WRONG])
 def test_known_wrong_fails_exactly_its_property(name, fn, prop):
     j = evaluate(name, fn, seed=3)
@@ -179,9 +183,19 @@ def test_known_wrong_fails_exactly_its_property(name, fn, prop):
     if prop in [p for p, _ in j.check.props[:j.check.gates]]:  # a gate (validity, the job) fails everything after it
         assert failed[0] == prop and j.score == 0.0, failed
     else:
-        assert failed == [prop], [(v.prop, v.message) for v in j.verdicts if not v.passed]
+        also = ["evaluates f at Nystrom's stages"] if fn in OFF_STAGE else []
+        assert failed == [prop] + also, [(v.prop, v.message) for v in j.verdicts if not v.passed]
     msg = next(v.message for v in j.verdicts if v.prop == prop)
     assert "BEGIN SOLUTION" not in msg and "2 * k" not in msg and "h**2/6" not in msg
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_classic_rk4_is_fourth_order_but_not_nystroms_method(seed):
+    """RK4 on (y, v) passes every accuracy property (the same order) and fails only the stages."""
+    j = evaluate("physics.rkn_step", rk4_first_order, seed=seed)
+    assert [v.prop for v in j.verdicts if not v.passed] == ["evaluates f at Nystrom's stages"]
+    msg = next(v.message for v in j.verdicts if not v.passed)
+    assert "evaluation 2" in msg and "h^2/8 a1" in msg
 
 
 def test_messages_are_specific():
@@ -265,8 +279,9 @@ def test_counting_ode_round_trip_and_refuses_foreign_text():
     f(0.0, np.zeros(2), np.ones(2))
     g = odes.CountingODE.from_json(f.to_json())
     assert (g.ode, g.calls) == ("drag", 1)
-    for bad in ('{"format": "other/1", "ode": "drag", "calls": 0}', '{"format": "coursekit.counting_ode/1"', "[]",
-                '{"format": "coursekit.counting_ode/1", "ode": "nope", "calls": 0}'):
+    for bad in ('{"format": "other/1", "ode": "drag", "calls": 0, "points": []}', '{"format": "coursekit.counting_ode/2"', "[]",
+                '{"format": "coursekit.counting_ode/2", "ode": "nope", "calls": 0, "points": []}',
+                '{"format": "coursekit.counting_ode/2", "ode": "drag", "calls": 0}'):
         with pytest.raises(ValueError, match="CountingODE|ode"):
             odes.CountingODE.from_json(bad)
     with pytest.raises(ValueError, match="y: expected shape"):

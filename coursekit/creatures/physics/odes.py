@@ -12,8 +12,8 @@ depend on its arguments:
 - :func:`drag`: ``y'' = -c y'`` (velocity only: Sims' linear water drag on a single body);
 - :func:`damped`: ``y'' = -omega^2 y - 2 zeta omega y'`` (both).
 
-:class:`CountingODE` wraps one of them and counts its calls; its JSON form carries the count, so
-the grader can see how many times a step evaluated ``f``.
+:class:`CountingODE` wraps one of them, counts its calls and notes their arguments; its JSON form
+carries both, so the grader can see how many times a step evaluated ``f``, and where.
 """
 
 from __future__ import annotations
@@ -103,28 +103,32 @@ def solution(name: str, t0: float, y0, v0, h: float):
 
 
 class CountingODE:
-    """The right-hand side of a named ODE (see :data:`ODES`) that counts how often it is called.
+    """The right-hand side of a named ODE (see :data:`ODES`) that counts its calls and notes where
+    it was evaluated.
 
     Args:
         ode: the ODE's name.
         calls: the count to start from.
+        points: ``[t, y, v]`` of the calls so far (``y`` and ``v`` as lists), in call order.
     """
 
-    FORMAT = "coursekit.counting_ode/1"
+    FORMAT = "coursekit.counting_ode/2"
 
-    def __init__(self, ode: str = "harmonic", calls: int = 0):
+    def __init__(self, ode: str = "harmonic", calls: int = 0, points: list | None = None):
         if ode not in ODES:
             raise ValueError(f"ode: got {ode!r}; allowed: {', '.join(ODES)}")
         if type(calls) is not int or calls < 0:
             raise ValueError(f"calls: must be an integer >= 0, got {calls!r}")
-        self.ode, self.calls = ode, calls
+        self.ode, self.calls, self.points = ode, calls, list(points or [])
 
     def __call__(self, t, y, v):
         self.calls += 1
-        return ODES[self.ode](t, y, v)
+        a = ODES[self.ode](t, y, v)
+        self.points.append([float(t), np.asarray(y, dtype=np.float64).tolist(), np.asarray(v, dtype=np.float64).tolist()])
+        return a
 
     def to_json(self) -> str:
-        return json.dumps({"format": self.FORMAT, "ode": self.ode, "calls": self.calls})
+        return json.dumps({"format": self.FORMAT, "ode": self.ode, "calls": self.calls, "points": self.points})
 
     @classmethod
     def from_json(cls, text: str) -> "CountingODE":
@@ -136,6 +140,6 @@ class CountingODE:
         if not isinstance(data, dict) or data.get("format") != cls.FORMAT:
             got = data.get("format") if isinstance(data, dict) else type(data).__name__
             raise ValueError(f"CountingODE.from_json: format must be {cls.FORMAT!r}, got {got!r}")
-        if set(data) != {"format", "ode", "calls"}:
-            raise ValueError(f"CountingODE.from_json: expected fields format, ode, calls; got {sorted(data)}")
-        return cls(data["ode"], data["calls"])
+        if set(data) != {"format", "ode", "calls", "points"} or not isinstance(data["points"], list):
+            raise ValueError(f"CountingODE.from_json: expected fields format, ode, calls, points (a list); got {sorted(data)}")
+        return cls(data["ode"], data["calls"], data["points"])

@@ -15,7 +15,9 @@ checks derive every expected value independently, in the grader's own process:
   :mod:`coursekit.creatures.physics.odes` -- zero when ``y''`` depends on ``t`` only (``y`` quartic
   in ``t``), and shrinking about 32x per halving of ``h`` (local order 5, i.e. a fourth-order
   method) for position-only and velocity-only forces; the number of ``f`` evaluations per step
-  comes from a :class:`~coursekit.creatures.physics.odes.CountingODE` argument. The job comes
+  comes from a :class:`~coursekit.creatures.physics.odes.CountingODE` argument, and so do the
+  points it was evaluated at, which must be Nystrom's stages (classic RK4 on ``(y, v)`` is of
+  the same order but evaluates elsewhere). The job comes
   first, as a gate: the step is of higher order than explicit Euler (error ratio above
   :data:`BEYOND_EULER`), so an Euler step in place of RKN scores 0.
 """
@@ -239,7 +241,7 @@ def _rkn_cases(rng):
     counter = {"object": ODE + "CountingODE", "json": odes.CountingODE("damped").to_json()}
     cases.append({"id": "count", "args": [counter, float(rng.uniform(-2, 2)), array(rng.normal(size=2)),
                                           array(rng.normal(size=2)), 0.25],
-                  "seeds": seeds(rng, 1), "max_len": 100})
+                  "seeds": seeds(rng, 1), "max_len": 3000})
     return cases
 
 
@@ -320,11 +322,45 @@ def _rkn_calls(ctx):
     return True, "evaluates f exactly 4 times per step"
 
 
+#: Nystrom's four stages: (time, position, velocity) from the start and the stages before.
+STAGES = ("t, y, v", "t + h/2, y + h/2 v + h^2/8 a1, v + h/2 a1", "t + h/2, y + h/2 v + h^2/8 a1, v + h/2 a2",
+          "t + h, y + h v + h^2/2 a3, v + h a3")
+
+
+def _rkn_stages(ctx):
+    ctx.out("count")
+    t, y, v, h = _start(ctx, "count")
+    after = (ctx.record("count").get("inputs_after") or [None])[0]
+    try:
+        points = [(float(p[0]), np.asarray(p[1], dtype=np.float64), np.asarray(p[2], dtype=np.float64))
+                  for p in json.loads(after["json"])["points"]]
+    except (TypeError, KeyError, ValueError, IndexError):
+        return False, "could not read where f was evaluated"
+    f, a = odes.ODES[json.loads(ctx.case("count")["args"][0]["json"])["ode"]], []
+    for k, (tk, yk, vk) in enumerate(points[:4]):
+        want = [(t, y, v), (t + h / 2, y + h / 2 * v + h * h / 8 * a[0], v + h / 2 * a[0]) if k > 0 else None,
+                (t + h / 2, y + h / 2 * v + h * h / 8 * a[0], v + h / 2 * a[1]) if k > 1 else None,
+                (t + h, y + h * v + h * h / 2 * a[2], v + h * a[2]) if k > 2 else None][k]
+        wt, wy, wv = want
+        scale = 1 + float(np.max(np.abs(np.r_[wy, wv])))
+        if not (math.isclose(tk, wt, abs_tol=1e-12) and yk.shape == wy.shape and vk.shape == wv.shape
+                and np.max(np.abs(np.r_[yk - wy, vk - wv])) <= 1e-9 * scale):
+            return False, (f"evaluation {k + 1} of f was at t={tk:.6g}, y={np.round(yk, 6).tolist()}, v={np.round(vk, 6).tolist()}; "
+                           f"Nystrom's stage {k + 1} evaluates f at ({STAGES[k]}), here t={wt:.6g}, y={np.round(wy, 6).tolist()}, "
+                           f"v={np.round(wv, 6).tolist()}. Another fourth-order method (classic RK4 on (y, v)) has other stages")
+        a.append(f(tk, yk, vk))
+    return True, "evaluates f at Nystrom's four stages"
+
+
 register(Check(
     hints=HINTS.get("physics.rkn_step", ()),
     name="physics.rkn_step", function="rkn_step", params=("f", "t", "y", "v", "h"), points=6.0,
     title="one Runge-Kutta-Nystrom step", output="array_pair", cases=_rkn_cases, gates=2,
-    reference=('coursekit.creatures.physics.integrate:_nystrom',),
+    # the library's other fourth-order step, and the exact solutions the error is measured against
+    # (the notebook plots its own step's error with them: refused while rkn_step runs, not withheld)
+    reference=('coursekit.creatures.physics.integrate:_nystrom', 'coursekit.creatures.physics.integrate:_rk4',
+               'coursekit.creatures.physics.odes:solution'),
+    library_uses=('coursekit.creatures.physics.odes:solution',),
     props=(
         ("returns (y_next, v_next) shaped like y and v", _rkn_shape),
         ("of higher order than explicit Euler", _rkn_beats_euler),
@@ -332,6 +368,7 @@ register(Check(
         ("fourth order for position-dependent forces", _rkn_order("harmonic", "y'' = -omega^2 y (a spring)")),
         ("fourth order for velocity-dependent forces", _rkn_order("drag", "y'' = -c y' (water drag)")),
         ("evaluates f 4 times per step", _rkn_calls),
+        ("evaluates f at Nystrom's stages", _rkn_stages),
         ("inputs unchanged", unmodified({2: "y", 3: "v"}, NEW_ARRAYS)),
     ),
 ))
