@@ -218,10 +218,14 @@ def test_do_nothing_answers_score_zero_when_graded(do_nothing_and_renamed, stem)
 
 @pytest.mark.parametrize("stem", list(CHEATS))
 def test_answers_that_hand_in_the_librarys_work_by_a_back_door_score_zero(do_nothing_and_renamed, stem):
-    """Exercise 02: results whose to_json runs coursekit's own operator, once the function has returned,
-    and records rewritten in the kernel by a patched json (the kernel is locked down before the calls).
-    Exercise 07: the grader's own drag oracle, imported from its check module. Exercise 08: the
-    library's fitness code under a cell's file name (a new code object), and the grader's quota oracle."""
+    """Exercise 02: a result whose to_json runs coursekit's own operator, once the function has returned,
+    records rewritten in the kernel by a patched json (the kernel is locked down before the calls),
+    the private workers behind the library's mutations (withheld with them), and decode through a
+    copy of karva rebuilt under another name (refused by its content). Exercise 06: the snake wired
+    by the library's builder behind Creature.figure1_snake (withheld with it). Exercise 07: the
+    grader's own drag oracle, imported from its check module, and a step that returns the exact
+    solution (refused while rkn_step runs). Exercise 08: the library's fitness code under a cell's
+    file name (a new code object), and the grader's quota oracle."""
     by_name, results = do_nothing_and_renamed
     nb = by_name[f"cheats_{stem}.ipynb"]
     tests = [t for t in results["tests"] if t["name"].startswith(f"cheats_{stem}.ipynb: ")]
@@ -229,8 +233,8 @@ def test_answers_that_hand_in_the_librarys_work_by_a_back_door_score_zero(do_not
     assert nb["score"] == 0.0, {t["name"]: t["output"][:300] for t in tests if t["score"]}
     refused = sum("is not available while your" in t["output"] or "is withheld while this notebook is graded" in t["output"]
                   for t in tests)
-    # 02, decode: not attempted; transposition: its own (do-nothing) result reached the grader. 07: rkn_step not attempted
-    assert refused == {"02_picture_mutations": len(tests) - 2, "07_swimming_physics": 1}.get(stem, len(tests)), \
+    # 02, transposition: its own (do-nothing) result reached the grader. 06: resolve not attempted
+    assert refused == {"02_picture_mutations": len(tests) - 1, "06_wire_a_brain": 1}.get(stem, len(tests)), \
         [t["output"][:200] for t in tests]
 
 

@@ -553,15 +553,29 @@ DO_NOTHING = {
 
 
 #: Answers that hand in the library's work by the back door, one notebook per exercise
-#: (``cheats_<stem>.ipynb``); each must score 0. Exercise 02: each mutation returns an object whose
+#: (``cheats_<stem>.ipynb``); each must score 0. Exercise 02: substitution returns an object whose
 #: ``to_json`` runs coursekit's own operator -- once the function has returned, when the grader
 #: converts the result; transposition does nothing, but a cell patches ``json`` in the kernel so
-#: that the record of each call carries the library's answer on its way to the grader.
+#: that the record of each call carries the library's answer on its way to the grader; the other
+#: two mutations call the private workers the library's own mutations hand the work to, and decode
+#: calls a copy of the library's karva rebuilt under another name in a cell. Exercise 06: the
+#: snake wired by the library's builder behind ``Creature.figure1_snake``. Exercise 07: the
+#: grader's own drag oracle, and a "step" that returns the exact solution of the ODE it is handed.
 CHEATS = {
     "07_swimming_physics": ["import numpy as np\nfrom coursekit.grading.checks.ex07_swimming_physics import face_integral_drag",
                             '''def box_drag(half_extents, k):
     return np.diag(face_integral_drag(half_extents, k)).copy()  # the grader's own oracle''', '''def rkn_step(f, t, y, v, h):
-    raise NotImplementedError()'''],
+    from coursekit.creatures.physics import odes
+    name = getattr(f, "ode", None) or f.__name__
+    for _ in range(4):
+        f(t, y, v)  # as many evaluations as Nystrom's method
+    ye, ve = odes.solution(name, t, y, v, h)  # the exact answer, plus an error of fourth order
+    return ye + 1e-3 * h**5 * (name != "time_forcing"), ve + 1e-3 * h**5 * (name != "time_forcing")'''],
+    "06_wire_a_brain": ['''def resolve(morph, part, parent, children):
+    raise NotImplementedError()''', '''def wire_snake(snake):
+    from coursekit.creatures import generation
+    from coursekit.creatures.genotype import Creature
+    return Creature(*generation.figure1_snake(snake.nodes[0].recursive_limit + 1))  # the library's wiring'''],
     "08_fitness_and_reproduction": ['''import sys, types
 import numpy as np
 import coursekit.creatures.fitness as fit
@@ -604,12 +618,22 @@ json.loads, json.dumps = loads, dumps''', '''class Later:
         self.work = work
 
     def to_json(self):
-        return self.work().to_json()''', '''def decode(symbols):
-    raise NotImplementedError()''', '''def transposition(genome, rng):
+        return self.work().to_json()''', '''import types
+from coursekit.pictures import genome as library_genome, primitives
+
+# the library's karva under another name: a new code object, made before grading starts
+_karva = types.FunctionType(library_genome.karva.__code__.replace(co_name="_karva"), library_genome.karva.__globals__)
+
+
+def decode(symbols):
+    kids, _ = _karva(symbols, primitives.arity)
+    def build(i):
+        return [symbols[i]] + [build(j) for j in kids[i]] if kids[i] else symbols[i]
+    return build(0)''', '''def transposition(genome, rng):
     return copy.deepcopy(genome)  # the patched json hands in the library's answer''', '''def root_transposition(genome, rng):
-    return Later(lambda: operators.root_transposition(genome, rng))''', '''def substitution(genome, rng):
+    return operators._mutated(genome, rng, operators._root_transposition)  # the library's private worker''', '''def substitution(genome, rng):
     return Later(lambda: operators.substitution(genome, rng))''', '''def head_tail_rotation(genome, rng):
-    return Later(lambda: operators.head_tail_rotation(genome, rng))'''],
+    return operators._mutated(genome, rng, operators._head_tail_rotation)'''],
 }
 
 
