@@ -12,6 +12,9 @@ generation (:func:`coursekit.pictures.variety.random_population`, one genome per
 - *one colour*: one colour (16 levels per channel) covers at least 90 % of the pixels (a black
   field with specks or a thin line; flat pictures are one colour too);
 - *greyscale*: the mean over pixels of (largest channel - smallest channel) is below 0.02;
+- *plain*: its busiest channel changes by less than 0.7 full ranges across the picture (the mean
+  absolute difference of neighbouring pixels times the side, across plus down): a pale wash or
+  a faint gradient;
 - *photo-dominated*: the picture's luminance correlates (``|Pearson r| > 0.5``) with the
   luminance of one of the scikit-image stock photos (each rendered alone as a ``pixmap``
   chromosome at the same size and window);
@@ -29,7 +32,7 @@ for any other child of the click (the issue's definition: both children of a dup
 **Flat children** (the same sessions): the fraction of those children that are flat or black,
 and that are one colour, and along a *chain*: session ``s`` evolves (mixed operators) from one
 random picture, then from one random child of that, four times; the same two fractions over the
-chain. These yardsticks are the benchmark's own, so that one script measures any version of the
+chain, and the plain children of the chain. These yardsticks are the benchmark's own, so that one script measures any version of the
 library.
 
 Usage: ``python benchmarks/picture_variety.py [--genomes 600] [--sessions 30]``
@@ -59,6 +62,14 @@ def flat_or_black(images):
     return (images.reshape(n, -1, 3).std(axis=1).max(axis=1) < 0.02) | (images.reshape(n, -1).max(axis=1) <= SAME)
 
 
+def plain_pictures(images, below=0.7):
+    """Per picture: its busiest channel changes by less than ``below`` full ranges across it."""
+    im = np.asarray(images, dtype=np.float64)
+    across = np.abs(np.diff(im, axis=2)).mean(axis=(1, 2)) * (im.shape[2] - 1)
+    down = np.abs(np.diff(im, axis=1)).mean(axis=(1, 2)) * (im.shape[1] - 1)
+    return (across + down).max(axis=1) < below
+
+
 def one_colour(images, share=0.9, levels=16):
     """Per picture: one colour (``levels`` per channel) on at least ``share`` of the pixels."""
     q = np.clip(np.rint(images * (levels - 1)), 0, levels - 1).astype(np.int64).reshape(len(images), -1, 3)
@@ -81,10 +92,10 @@ def _photos():
 
 
 def picture_figures(images, photos):
-    """Fractions (flat, black, one colour, greyscale, photo-dominated) of ``images`` (N, H, W, 3)."""
+    """Fractions (flat, black, one colour, greyscale, plain, photo-dominated) of ``images`` (N, H, W, 3)."""
     n = len(images)
     if n == 0:
-        return [float("nan")] * 5
+        return [float("nan")] * 6
     flat = images.reshape(n, -1, 3).std(axis=1).max(axis=1) < 0.02
     black = images.reshape(n, -1).max(axis=1) <= SAME
     grey = (images.max(axis=3) - images.min(axis=3)).reshape(n, -1).mean(axis=1) < 0.02
@@ -95,7 +106,7 @@ def picture_figures(images, photos):
     with np.errstate(invalid="ignore", divide="ignore"):
         r = np.where(norm > 1e-9, (lum @ ph.T) / np.maximum(norm, 1e-30), 0.0)
     photo = np.abs(r).max(axis=1) > 0.5
-    return [float(v.mean()) for v in (flat, black, one_colour(images), grey, photo)]
+    return [float(v.mean()) for v in (flat, black, one_colour(images), grey, plain_pictures(images), photo)]
 
 
 def with_photo(genomes):
@@ -146,9 +157,10 @@ def children_figures(sessions, n=20):
 
 
 def chain_figures(sessions, n=20, depth=4):
-    """Flat or black children, and one-colour children, over chains of ``depth`` evolve clicks, each
-    from one random picture of the generation before (children checked, the two fractions)."""
-    checked = flat = single = 0
+    """Flat or black children, one-colour children and plain children, over chains of ``depth``
+    evolve clicks, each from one random picture of the generation before (children checked, the
+    three fractions)."""
+    checked = flat = single = plain = 0
     for s in range(sessions):
         rng = np.random.default_rng(1000 + s)
         ev = Evolution(GalleryState(first_generation(rng, n)), rng)
@@ -159,7 +171,8 @@ def chain_figures(sessions, n=20, depth=4):
             checked += len(kids)
             flat += int(flat_or_black(kids).sum())
             single += int(one_colour(kids).sum())
-    return checked, flat / checked, single / checked
+            plain += int(plain_pictures(kids).sum())
+    return checked, flat / checked, single / checked, plain / checked
 
 
 def main(argv=None):
@@ -186,13 +199,13 @@ def main(argv=None):
     chain = chain_figures(args.sessions) if args.sessions > 0 else None
     t3 = time.perf_counter()
     print(f"random pictures: {args.genomes} genomes (seeds 0..{args.genomes - 1}) at {SIZE}^2")
-    print(f"{'':38s} {'flat':>6s} {'black':>6s} {'1 col.':>6s} {'grey':>6s} {'photo':>6s} {'photo in tree':>14s}")
-    for name, (flat, black, single, grey, photo, tree) in rows:
-        print(f"{name:38s} {flat:6.1%} {black:6.1%} {single:6.1%} {grey:6.1%} {photo:6.1%} {tree:14.1%}")
+    print(f"{'':38s} {'flat':>6s} {'black':>6s} {'1 col.':>6s} {'grey':>6s} {'plain':>6s} {'photo':>6s} {'photo in tree':>14s}")
+    for name, (flat, black, single, grey, plain_, photo, tree) in rows:
+        print(f"{name:38s} {flat:6.1%} {black:6.1%} {single:6.1%} {grey:6.1%} {plain_:6.1%} {photo:6.1%} {tree:14.1%}")
     if children is not None:
         _print_children(args.sessions, *children[:4], children[6])
         print(f"  flat or black: {children[4]:.1%}, one colour: {children[5]:.1%}; over chains of 4 evolve clicks "
-              f"({chain[0]} children): {chain[1]:.1%} and {chain[2]:.1%}")
+              f"({chain[0]} children): {chain[1]:.1%} and {chain[2]:.1%}; plain over the chains: {chain[3]:.1%}")
     print(f"(seconds: Genome.random {t1 - t0:.1f}, random_population {t2 - t1:.1f}, sessions {t3 - t2:.1f})")
 
 

@@ -12,7 +12,8 @@ from hypothesis import given, settings, strategies as st
 
 from coursekit.pictures import Genome, operators as O, primitives, random_population, render
 from coursekit.pictures.gallery import Evolution, GalleryState
-from coursekit.pictures.variety import BLACK, LEVELS, ONE_COLOUR, SAME, distinct_children, dull, greyscale, preview
+from coursekit.pictures.variety import (BLACK, LEVELS, ONE_COLOUR, PLAIN, SAME, distinct_children, dull, greyscale, preview,
+                                        variation)
 
 
 @pytest.fixture(scope="module")
@@ -211,7 +212,22 @@ def test_dull_flags_a_picture_exactly_when_its_commonest_colour_reaches_the_shar
     pic.reshape(-1, 3)[painted] = colour
     q = np.rint(pic.reshape(-1, 3) * (LEVELS - 1)).astype(int)
     commonest = np.unique(q, axis=0, return_counts=True)[1].max() / len(q)
-    assert dull(pic)[0] == (commonest >= ONE_COLOUR or pic.reshape(-1, 3).std(axis=0).max() < 0.02)
+    assert dull(pic)[0] == (commonest >= ONE_COLOUR or pic.reshape(-1, 3).std(axis=0).max() < 0.02
+                            or variation(pic)[0] < PLAIN)
+
+
+def test_a_pale_wash_or_a_faint_gradient_is_plain_and_a_full_ramp_an_edge_or_a_pattern_is_not():
+    y, x = np.mgrid[0:32, 0:32] / 31.0
+    faint = np.stack([0.9 - 0.3 * x, 0.5 + 0.0 * x, 0.1 + 0.2 * y], axis=-1)[None]   # orange, 0.3 across: a wash
+    ramp = np.stack([x, x, x], axis=-1)[None]                                          # black to white
+    edge = np.where((x < 0.5)[..., None], (0.1, 0.2, 0.8), (0.9, 0.5, 0.1))[None]     # two colours
+    rings = np.stack([0.5 + 0.1 * np.sin(40 * np.hypot(x - 0.5, y - 0.5))] * 3, axis=-1)[None]  # faint, but a pattern
+    assert variation(ramp)[0] == pytest.approx(1.0) and variation(faint)[0] == pytest.approx(0.3)  # its busiest channel, red
+    assert faint.reshape(-1, 3).std(axis=0).max() > 0.08  # not flat by its standard deviation
+    assert dull(faint)[0] and not dull(ramp)[0] and not dull(edge)[0] and not dull(rings)[0]
+    # smooth pictures measure the same at any resolution
+    big = np.stack([np.mgrid[0:128, 0:128][1] / 127.0] * 3, axis=-1)[None]
+    assert variation(big)[0] == pytest.approx(variation(ramp)[0])
 
 
 def test_random_population_names_a_bad_min_nodes():

@@ -1,17 +1,17 @@
 """Pictures worth a look: a first generation and children that never waste a slot (sections 3.3, 3.4).
 
 With the user as the fitness function (paper section 3.4) every picture on the screen costs a
-judgement, so a slot that shows a flat, black or one-colour picture, or a copy of its parent or of a
-sibling, is a wasted click. Two cheap previews prevent that; both render low-resolution
+judgement, so a slot that shows a flat, black, one-colour or plain picture (a pale wash, a faint
+gradient), or a copy of its parent or of a sibling, is a wasted click. Two cheap previews prevent that; both render low-resolution
 thumbnails (:data:`PREVIEW`, 32 x 32) and never change what the genomes are:
 
 - :func:`random_population` draws random genomes (:meth:`Genome.random`, whose draw weights
   already favour colour and structure) and redraws those with a tiny coding part, those whose
-  preview is *dull* (flat, black, or one colour almost everywhere, :func:`dull`) or repeats
+  preview is *dull* (flat, black, one colour almost everywhere, or plain, :func:`dull`) or repeats
   another picture of the population, and a greyscale one once (grey pictures stay, as a minority).
 - :func:`distinct_children` takes children from an operator and redraws those whose preview
   is within :data:`SAME` (mean absolute difference, 2/255) of a parent's or of another child's,
-  and those that are dull when a parent is not (a grey noise bred on by ``round``,
+  and those duller than their liveliest parent (a grey noise bred on by ``round``,
   ``mod`` or a bit operation easily gives flat children: ``benchmarks/picture_variety.py``
   measures them along chains of evolve clicks).
 
@@ -31,14 +31,15 @@ from .evaluate import render
 from .genome import Genome
 from .operators import coding
 
-__all__ = ["PREVIEW", "SAME", "BLACK", "FLAT", "ONE_COLOUR", "LEVELS", "MIN_NODES", "preview", "dull", "greyscale", "random_population",
-           "distinct_children"]
+__all__ = ["PREVIEW", "SAME", "BLACK", "FLAT", "ONE_COLOUR", "PLAIN", "LEVELS", "MIN_NODES", "preview", "dull", "dullness", "variation",
+           "greyscale", "random_population", "distinct_children"]
 
 PREVIEW = 32  # pixels of a preview's side
 SAME = 2.0 / 255.0  # mean absolute difference under which two pictures look the same (on contact sheets of near pairs)
 BLACK = 1.0 / 255.0  # a picture with no value above this is black
 FLAT = 0.02  # a picture whose every channel has a standard deviation below this is flat
 ONE_COLOUR = 0.9  # a picture with one colour on this share of its pixels is that colour, a speck or a line aside
+PLAIN = 0.7  # a picture whose colours change by less than this across it (variation) is a wash or a faint gradient
 LEVELS = 16  # levels per channel at which two colours count as one
 MIN_NODES = 5  # coding chromosomes a random genome of a first generation has at least
 
@@ -48,16 +49,37 @@ def preview(genomes: Sequence[Genome], size: int = PREVIEW) -> np.ndarray:
     return render(list(genomes), size, workers=1)
 
 
-def dull(images: np.ndarray, flat: float = FLAT, one_colour: float = ONE_COLOUR) -> np.ndarray:
+def dull(images: np.ndarray, flat: float = FLAT, one_colour: float = ONE_COLOUR, plain: float = PLAIN) -> np.ndarray:
     """Per picture of ``images`` ``(N, H, W, 3)``: flat (every channel's standard deviation
-    below ``flat``), black (no value above :data:`BLACK`), or one colour (:data:`LEVELS` levels per
-    channel) on at least the share ``one_colour`` of its pixels: a black field with a few
-    specks or one thin line has a high standard deviation and is still not worth a click."""
+    below ``flat``), black (no value above :data:`BLACK`), one colour (:data:`LEVELS` levels per
+    channel) on at least the share ``one_colour`` of its pixels -- a black field with a few
+    specks or one thin line has a high standard deviation and is still not worth a click -- or
+    plain: its colours change by less than ``plain`` across it (:func:`variation`), a pale wash
+    or a faint gradient."""
+    return dullness(images, flat, one_colour, plain) > 0
+
+
+def dullness(images: np.ndarray, flat: float = FLAT, one_colour: float = ONE_COLOUR, plain: float = PLAIN) -> np.ndarray:
+    """Per picture of ``images``, how dull (:func:`dull`) it is: 2 when flat, black or one colour,
+    1 when only plain, 0 when worth a look."""
     n = len(images)
     pixels = images.reshape(n, -1, 3)
-    return ((pixels.std(axis=1).max(axis=1) < flat)
-            | (pixels.reshape(n, -1).max(axis=1) <= BLACK)
-            | (_commonest_share(pixels) >= one_colour))
+    empty = ((pixels.std(axis=1).max(axis=1) < flat)
+             | (pixels.reshape(n, -1).max(axis=1) <= BLACK)
+             | (_commonest_share(pixels) >= one_colour))
+    return np.where(empty, 2, (variation(images) < plain).astype(np.int64))
+
+
+def variation(images: np.ndarray) -> np.ndarray:
+    """Per picture of ``images`` ``(N, H, W, 3)``: how much its busiest channel changes across and
+    down it -- the mean absolute difference of neighbouring pixels times the side, horizontally
+    plus vertically -- in full ranges per picture width. A ramp from black to white scores 1, a
+    sharp edge between two colours their difference, a texture or a pattern many; it does not
+    depend on the resolution for a smooth picture."""
+    im = np.nan_to_num(np.asarray(images, dtype=np.float64))
+    across = np.abs(np.diff(im, axis=2)).mean(axis=(1, 2)) * (im.shape[2] - 1) if im.shape[2] > 1 else 0.0
+    down = np.abs(np.diff(im, axis=1)).mean(axis=(1, 2)) * (im.shape[1] - 1) if im.shape[1] > 1 else 0.0
+    return np.max(across + down, axis=1)
 
 
 def _commonest_share(pixels: np.ndarray) -> np.ndarray:
@@ -151,8 +173,8 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     expression (:func:`~coursekit.pictures.operators.coding`) is not one already there: a
     parent's or another child's. The ``n`` children are then previewed at ``size``; slot by
     slot, one within :data:`SAME` (mean absolute difference) of a parent or of an already
-    accepted child, or one that is dull (:func:`dull`: flat, black or one colour) while not every parent
-    is, is drawn again the same way, at most ``tries`` rounds (what is left then is the
+    accepted child, or one duller than its liveliest parent (:func:`dullness`: flat, black or one colour,
+    then plain), is drawn again the same way, at most ``tries`` rounds (what is left then is the
     slot's best draw: a lively one before a flat one, then the most different); each
     distinct expression is previewed once (a picture depends on nothing else). From round ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is
     replaced by ``again(c, accepted)`` instead (``accepted``: the children kept so far): the
@@ -186,7 +208,7 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     if not kids:
         return kids
     refs = list(preview(parents, size)) if parents else []
-    lively = not parents or not dull(np.asarray(refs)).all()  # a child of a lively parent is not flat
+    level = int(dullness(np.asarray(refs)).min()) if parents else 0  # a child is no duller than its liveliest parent
     # a picture depends on the expression only: each distinct one is previewed once (a child
     # drawn again may repeat a rejected expression, or a parent's)
     previews = {coding(p): pic for p, pic in zip(parents, refs)}
@@ -195,7 +217,7 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     best: dict[int, tuple] = {}  # slot -> (lively, distance), child, preview: its best draw so far
     for attempt in range(tries + 1):
         pics = _previews([kids[i] for i in pending], previews, size)
-        flat = dull(pics) & lively
+        flat = dullness(pics) > level
         still = []
         for i, pic, bad in zip(pending, pics, flat):
             score = (not bad, min(_distance(pic, refs), SAME))
