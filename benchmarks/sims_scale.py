@@ -123,7 +123,7 @@ def main(argv=None) -> int:
         print(f"champion over 10 s: {champ['speed']:.4f} m/s = {champ['body_lengths_per_second']:.3f} body lengths/s, "
               f"pace {champ['pace']:.2f}; audit: {champ['audit']}")
         entry = dict(seed=seed, wall=wall, evaluations=evaluations, generations=rows, champion=champ,
-                     command=f"python benchmarks/sims_scale.py --seeds {seed} --population {args.population} "
+                     command=f"coursekit bench sims_scale --seeds {seed} --population {args.population} "
                              f"--generations {args.generations} --seconds {args.seconds:g}" + (" --numpy-step" if args.numpy_step else ""))
         summary.append(entry)
         if args.out:
