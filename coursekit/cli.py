@@ -155,6 +155,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if not have:
         print(f"coursekit bench: no benchmark scripts in {bench_dir}; reinstall coursekit or run from a checkout", file=sys.stderr)
         return 2
+    if not args.names and {"-h", "--help"} & set(args.extra):  # with names, -h goes to the scripts: their own options
+        print("usage: coursekit bench [NAME ...] [options of the scripts]\n\nruns benchmarks/NAME.py (default: all); "
+              f"`coursekit bench NAME --help` shows a script's options.\nbenchmarks: {', '.join(have)}")
+        return 0
     names = list(args.names or have)
     if not args.names:
         for n, (what, present) in BENCH_HARDWARE.items():
@@ -233,7 +237,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--exercises", default=str(ROOT / "exercises"))
     s.set_defaults(func=_cmd_exercises)
 
-    s = sub.add_parser("bench", help="run the benchmarks (tables against a reference, same run); other options go to the scripts")
+    s = sub.add_parser("bench", add_help=False,  # -h is the scripts' own (see _cmd_bench)
+                       help="run the benchmarks (tables against a reference, same run); other options go to the scripts")
     s.add_argument("names", nargs="*", help="benchmark names (default: all)")
     s.set_defaults(func=_cmd_bench)
     return p

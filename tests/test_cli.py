@@ -169,6 +169,13 @@ def test_demo_without_a_name_writes_both_demos_and_a_page_that_opens_them(tmp_pa
     assert gallery.state.generation == pictures["generations"]
 
 
+def test_bench_help_lists_the_benchmarks_and_a_scripts_help_is_its_own():
+    run = subprocess.run([sys.executable, "-m", "coursekit", "bench", "--help"], capture_output=True, text=True)
+    assert run.returncode == 0 and "sims_scale" in run.stdout and "picture_variety" in run.stdout
+    run = subprocess.run([sys.executable, "-m", "coursekit", "bench", "sims_scale", "--help"], capture_output=True, text=True)
+    assert run.returncode == 0 and "--population" in run.stdout and "--generations" in run.stdout  # the script's options
+
+
 def test_bench_names_what_it_has_and_what_it_needs():
     """`coursekit bench` runs the packaged (or checked-out) scripts; a wrong name is refused with the list."""
     run = subprocess.run([sys.executable, "-m", "coursekit", "bench", "no_such_bench"], capture_output=True, text=True)
