@@ -71,7 +71,7 @@ def helpers(paths) -> set[str]:
     down: a function every one of whose referrers (functions, or a module's own code) is in the
     set joins it, until none does."""
     held = set(paths)
-    users = _users()
+    users, containers = _users()
     grew = True
     while grew:
         grew = False
@@ -79,14 +79,17 @@ def helpers(paths) -> set[str]:
             if target not in held and who <= held:
                 held.add(target)
                 grew = True
-    return held
+    return held - containers
 
 
 @functools.lru_cache(maxsize=1)
-def _users() -> dict[str, frozenset]:
-    """``{function: what refers to it}`` over the whole package: functions by ``"module:qualname"``,
-    a module's own code (outside its functions) as ``"module:"``. Functions nothing refers to are
-    left out (nothing in the library needs them, but nothing withheld leads to them either)."""
+def _users() -> tuple[dict[str, frozenset], frozenset]:
+    """``{function: what refers to it}`` over the whole package, and the module-level containers
+    among them: functions by ``"module:qualname"``, a module's own code (outside its functions) as
+    ``"module:"``. A module-level tuple, list, set or dict of functions (``MODIFY_STEPS = (...)``)
+    is a node of its own, ``"module:NAME"``, referred to by what uses the name: its functions
+    are needed only as far as it is. Functions nothing refers to are left out (nothing in the
+    library needs them, but nothing withheld leads to them either)."""
     root = Path(importlib.util.find_spec("coursekit").origin).parent
     modules = {}
     for path in sorted(root.rglob("*.py")):
@@ -96,11 +99,12 @@ def _users() -> dict[str, frozenset]:
         package = path.name == "__init__.py"
         name = ".".join(parts[:-1] if package else parts)
         modules[name] = (ast.parse(path.read_text(encoding="utf-8"), str(path)), package)
-    defined = {}  # module -> {name: "function" | {method names}}
+    defined = {}  # module -> {name: "function" | "container" | {method names}}
     for name, (tree, _) in modules.items():
         defined[name] = {n.name: ({m.name for m in n.body if isinstance(m, (ast.FunctionDef, ast.AsyncFunctionDef))}
                                   if isinstance(n, ast.ClassDef) else "function")
                          for n in tree.body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))}
+        defined[name].update({_container(n): "container" for n in tree.body if _container(n)})
     users: dict[str, set] = {}
     for name, (tree, package) in modules.items():
         here = name if package else name.rpartition(".")[0]
@@ -136,7 +140,7 @@ def _users() -> dict[str, frozenset]:
                     continue
                 head, _, method = target[1].partition(".")
                 kind = defined[target[0]].get(head)
-                if kind == "function" and not method or isinstance(kind, set) and method in kind:
+                if kind in ("function", "container") and not method or isinstance(kind, set) and method in kind:
                     users.setdefault(f"{target[0]}:{target[1]}", set()).add(user)
 
         own = []
@@ -150,10 +154,22 @@ def _users() -> dict[str, frozenset]:
                     else:
                         own.append(item)
                 own += node.decorator_list + node.bases
+            elif _container(node):
+                refer(f"{name}:{_container(node)}", [node.value])
             else:
                 own.append(node)
         refer(f"{name}:", own)
-    return {k: frozenset(v) for k, v in users.items()}
+    containers = frozenset(f"{m}:{k}" for m, names in defined.items() for k, kind in names.items() if kind == "container")
+    return {k: frozenset(v) for k, v in users.items()}, containers
+
+
+def _container(node) -> str | None:
+    """The name a module-level statement binds to a tuple, list, set or dict display, or None."""
+    target = node.targets[0] if isinstance(node, ast.Assign) and len(node.targets) == 1 else \
+        node.target if isinstance(node, ast.AnnAssign) and node.value is not None else None
+    if isinstance(target, ast.Name) and isinstance(node.value, (ast.Tuple, ast.List, ast.Set, ast.Dict)):
+        return target.id
+    return None
 
 
 def withhold(paths, out: Path) -> tuple[list[tuple[Path, str]], list[str]]:
