@@ -216,3 +216,35 @@ def test_a_copy_hidden_by_a_gc_freeze_is_still_found():
     finally:
         gc.unfreeze()
     assert recs[0]["status"] == "error" and "coursekit's own tournament is not available" in recs[0]["error"], recs[0]
+
+
+def reproduce_by_largest_remainder(fitness, k, rng, survival=0.2):
+    """Sims' counts from the library's public helpers under other names (red team, round 2: 5/5)."""
+    from coursekit.ga.selection import n_survivors, ranking
+    from coursekit.ga.variation import largest_remainder
+
+    f = np.asarray(fitness, dtype=float)
+    survivors = ranking(f)[:n_survivors(f.size, survival)]
+    weights = f[survivors] if f[survivors].sum() > 0 else np.ones(survivors.size)
+    return rng.permutation(np.repeat(survivors, largest_remainder(weights, k)))
+
+
+def roulette_by_sims_select(fitness, k, rng):
+    return ga.sims_select(fitness, k, rng, survival=1.0)  # proportional, everyone surviving (round 2: 2/2)
+
+
+@pytest.mark.parametrize("name, fn, notebook", [
+    ("swimmers.reproduce", reproduce_by_largest_remainder, "08_fitness_and_reproduction"),
+    ("ga.roulette", roulette_by_sims_select, "01_selection"),
+])
+def test_the_librarys_equivalents_under_other_names_are_refused_too(name, fn, notebook):
+    """A check refuses the library functions that do its work under another name, as the grader sets
+    it up (withheld.refused); the library's own evolution keeps them (library_uses)."""
+    from coursekit.grading.withheld import of, refused
+
+    check = checks.get(name)
+    notebook_checks = checks.for_notebook(notebook)
+    recs = run_cases(fn, check.cases(np.random.default_rng(3)), check.output, timeout=20,
+                     refuse=refused(check, notebook_checks))
+    assert {r["status"] for r in recs} == {"error"} and "is not available while your" in recs[0]["error"], recs[0]
+    assert not set(check.library_uses) & set(of(notebook_checks))  # not withheld: the library runs with them

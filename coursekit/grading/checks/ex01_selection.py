@@ -178,11 +178,21 @@ def _truncation_uniform(ctx):
                    f"each should be picked about {_pct(1 / m)} (uniformly, with replacement)")
 
 
+#: Selection schemes of the library that do a graded scheme's work under another name: Sims' scheme
+#: with survival 1 is proportional selection, and its counts come from largest_remainder.
+SIBLINGS = ('coursekit.ga.selection:sims_select', 'coursekit.ga.selection:sims_offspring',
+            'coursekit.ga.variation:largest_remainder')
+
+
 register(Check(
     hints=HINTS.get("ga.truncation", ()),
     name="ga.truncation", function="truncation", params=("fitness", "k", "rng"), points=2.0,
     title="truncation selection", output="indices", cases=_truncation_cases, gates=2,
-    reference=('coursekit.ga.selection:truncation',),
+    # and the library's steps of it, and the scheme that contains it (red team: ranking + n_survivors, sims_select):
+    # refused while truncation runs, kept for the library's own selection
+    reference=('coursekit.ga.selection:truncation', *SIBLINGS, 'coursekit.ga.selection:ranking',
+               'coursekit.ga.selection:n_survivors'),
+    library_uses=(*SIBLINGS, 'coursekit.ga.selection:ranking', 'coursekit.ga.selection:n_survivors'),
     props=(
         ("returns k valid indices", _indices_valid(["basic", "survival", "ceil", "uniform"])),
         ("prefers fitter individuals", _prefers_fit("uniform")),
@@ -290,7 +300,8 @@ register(Check(
     hints=HINTS.get("ga.roulette", ()),
     name="ga.roulette", function="roulette", params=("fitness", "k", "rng"), points=2.0,
     title="roulette-wheel selection", output="indices", cases=_roulette_cases, gates=2,
-    reference=('coursekit.ga.selection:roulette',),
+    reference=('coursekit.ga.selection:roulette', *SIBLINGS),  # sims_select(survival=1) is proportional too
+    library_uses=SIBLINGS,
     props=(
         ("returns k valid indices", _indices_valid(["basic", "dist"])),
         ("prefers fitter individuals", _prefers_fit("dist")),

@@ -77,6 +77,9 @@ def _decode_cases(rng):
                   str(rng.choice(binary)), str(rng.choice(unary))] + [str(s) for s in rng.choice(terms, size=7)],
     }
     fixed.update({f"random{i}": _random_symbols(rng, int(rng.integers(1, 9))) for i in range(12)})
+    # long heads: too many shapes to have been tabulated with the library's karva before grading began
+    # (red team: a lookup table over every head of up to 8 symbols, built in a cell, earned 2/2)
+    fixed.update({f"long{i}": _random_symbols(rng, int(rng.integers(20, 33))) for i in range(3)})
     # "symbols" is the grader's own copy: a function that consumes its argument list in place must
     # not change what the properties compare with (formative checks may run in threads)
     return [{"id": cid, "args": [syms], "symbols": list(syms), "seeds": [0], "max_len": 50_000}

@@ -148,8 +148,10 @@ def _job_meaning(morph):
 register(Check(
     name="brains.resolve", function="resolve", params=("morph", "part", "parent", "children"), points=3.0,
     title="resolving relative ids", output="json", cases=_resolve_cases, gates=2,
-    # the library resolves ids inside build_brain (a closure); the grader's own rule is the one to refuse
-    reference=("coursekit.grading.checks.ex06_wire_a_brain:expected_target",),
+    # the library resolves ids inside build_brain (a closure): refused while resolve runs (red team: build_brain
+    # on a one-neuron creature as an oracle, 3/3), kept for expansion; and the grader's own rule
+    reference=("coursekit.grading.checks.ex06_wire_a_brain:expected_target", "coursekit.creatures.brain:build_brain"),
+    library_uses=("coursekit.creatures.brain:build_brain",),
     props=(
         ("returns a part index, 'brain' or None", _resolve_valid),
         ("parent and child ids follow the tree", _resolve_group(("parent", "child"), "-1 and m >= 1 name the parent and the children",

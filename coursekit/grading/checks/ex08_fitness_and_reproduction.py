@@ -506,7 +506,12 @@ register(Check(
     title="Sims' survivors and offspring", output="indices", cases=_reproduce_cases, gates=2,
     reference=("coursekit.ga.selection:sims_select", "coursekit.ga.selection:sims_offspring",
                "coursekit.grading.checks.ex08_fitness_and_reproduction:survivors_of",
-               "coursekit.grading.checks.ex08_fitness_and_reproduction:quotas"),
+               "coursekit.grading.checks.ex08_fitness_and_reproduction:quotas",
+               # Sims' counts under other names, refused while reproduce runs (red team: ranking + n_survivors +
+               # largest_remainder, or ga.Variation as the selector, 5/5); the library's evolution uses them
+               "coursekit.ga.variation:largest_remainder", "coursekit.ga.selection:ranking", "coursekit.ga.selection:n_survivors"),
+    library_uses=("coursekit.ga.variation:largest_remainder", "coursekit.ga.selection:ranking",
+                  "coursekit.ga.selection:n_survivors"),
     props=(
         ("returns k valid indices", _indices_valid),
         ("only the survivors reproduce", _only_survivors),
