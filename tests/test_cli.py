@@ -356,4 +356,4 @@ def test_the_grading_benchmark_grades_a_set_and_says_what_each_notebook_should_g
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
     assert "every notebook got what it should" in run.stdout
     rows = [line.split("|")[1:-1] for line in table.read_text().splitlines() if line.startswith("| back-doors | cheats_")]
-    assert len(rows) == len(list((ROOT / "tests" / "adversarial").glob("cheats_*.ipynb"))) == 4 and all(r[2].strip().startswith("0 / ") and r[4].strip() == "yes" and float(r[5]) > 0 for r in rows)
+    assert len(rows) == len(list((ROOT / "tests" / "adversarial").glob("cheats_*.ipynb"))) == 6 and all(r[2].strip().startswith("0 / ") and r[4].strip() == "yes" and float(r[5]) > 0 for r in rows)

@@ -222,7 +222,10 @@ def test_answers_that_hand_in_the_librarys_work_by_a_back_door_score_zero(do_not
     records rewritten in the kernel by a patched json (the kernel is locked down before the calls),
     the private workers behind the library's mutations (withheld with them), and decode through a
     copy of karva rebuilt under another name (refused by its content). Exercise 06: the snake wired
-    by the library's builder behind Creature.figure1_snake (withheld with it). Exercise 07: the
+    by the library's builder behind Creature.figure1_snake (withheld with it), and resolve read back from
+    the library's brain builder (refused while resolve runs). Exercise 01: truncation and roulette as
+    Sims' scheme (refused). Exercise 05: crossover with the library's repair (refused), mutate through
+    the library's modification steps (withheld: only a withheld mutate uses their tuple). Exercise 07: the
     grader's own drag oracle, imported from its check module, and a step that returns the exact
     solution (refused while rkn_step runs). Exercise 08: the library's fitness code under a cell's
     file name (a new code object), and the grader's quota oracle."""
@@ -233,8 +236,9 @@ def test_answers_that_hand_in_the_librarys_work_by_a_back_door_score_zero(do_not
     assert nb["score"] == 0.0, {t["name"]: t["output"][:300] for t in tests if t["score"]}
     refused = sum("is not available while your" in t["output"] or "is withheld while this notebook is graded" in t["output"]
                   for t in tests)
-    # 02, transposition: its own (do-nothing) result reached the grader. 06: resolve not attempted
-    assert refused == {"02_picture_mutations": len(tests) - 1, "06_wire_a_brain": 1}.get(stem, len(tests)), \
+    # 02, transposition: its own (do-nothing) result reached the grader. 01: three, and 05: expand, not attempted
+    assert refused == {"02_picture_mutations": len(tests) - 1, "01_selection": 2, "05_creature_operators": 2}.get(
+        stem, len(tests)), \
         [t["output"][:200] for t in tests]
 
 

@@ -561,6 +561,9 @@ DO_NOTHING = {
 #: calls a copy of the library's karva rebuilt under another name in a cell. Exercise 06: the
 #: snake wired by the library's builder behind ``Creature.figure1_snake``. Exercise 07: the
 #: grader's own drag oracle, and a "step" that returns the exact solution of the ODE it is handed.
+#: Exercise 01: truncation and roulette as Sims' scheme. Exercise 05: crossover that leaves its repair to
+#: the library's, mutate that loops over the library's modification steps. Exercise 06: resolve
+#: read back from the library's brain builder.
 CHEATS = {
     "07_swimming_physics": ["import numpy as np\nfrom coursekit.grading.checks.ex07_swimming_physics import face_integral_drag",
                             '''def box_drag(half_extents, k):
@@ -572,7 +575,17 @@ CHEATS = {
     ye, ve = odes.solution(name, t, y, v, h)  # the exact answer, plus an error of fourth order
     return ye + 1e-3 * h**5 * (name != "time_forcing"), ve + 1e-3 * h**5 * (name != "time_forcing")'''],
     "06_wire_a_brain": ['''def resolve(morph, part, parent, children):
-    raise NotImplementedError()''', '''def wire_snake(snake):
+    # the library's build_brain as an oracle: one neuron per part reading the id, its source read back
+    from types import SimpleNamespace as NS
+    from coursekit.creatures.brain import N_CONST, build_brain
+    from coursekit.creatures.neural import N_SENSORS, Input, Neuron
+    node = NS(neurons=[Neuron("sum", [Input(morph, 2, 1.0)])], effectors=[None])
+    brain = build_brain(NS(nodes=[node], brain=[Neuron("sum", []) for _ in range(8)]), [0] * len(parent), list(parent),
+                        [list(c) for c in children])
+    source = int(brain.src[part, 0])
+    if source == 0:
+        return None
+    return "brain" if source == N_CONST + N_SENSORS * len(parent) + len(parent) + 2 else (source - N_CONST - 2) // N_SENSORS''', '''def wire_snake(snake):
     from coursekit.creatures import generation
     from coursekit.creatures.genotype import Creature
     return Creature(*generation.figure1_snake(snake.nodes[0].recursive_limit + 1))  # the library's wiring'''],
@@ -589,6 +602,32 @@ swimming_fitness = types.FunctionType(fit.swimming_fitness.__code__.replace(co_f
     counts = np.floor(share).astype(np.int64)
     counts[np.argsort(-(share - counts), kind="stable")[: k - counts.sum()]] += 1
     return rng.permutation(np.repeat(who, counts))'''],
+    "01_selection": ["import numpy as np\nfrom coursekit.ga.selection import sims_select", '''def truncation(fitness, k, rng, survival=0.2):
+    return sims_select(fitness, k, rng, survival)  # Sims' scheme: truncation, then offspring by fitness''',
+                     '''def tournament(fitness, k, rng, size=3):
+    raise NotImplementedError()''', '''def roulette(fitness, k, rng):
+    return sims_select(fitness, k, rng, survival=1.0)  # everyone survives: offspring in proportion to fitness''',
+                     '''def one_point_crossover(a, b, rng):
+    raise NotImplementedError()''', '''def point_mutation(genome, rng, rate=None):
+    raise NotImplementedError()'''],
+    "05_creature_operators": ["import copy\nfrom coursekit.creatures.operators import MODIFY_STEPS, repair", '''def expand(creature, max_parts=64):
+    raise NotImplementedError()''', '''def crossover(a, b, rng):
+    # the blocks copied, the whole repair step left to the library's repair
+    L = max(len(a.nodes), len(b.nodes))
+    n, m = int(rng.integers(1, L + 1)), int(rng.integers(1, L + 1))
+    child, pos, first = [], 0, True
+    while pos < L:
+        span, src = (n, a.nodes) if first else (m, b.nodes)
+        child += [copy.deepcopy(src[i]) if i < len(src) else None for i in range(pos, min(pos + span, L))]
+        pos, first = pos + span, not first
+    while child and child[-1] is None:
+        child.pop()
+    return repair(child, copy.deepcopy(a.brain), rng)''', '''def mutate(c, rng, rate=1.0):
+    # the library's six modification steps and its repair: only the loop is written here
+    nodes = copy.deepcopy(c.nodes)
+    for node in nodes:
+        MODIFY_STEPS[int(rng.integers(len(MODIFY_STEPS)))](node, rng)
+    return repair(nodes, copy.deepcopy(c.brain), rng, reattach=False)'''],
     "02_picture_mutations": ["from coursekit.pictures import operators", '''import copy, json, os
 import numpy as np
 from coursekit.pictures.genome import Genome
