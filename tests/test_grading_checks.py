@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from coursekit.grading import checks, evaluate, runner, stats
-from coursekit.grading.formative import check as formative_check
+from coursekit.grading.formative import check as formative_check, format_judgement
 from coursekit.grading.channel import read_results, validate_call
 from coursekit.grading.grader import make_plan
 from solution_cells import solution_functions
@@ -441,3 +441,42 @@ def test_the_report_gives_one_note_per_distinct_cell_error_and_keeps_skipped_cel
     notes, problems = read_report({"format": "coursekit.execution/1", "harvested": True, "cells": cells})
     assert notes == [f"cells 5, 7, 9: {withheld}", "cell 11: error: ValueError: bad"]
     assert problems == ["cell 13: skipped: the notebook's time ran out"]
+
+
+# -- one easy part of the job is not nearly full marks ----------------------------------------------
+
+
+def crossover_fixed_cut(a, b, rng):
+    return np.concatenate([a[:1], b[1:]]), np.concatenate([b[:1], a[1:]])  # always after the first gene
+
+
+def fitness_final_distance(com, times):
+    return np.linalg.norm(com[:, -1] - com[:, 0], axis=1) / (times[-1] - times[0])  # no late weighting
+
+
+def mutate_force_only(c, rng, rate=1.0):
+    from coursekit.creatures.genotype import FORCES
+
+    child = c.copy()
+    if rng.random() < min(1.0, rate):
+        node = child.nodes[int(rng.integers(len(child.nodes)))]
+        others = [f for f in FORCES if abs(f - node.force) > 1e-9]
+        node.force = others[int(rng.integers(len(others)))]
+    return child
+
+
+@pytest.mark.parametrize("name, fn, prop, weight, at_most", [
+    ("ga.one_point_crossover", crossover_fixed_cut, "cut point uniform", 3, 0.75),
+    ("swimmers.fitness", fitness_final_distance, "one push and coasting scores below a steady swimmer", 3, 0.78),
+    ("creatures.mutate", mutate_force_only, "deletes, adds and modifies in all six steps", 4, 0.7),
+])
+def test_the_operators_point_weighs_more_than_one_property(name, fn, prop, weight, at_most):
+    """Red team, round 2: answers that did one easy part of the job -- a fixed cut, the final distance
+    without Sims' late weighting, one kind of change -- earned 86-91 %; the property that is the
+    operator's point counts several times, and says so."""
+    j = evaluate(name, fn, seed=7)
+    failed = [v for v in j.verdicts if not v.passed]
+    assert [v.prop for v in failed] == [prop] and failed[0].weight == weight
+    total = sum(v.weight for v in j.verdicts)
+    assert j.score == pytest.approx(j.check.points * (total - weight) / total, abs=1e-4) and j.score <= at_most * j.check.points
+    assert f"{prop} (counts {weight}x)" in format_judgement(j)

@@ -60,7 +60,7 @@ def format_judgement(j: checks.Judgement) -> str:
         return f"{head}: {j.verdicts[0].message}"
     n = sum(v.passed for v in j.verdicts)
     lines = [f"{head}: {n}/{len(j.verdicts)} properties hold" + (" -- well done!" if j.passed else "")]
-    lines += [f"  {'✓' if v.passed else '✗'} {v.prop}: {v.message}" for v in j.verdicts]
+    lines += [f"  {'✓' if v.passed else '✗'} {v.label}: {v.message}" for v in j.verdicts]
     if j.printed:
         lines.append("  your function printed (first test input):\n    " + j.printed.rstrip().replace("\n", "\n    "))
     return "\n".join(lines)

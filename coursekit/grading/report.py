@@ -70,7 +70,7 @@ def clean(text) -> str:
 def _said(j: Judgement, v) -> str:
     """One verdict as a line: its property and message; an unattempted function's message alone
     ("not attempted yet: ..."), which needs no property before it."""
-    return clean(v.message) if not j.attempted else f"{v.prop}: {clean(v.message)}"
+    return clean(v.message) if not j.attempted else f"{v.label}: {clean(v.message)}"
 
 
 def _messages(j: Judgement) -> str:

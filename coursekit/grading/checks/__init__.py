@@ -43,6 +43,12 @@ class Verdict:
     prop: str
     passed: bool
     message: str
+    weight: int = 1  #: how many properties it counts for in the score (Check.weights)
+
+    @property
+    def label(self) -> str:
+        """The property's name, with its weight when it counts for more than one."""
+        return self.prop if self.weight == 1 else f"{self.prop} (counts {self.weight}x)"
 
 
 @dataclass(frozen=True)
@@ -75,6 +81,10 @@ class Check:
         library_uses: those of ``reference`` the library itself calls while the exercise's
             *other* functions are graded (the picture operators decode genomes with ``karva``):
             the sandbox keeps them, so they are only refused while this check's function runs.
+        weights: ``((property, weight), ...)``: properties that count for more than one in the
+            score -- the operator's point (its randomness, every kind of change, the rule that
+            stops an exploit), so that an answer doing one easy part of the job does not earn
+            nearly full marks. The others count 1, and so does "runs".
     """
 
     name: str
@@ -89,6 +99,7 @@ class Check:
     reference: tuple = ()
     hints: tuple = ()
     library_uses: tuple = ()
+    weights: tuple = ()
 
     def __post_init__(self):
         if not set(self.library_uses) <= set(self.reference):
@@ -97,6 +108,9 @@ class Check:
             raise ValueError(f"check {self.name!r}: gates must be an int in 1..{max(1, len(self.props))} "
                              f"(at most the number of props), got {self.gates!r}")
         names = {p for p, _ in self.props}
+        odd = [(p, w) for p, w in self.weights if p not in names or type(w) is not int or w < 1]
+        if odd:
+            raise ValueError(f"check {self.name!r}: weights must name properties with an int weight >= 1, got {odd}")
         unknown = [p for p, _ in self.hints if p not in names]
         if unknown:
             raise ValueError(f"check {self.name!r}: hints name unknown properties {unknown}; properties: {sorted(names)}")
@@ -235,8 +249,9 @@ def judge(check: Check, cases: list, records: dict) -> Judgement:
                 ok, msg = False, f"could not be checked on this output ({type(exc).__name__})"
             if not ok and i < check.gates:
                 closed = prop
-        verdicts.append(Verdict(prop, bool(ok), msg))
-    score = 0.0 if closed is not None else check.points * sum(v.passed for v in verdicts) / len(verdicts)
+        verdicts.append(Verdict(prop, bool(ok), msg, dict(check.weights).get(prop, 1)))
+    total = sum(v.weight for v in verdicts)
+    score = 0.0 if closed is not None else check.points * sum(v.weight for v in verdicts if v.passed) / total
     return Judgement(check, True, verdicts, round(score, 4))
 
 

@@ -400,6 +400,7 @@ register(Check(
         ("deterministic for a seed", deterministic("basic")),
         ("inputs unchanged", unmodified({0: "a", 1: "b"}, COPY_ARRAY)),
     ),
+    weights=(("cut point uniform", 3),),  # a fixed cut is no GA operator, as in exercise 03
 ))
 
 

@@ -132,6 +132,7 @@ register(Check(
         ("deterministic for a seed", deterministic("basic")),
         ("inputs unchanged", unmodified({0: "a", 1: "b"}, NEW_GENOME, what="the genome {name}")),
     ),
+    weights=(("random string pair and cut position", 3),),  # a fixed cut is no GA operator (red team: 89 %)
 ))
 
 
@@ -203,6 +204,7 @@ register(Check(
         ("deterministic for a seed", deterministic("basic")),
         ("inputs unchanged", unmodified({0: "a", 1: "b"}, NEW_GENOME, what="the genome {name}")),
     ),
+    weights=(("arbitrary positions", 3),),  # always the same positions: 88 % before
 ))
 
 
@@ -331,6 +333,7 @@ register(Check(
         ("deterministic for a seed", deterministic("basic")),
         ("inputs unchanged", unmodified({0: "a", 1: "b"}, NEW_GENOME, what="the genome {name}")),
     ),
+    weights=(("u is random", 3),),  # always u = 0.5: 90 % before
 ))
 
 exercise("03_picture_recombination", ["pictures.crossover", "pictures.random_copy", "pictures.random_interpolation"])

@@ -78,6 +78,7 @@ register(Check(
         ("mirrored copies and force sign", expansion.mirrors),
         ("part cap respected", expansion.capped),
     ),
+    weights=(("children match the genotype (links, symmetry, recursion)", 3),),  # one level only: 78 % before
 ))
 
 
@@ -100,6 +101,7 @@ register(Check(
         ("deterministic for a seed", deterministic("basic", parse=json.loads)),
         ("inputs unchanged", unmodified({0: "a", 1: "b"}, COPY_OBJECT, what="the creature {name}")),
     ),
+    weights=(("n and m are random", 3),),  # fixed blocks: 89 % before
 ))
 
 
@@ -119,6 +121,7 @@ register(Check(
         ("deterministic for a seed", deterministic("basic", parse=json.loads)),
         ("input unchanged", unmodified({0: "c"}, COPY_OBJECT, what="the creature {name}")),
     ),
+    weights=(("deletes, adds and modifies in all six steps", 4),),  # one kind of change only: 89 % before
 ))
 
 
