@@ -144,6 +144,24 @@ def test_the_trail_draws_the_path_so_far():
     assert orange(next(clip.film([len(clip) - 1]))[1]) < 10
 
 
+def test_the_grid_stays_in_the_picture_when_a_swimmer_rises_out_of_a_floors_view():
+    """A champion that swims upwards climbs metres above any floor below its start: the grid is then a
+    wall behind it holding its path, in view in every frame; a swimmer that stays level keeps a floor."""
+    from coursekit.creatures.champions import hall_of_fame
+
+    riser = next(c.creature for c in hall_of_fame() if c.name.startswith("Sims-scale seed-2"))
+    snake = Creature.figure1_snake()
+    r = simulate([riser, snake], 10.0, record_every=20)
+    assert np.ptp(r.com[0][:, 2]) > 3.0  # it climbs
+    grid = lambda img: (np.abs(img.astype(int) - (127, 167, 201)).sum(axis=2) < 80).mean()  # noqa: E731  (shaded lines)
+    clip = Clip(riser, r.trajectory[0], frame_times=r.frame_times, size=(160, 120), label=False, trail=False)
+    assert abs(clip.floor[1][2]) < 0.9  # not a floor
+    assert all(grid(img) > 0.02 for _, img in clip.film([0, len(clip) // 2, len(clip) - 1]))
+    level = Clip(snake, r.trajectory[1], frame_times=r.frame_times, size=(160, 120), label=False, trail=False)
+    assert np.array_equal(level.floor[1], [0.0, 0.0, 1.0])
+    assert all(grid(img) > 0.02 for _, img in level.film([0, len(level) - 1]))
+
+
 def test_the_key_frame_strip_is_figure_3(tmp_path):
     snake = Creature.figure1_snake()
     r = simulate([snake], 2.0, record_every=3)

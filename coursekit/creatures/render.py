@@ -392,7 +392,8 @@ class Clip:
         size, joint_axes, background, azimuth, elevation: as for :func:`render`.
         follow: seconds the camera's path is smoothed over (0: it follows the centre of mass exactly).
         trail: draw the path of the centre of mass so far.
-        floor: draw the grid below the creature (its spacing in metres is 1, 2 or 5 times a power of ten).
+        floor: draw the grid fixed in the water: below the creature, or behind it when it rises or
+            sinks out of a floor's view (its spacing in metres is 1, 2 or 5 times a power of ten).
         label: write the time (and the grid spacing) in a corner of every frame.
         margin: fraction of the picture's height or width the creature may span.
     """
@@ -433,12 +434,31 @@ class Clip:
                                                    view_angle=scene.pl.camera.view_angle, margin=margin)
         finally:
             scene.close()
-        everything = np.concatenate(self.points)
-        lo, hi = everything.min(0), everything.max(0)
         self.reach = float(max(np.ptp(np.concatenate(self.points[:1]), axis=0).max(), 0.05))
         self.grid_step = _nice_step(self.reach / 3)
-        self.floor = (lo, hi) if floor else None
+        self.floor = self._grid() if floor else None
         self.trail = trail
+
+    def _grid(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(centre, normal, side)`` of the square grid fixed in the water: a floor below the whole
+        swim, or -- for a swimmer that rises or sinks by more than its own size, which would leave a
+        floor out of the picture -- a wall behind it that holds its path (the plane through the path's
+        direction that faces the camera best)."""
+        everything = np.concatenate(self.points)
+        lo, hi = everything.min(0), everything.max(0)
+        pad = 1.5 * self.reach
+        path = self.com[-1] - self.com[0]
+        if np.ptp(self.com[:, 2]) <= self.reach or np.linalg.norm(path) < 1e-9:
+            side = float(max(hi[0] - lo[0], hi[1] - lo[1]) + 2 * pad)
+            centre = np.array([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), lo[2] - 0.3 * self.reach])
+            return centre, np.array([0.0, 0.0, 1.0]), side
+        along = path / np.linalg.norm(path)
+        view = self.centre - self.eye  # from the camera into the picture
+        normal = view - view.dot(along) * along
+        normal = normal / np.linalg.norm(normal) if np.linalg.norm(normal) > 1e-9 else np.cross(along, [0.0, 0.0, 1.0])
+        behind = max(float(((p - f) @ normal).max()) for p, f in zip(self.points, self.follow)) + 0.3 * self.reach
+        centre = 0.5 * (self.com[0] + self.com[-1]) + behind * normal
+        return centre, normal, float(np.ptp(everything, axis=0).max() + 2 * pad)
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -463,13 +483,10 @@ class Clip:
         try:
             width = _line_width(self.size)
             if self.floor is not None:
-                lo, hi = self.floor
-                step, pad = self.grid_step, 1.5 * self.reach
-                x0, y0 = (np.floor((lo[:2] - pad) / step) * step)
-                x1, y1 = (np.ceil((hi[:2] + pad) / step) * step)
-                nx, ny = max(int(round((x1 - x0) / step)), 1), max(int(round((y1 - y0) / step)), 1)
-                grid = pv.Plane(center=(0.5 * (x0 + x1), 0.5 * (y0 + y1), float(lo[2]) - 0.3 * self.reach),
-                                direction=(0, 0, 1), i_size=x1 - x0, j_size=y1 - y0, i_resolution=nx, j_resolution=ny)
+                centre, normal, side = self.floor
+                n = max(int(np.ceil(side / self.grid_step)), 1)
+                grid = pv.Plane(center=centre, direction=normal, i_size=n * self.grid_step, j_size=n * self.grid_step,
+                                i_resolution=n, j_resolution=n)
                 scene.pl.add_mesh(grid, style="wireframe", color="#7fa7c9", line_width=1, render=False)
             trail = None
             if self.trail and len(self) > 1:
