@@ -187,10 +187,14 @@ def test_foreign_or_truncated_notebook_scores_zero_with_a_note(tmp_path):
 
 def test_usage_errors_exit_2_and_write_nothing(tmp_path):
     out = tmp_path / "r.json"
-    for args in (["nb/99_unknown.ipynb"], ["x/01_selection.ipynb", "--timeout", "0"]):
+    unknown = tmp_path / "99_unknown.ipynb"
+    nbformat.write(nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("x = 1")]), unknown)  # no exercise metadata
+    for args, says in (([str(unknown)], "no exercise is registered for notebook '99_unknown'"),
+                       (["x/01_selection.ipynb"], "no such notebook file: 'x/01_selection.ipynb'"),
+                       ([str(unknown), "--timeout", "0"], "--timeout must be a positive finite number")):
         proc = subprocess.run([sys.executable, "-m", "coursekit", "grade", *args, "--json", str(out)],
                               capture_output=True, text=True, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
-        assert proc.returncode == 2 and "coursekit grade:" in proc.stderr and not out.exists()
+        assert proc.returncode == 2 and says in proc.stderr and not out.exists(), proc.stderr
 
 
 @pytest.fixture(scope="module")

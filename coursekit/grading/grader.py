@@ -317,6 +317,10 @@ def main(args: argparse.Namespace) -> int:
         if v is not None and not (v > 0 and (isinstance(v, int) or math.isfinite(v))):
             print(f"coursekit grade: --{name.replace('_', '-')} must be a positive finite number, got {v}", file=sys.stderr)
             return 2
+    missing = [nb for nb in args.notebooks if not os.path.isfile(nb)]
+    if missing:  # a mistyped path, before any notebook is graded
+        print(f"coursekit grade: no such notebook file: {', '.join(map(repr, missing))}", file=sys.stderr)
+        return 2
     try:
         exercises = [exercise_of(nb, getattr(args, "exercise", None)) for nb in args.notebooks]
     except ValueError as exc:
