@@ -106,9 +106,10 @@ def _users() -> tuple[dict[str, frozenset], frozenset]:
                          for n in tree.body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))}
         defined[name].update({_container(n): "container" for n in tree.body if _container(n)})
     users: dict[str, set] = {}
+    scopes = {}
     for name, (tree, package) in modules.items():
         here = name if package else name.rpartition(".")[0]
-        scope = {k: (name, k) for k in defined[name]}  # local name -> (module, attribute), or (module, None)
+        scopes[name] = scope = {k: (name, k) for k in defined[name]}  # local name -> (module, attribute) or (module, None)
         for node in ast.walk(tree):
             if isinstance(node, ast.ImportFrom):
                 base = node.module or ""
@@ -122,6 +123,22 @@ def _users() -> tuple[dict[str, frozenset], frozenset]:
                 for a in node.names:
                     if a.asname and a.name in modules:
                         scope[a.asname] = (a.name, None)
+
+    def origin(module, attr):
+        """Where a name of ``module`` is defined: through re-exports (``from .operators import mutate``
+        in a package's ``__init__``), to the module that defines it."""
+        for _ in range(8):
+            head, dot, rest = attr.partition(".")
+            if head in defined.get(module, {}) or (module, head) == scopes.get(module, {}).get(head, (module, head)):
+                return module, attr
+            module, head = scopes[module][head]
+            if head is None:
+                return None
+            attr = head + dot + rest
+        return None
+
+    for name, (tree, package) in modules.items():
+        scope = scopes[name]
 
         def refer(user, body, cls=None):
             for node in (n for part in body for n in ast.walk(part)):
@@ -137,6 +154,9 @@ def _users() -> tuple[dict[str, frozenset], frozenset]:
                         module, attr = scope[owner]
                         target = (module, node.attr) if attr is None else (module, f"{attr}.{node.attr}")
                 if target is None or target[1] is None or target[0] not in defined:
+                    continue
+                target = origin(*target)
+                if target is None:
                     continue
                 head, _, method = target[1].partition(".")
                 kind = defined[target[0]].get(head)
