@@ -101,3 +101,15 @@ def test_a_graded_functions_own_helpers_are_withheld_with_it():
     # a helper shared with a function that is not withheld stays
     assert helpers({"coursekit.pictures.operators:transposition"}) >= {"coursekit.pictures.operators:_transposition"}
     assert "coursekit.pictures.operators:_mutated" not in helpers({"coursekit.pictures.operators:transposition"})
+
+
+def test_the_call_graph_sees_uses_through_re_exports_and_module_level_tables():
+    from coursekit.grading.withheld import _users
+
+    users, containers = _users()
+    # evolution.py imports simulate through the package (from coursekit.creatures import ...): still a use
+    assert "coursekit.creatures.evolution:_swim" in users["coursekit.creatures.simulate:simulate"]
+    # a module-level table of functions is a node of its own, used by what reads it
+    assert "coursekit.creatures.operators:MODIFY_STEPS" in containers
+    assert users["coursekit.creatures.operators:_mutate_size"] == {"coursekit.creatures.operators:MODIFY_STEPS"}
+    assert "coursekit.creatures.operators:mutate" in users["coursekit.creatures.operators:MODIFY_STEPS"]
