@@ -35,7 +35,8 @@ from pathlib import Path
 
 #: What a withheld function says when called inside the sandbox.
 MESSAGE = ("coursekit's own {name} is withheld while this notebook is graded: the graded function must do the "
-           "work itself (the rest of the library may be used)")
+           "work itself (the rest of the library may be used); a cell that uses it stops here, which costs nothing: "
+           "only the graded functions are scored")
 
 
 def _definition(tree, qualname):
