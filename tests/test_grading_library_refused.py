@@ -121,6 +121,22 @@ def renamed_copy(fitness, k, rng, size=3):
     return RENAMED(fitness, k, rng, size)  # another code object, made "in a cell": the same content
 
 
+_CODE = ga.tournament.__code__
+PADDED = types.FunctionType(_CODE.replace(co_consts=_CODE.co_consts + ("x",), co_filename="<cell>"), ga.tournament.__globals__)
+_SOURCE = inspect.getsource(ga.tournament).replace("Pick k parents", "My k parents").replace("contestants", "who")
+_NS = dict(ga.tournament.__globals__)
+exec(compile(_SOURCE, "<cell>", "exec"), _NS)  # its docstring and a local variable's name changed, made before grading
+RETYPED = _NS["tournament"]
+
+
+def padded_copy(fitness, k, rng, size=3):
+    return PADDED(fitness, k, rng, size)  # red team, round 3: an unused constant added, then a new function
+
+
+def retyped_copy(fitness, k, rng, size=3):
+    return RETYPED(fitness, k, rng, size)  # red team, round 3: recompiled with another docstring
+
+
 def copied_earlier(fitness, k, rng, size=3):
     return COPY(fitness, k, rng, size)
 
@@ -150,6 +166,8 @@ def in_a_fresh_python(fitness, k, rng, size=3):
 @pytest.mark.parametrize("fn, message", [
     (copied_earlier, "coursekit's own tournament is not available while your copied_earlier is graded"),
     (renamed_copy, "coursekit's own tournament is not available while your renamed_copy is graded"),
+    (padded_copy, "coursekit's own tournament is not available while your padded_copy is graded"),
+    (retyped_copy, "coursekit's own tournament is not available while your retyped_copy is graded"),
     (rebuilt_from_saved_code, "function.__new__ is not available while a function is graded"),
     (compiled_from_source, "coursekit's own code of the graded functions may not be compiled or loaded afresh"),
     (loaded_afresh, "coursekit's own code of the graded functions may not be compiled or loaded afresh"),

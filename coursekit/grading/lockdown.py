@@ -98,12 +98,14 @@ class Refusing:
         # notebook) are invisible to get_referrers: bring them back first, or a copy made
         # before a freeze would keep the library's code.
         gc.unfreeze()
-        # A copy rebuilt from the code under another name (code.replace, then a new function, in a cell
-        # before grading) is another code object with the same content: stubbed too.
+        # A copy rebuilt from the code in a cell before grading (code.replace with another name, file,
+        # docstring or extra constants, or its source compiled again with such changes) is another code
+        # object that computes the same: stubbed too. The cheap part of the key picks the candidates.
         same = {_content(code): stub for _, code, stub in self.saved}
+        names = {code.co_names for _, code, _ in self.saved}
         for holder in gc.get_objects():
             code = getattr(holder, "__code__", None) if type(holder) is type(_content) else None
-            if code is not None and code.co_filename != STUB and _content(code) in same:
+            if code is not None and code.co_filename != STUB and code.co_names in names and _content(code) in same:
                 holder.__code__ = same[_content(code)]
         for obj, code, stub in self.saved:
             obj.__code__ = stub
@@ -121,10 +123,15 @@ class Refusing:
 
 
 def _content(code):
-    """What a code object computes, whatever its name, file or line numbers: its instructions, the
-    names they use and its constants (nested code objects by their content too)."""
-    return (code.co_code, code.co_names,
-            tuple(_content(c) if type(c) is type(code) else (type(c).__name__, repr(c)) for c in code.co_consts))
+    """What a code object computes, whatever its name, file, line numbers, docstring, local variable
+    names, unused constants or the compiler's choice of instructions (one Python compiles a method
+    call as LOAD_METHOD, another as LOAD_ATTR): its arguments, the global and attribute names it
+    uses in order, and the constants it loads in order (nested code by its content too)."""
+    import dis
+
+    loaded = tuple(_content(i.argval) if type(i.argval) is type(code) else (type(i.argval).__name__, repr(i.argval))
+                   for i in dis.get_instructions(code) if i.opcode in dis.hasconst)
+    return code.co_argcount, code.co_kwonlyargcount, code.co_names, loaded
 
 
 #: Audit events refused in a locked-down process: starting programs (a fresh Python would import
