@@ -95,9 +95,10 @@ def test_a_graded_functions_own_helpers_are_withheld_with_it():
     assert "coursekit.creatures.generation:paddle_turtle" not in of(registry.for_notebook("06_wire_a_brain"))
     physics = registry.for_notebook("07_swimming_physics")
     assert "coursekit.creatures.physics.integrate:_rk4" in of(physics)
-    step = registry.get("physics.rkn_step")
-    assert "coursekit.creatures.physics.odes:solution" in refused(step, physics)  # the notebook plots with it
-    assert "coursekit.creatures.physics.odes:solution" not in of(physics)
+    assert "coursekit.creatures.physics.odes:solution" in of(physics)  # the notebook's reference is SciPy's
+    reproduce, fitness = registry.get("swimmers.reproduce"), registry.for_notebook("08_fitness_and_reproduction")
+    assert "coursekit.ga.variation:largest_remainder" in refused(reproduce, fitness)  # evolution needs it:
+    assert "coursekit.ga.variation:largest_remainder" not in of(fitness)              # refused, not withheld
     # a helper shared with a function that is not withheld stays
     assert helpers({"coursekit.pictures.operators:transposition"}) >= {"coursekit.pictures.operators:_transposition"}
     assert "coursekit.pictures.operators:_mutated" not in helpers({"coursekit.pictures.operators:transposition"})

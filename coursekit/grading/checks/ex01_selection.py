@@ -179,9 +179,11 @@ def _truncation_uniform(ctx):
 
 
 #: Selection schemes of the library that do a graded scheme's work under another name: Sims' scheme
-#: with survival 1 is proportional selection, and its counts come from largest_remainder.
+#: with survival 1 is proportional selection (withheld: nothing in the exercise needs it), and its
+#: counts come from largest_remainder, which the notebook's Variation needs (refused while graded).
 SIBLINGS = ('coursekit.ga.selection:sims_select', 'coursekit.ga.selection:sims_offspring',
             'coursekit.ga.variation:largest_remainder')
+NEEDED = ('coursekit.ga.variation:largest_remainder',)
 
 
 register(Check(
@@ -192,7 +194,7 @@ register(Check(
     # refused while truncation runs, kept for the library's own selection
     reference=('coursekit.ga.selection:truncation', *SIBLINGS, 'coursekit.ga.selection:ranking',
                'coursekit.ga.selection:n_survivors'),
-    library_uses=(*SIBLINGS, 'coursekit.ga.selection:ranking', 'coursekit.ga.selection:n_survivors'),
+    library_uses=(*NEEDED, 'coursekit.ga.selection:ranking', 'coursekit.ga.selection:n_survivors'),
     props=(
         ("returns k valid indices", _indices_valid(["basic", "survival", "ceil", "uniform"])),
         ("prefers fitter individuals", _prefers_fit("uniform")),
@@ -301,7 +303,7 @@ register(Check(
     name="ga.roulette", function="roulette", params=("fitness", "k", "rng"), points=2.0,
     title="roulette-wheel selection", output="indices", cases=_roulette_cases, gates=2,
     reference=('coursekit.ga.selection:roulette', *SIBLINGS),  # sims_select(survival=1) is proportional too
-    library_uses=SIBLINGS,
+    library_uses=NEEDED,
     props=(
         ("returns k valid indices", _indices_valid(["basic", "dist"])),
         ("prefers fitter individuals", _prefers_fit("dist")),

@@ -87,10 +87,9 @@ register(Check(
     name="creatures.crossover", function="crossover", params=("a", "b", "rng"), points=4.0,
     title="LR recombination", output="json", cases=recombination.make_cases, gates=2,
     # and the library's other recombination and its repair step (red team: graft 2.67/4, a block loop + repair 4/4),
-    # refused while crossover runs; the exercise's evolution grafts with them
+    # withheld: the exercise's evolution runs on the student's operators
     reference=('coursekit.creatures.operators:crossover', 'coursekit.creatures.operators:graft',
                'coursekit.creatures.operators:repair'),
-    library_uses=('coursekit.creatures.operators:graft', 'coursekit.creatures.operators:repair'),
     props=(
         ("returns a valid creature", valid_creatures(recombination.CASES)),
         ("the child holds nodes of both parents", recombination.mixes),
@@ -110,7 +109,6 @@ register(Check(
     name="creatures.mutate", function="mutate", params=("c", "rng"), points=4.0,
     title="creature mutation", output="json", cases=mutation.make_cases, gates=2,
     reference=('coursekit.creatures.operators:mutate', 'coursekit.creatures.operators:repair'),
-    library_uses=('coursekit.creatures.operators:repair',),
     props=(
         ("returns a valid creature", valid_creatures(mutation.CASES)),
         ("changes the creature", mutation.changes),

@@ -214,6 +214,7 @@ register(Check(
         ("never adds energy", _drag_dissipative),
         ("inputs unchanged", unmodified({0: "half_extents"}, NEW_ARRAYS)),
     ),
+    weights=(("turning drag matches the face integral (k = 1)", 4),),  # no turning drag at all kept 88 % (round 3)
 ))
 
 
@@ -357,10 +358,8 @@ register(Check(
     name="physics.rkn_step", function="rkn_step", params=("f", "t", "y", "v", "h"), points=6.0,
     title="one Runge-Kutta-Nystrom step", output="array_pair", cases=_rkn_cases, gates=2,
     # the library's other fourth-order step, and the exact solutions the error is measured against
-    # (the notebook plots its own step's error with them: refused while rkn_step runs, not withheld)
     reference=('coursekit.creatures.physics.integrate:_nystrom', 'coursekit.creatures.physics.integrate:_rk4',
                'coursekit.creatures.physics.odes:solution'),
-    library_uses=('coursekit.creatures.physics.odes:solution',),
     props=(
         ("returns (y_next, v_next) shaped like y and v", _rkn_shape),
         ("of higher order than explicit Euler", _rkn_beats_euler),
@@ -371,6 +370,7 @@ register(Check(
         ("evaluates f at Nystrom's stages", _rkn_stages),
         ("inputs unchanged", unmodified({2: "y", 3: "v"}, NEW_ARRAYS)),
     ),
+    weights=(("evaluates f at Nystrom's stages", 3),),  # the method asked for: classic RK4 kept 89 % (red team, round 3)
 ))
 
 exercise("07_swimming_physics", ["physics.box_drag", "physics.rkn_step"])
