@@ -129,6 +129,15 @@ exec(compile(_SOURCE, "<cell>", "exec"), _NS)  # its docstring and a local varia
 RETYPED = _NS["tournament"]
 
 
+TREE = __import__("ast").parse(inspect.getsource(ga.tournament))  # the library's code as a syntax tree, before grading
+
+
+def compiled_from_a_tree(fitness, k, rng, size=3):
+    fresh = dict(ga.tournament.__globals__)
+    exec(compile(TREE, "<cell>", "exec"), fresh)  # red team, round 3: an AST is not text the hook can compare
+    return fresh["tournament"](fitness, k, rng, size)
+
+
 def padded_copy(fitness, k, rng, size=3):
     return PADDED(fitness, k, rng, size)  # red team, round 3: an unused constant added, then a new function
 
@@ -168,6 +177,7 @@ def in_a_fresh_python(fitness, k, rng, size=3):
     (renamed_copy, "coursekit's own tournament is not available while your renamed_copy is graded"),
     (padded_copy, "coursekit's own tournament is not available while your padded_copy is graded"),
     (retyped_copy, "coursekit's own tournament is not available while your retyped_copy is graded"),
+    (compiled_from_a_tree, "compiling a syntax tree is not available while a function is graded"),
     (rebuilt_from_saved_code, "function.__new__ is not available while a function is graded"),
     (compiled_from_source, "coursekit's own code of the graded functions may not be compiled or loaded afresh"),
     (loaded_afresh, "coursekit's own code of the graded functions may not be compiled or loaded afresh"),

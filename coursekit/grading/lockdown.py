@@ -165,10 +165,12 @@ def lock_down(files, texts):
                 return
             if event in REFUSED_EVENTS:
                 why = f"{event} is not available while a function is graded"
+            elif event == "compile" and type(args[0]) not in (str, bytes):  # a syntax tree, built before grading
+                why = "compiling a syntax tree is not available while a function is graded"
             elif event == "compile":
                 source, filename = args[0], args[1]
                 text = source.decode(errors="replace") if type(source) is bytes else source
-                bad = filename in files or (type(text) is str and any(t in text for t in texts))
+                bad = filename in files or any(t in text for t in texts)
                 why = RELOADED if bad else None
             elif event == "exec":
                 why = RELOADED if getattr(args[0], "co_filename", None) in files else None
