@@ -357,8 +357,7 @@ def view(obj: Any, *, interactive: bool = False, size: tuple[int, int] = (480, 3
 def centre_of_mass(body: BodyTree, qpos: ArrayLike) -> np.ndarray:
     """The ``(3,)`` world centre of mass of ``body`` in the MuJoCo-layout pose ``qpos``."""
     _, t = world_poses(body, qpos)
-    m = body.mass
-    return (m @ t) / m.sum()
+    return (body.mass @ t) / body.mass.sum()
 
 
 def _nice_step(length: float) -> float:
@@ -418,11 +417,9 @@ class Clip:
             raise ValueError(f"follow: must be a number of seconds >= 0, got {follow!r}")
         if not 0.1 <= margin <= 1.0:
             raise ValueError(f"margin: must be in [0.1, 1], got {margin!r}")
-        self.body, self.times, self.fps, self.size = body, times, int(fps), tuple(size)
-        self.background, self.label = background, label
+        self.body, self.times, self.fps, self.size, self.background, self.label = body, times, int(fps), tuple(size), background, label
         self.poses = [world_poses(body, f) for f in qpos]
-        m = body.mass
-        self.com = np.stack([(m @ t) / m.sum() for _, t in self.poses])
+        self.com = np.stack([(body.mass @ t) / body.mass.sum() for _, t in self.poses])
         dt = float(np.median(np.diff(times))) if len(times) > 1 else 1.0
         self.follow = gaussian_filter1d(self.com, follow / dt, axis=0, mode="nearest") if follow > 0 and len(times) > 1 else self.com.copy()
         self._options = (size, background, joint_axes and body.n_bodies > 1)
@@ -440,32 +437,22 @@ class Clip:
         self.trail = trail
 
     def _grid(self) -> tuple[np.ndarray, np.ndarray, float]:
-        """``(centre, normal, side)`` of the square grid fixed in the water: a floor below the whole
-        swim, or -- for a swimmer that rises or sinks by more than its own size, which would leave a
-        floor out of the picture -- a wall behind it that holds its path (the plane through the path's
-        direction that faces the camera best)."""
+        """``(centre, normal, side)`` of the square grid fixed in the water, just beyond every part of
+        the swim along ``normal``: a floor below it or, for a swimmer that rises or sinks by more than
+        its own size (out of a floor's view), a wall behind it holding its path, facing the camera."""
         everything = np.concatenate(self.points)
-        lo, hi = everything.min(0), everything.max(0)
-        pad = 1.5 * self.reach
-        path = self.com[-1] - self.com[0]
-        if np.ptp(self.com[:, 2]) <= self.reach or np.linalg.norm(path) < 1e-9:
-            side = float(max(hi[0] - lo[0], hi[1] - lo[1]) + 2 * pad)
-            centre = np.array([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), lo[2] - 0.3 * self.reach])
-            return centre, np.array([0.0, 0.0, 1.0]), side
-        along = path / np.linalg.norm(path)
-        view = self.centre - self.eye  # from the camera into the picture
-        normal = view - view.dot(along) * along
-        normal = normal / np.linalg.norm(normal) if np.linalg.norm(normal) > 1e-9 else np.cross(along, [0.0, 0.0, 1.0])
-        behind = max(float(((p - f) @ normal).max()) for p, f in zip(self.points, self.follow)) + 0.3 * self.reach
-        centre = 0.5 * (self.com[0] + self.com[-1]) + behind * normal
-        return centre, normal, float(np.ptp(everything, axis=0).max() + 2 * pad)
+        path, view = self.com[-1] - self.com[0], self.centre - self.eye  # view: from the camera into the picture
+        across = view - view.dot(path) * path / max(float(path @ path), 1e-18)
+        rises = np.ptp(self.com[:, 2]) > self.reach and np.linalg.norm(across) > 1e-9
+        normal = across / np.linalg.norm(across) if rises else np.array([0.0, 0.0, -1.0])
+        mid, depth = 0.5 * (self.com[0] + self.com[-1]), float((everything @ normal).max()) + 0.3 * self.reach
+        return mid + (depth - mid @ normal) * normal, normal, float(np.ptp(everything, axis=0).max() + 3 * self.reach)
 
     def __len__(self) -> int:
         return len(self.poses)
 
     def _text(self, i: int) -> str:
-        text = f"t = {self.times[i]:.2f} s"
-        return text + (f"   grid {self.grid_step:g} m" if self.floor is not None else "")
+        return f"t = {self.times[i]:.2f} s" + (f"   grid {self.grid_step:g} m" if self.floor is not None else "")
 
     def film(self, indices: Sequence[int] | None = None, progress: bool | None = False) -> Iterator[np.ndarray]:
         """Yield ``(i, image)`` for the frames ``indices`` (default all), one plotter for them all;
