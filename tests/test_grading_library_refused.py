@@ -138,6 +138,23 @@ def compiled_from_a_tree(fitness, k, rng, size=3):
     return fresh["tournament"](fitness, k, rng, size)
 
 
+DEFERRED = compile(inspect.getsource(ga.tournament), "<cell>", "exec")  # the library's text compiled in a cell, run later
+_TEXT = inspect.getsource(ga.tournament)
+UNDOCUMENTED = _TEXT.replace(_TEXT[_TEXT.index('    """'):_TEXT.index('"""\n', _TEXT.index('    """') + 7) + 4], "")
+
+
+def run_deferred(fitness, k, rng, size=3):
+    fresh = dict(ga.tournament.__globals__)
+    exec(DEFERRED, fresh)  # red team, round 4: functions made after the lockdown's scan
+    return fresh["tournament"](fitness, k, rng, size)
+
+
+def compiled_undocumented(fitness, k, rng, size=3):
+    fresh = dict(ga.tournament.__globals__)
+    exec(compile(UNDOCUMENTED, "<lazy>", "exec"), fresh)  # red team, round 4: not the library's text, its code
+    return fresh["tournament"](fitness, k, rng, size)
+
+
 def padded_copy(fitness, k, rng, size=3):
     return PADDED(fitness, k, rng, size)  # red team, round 3: an unused constant added, then a new function
 
@@ -173,11 +190,13 @@ def in_a_fresh_python(fitness, k, rng, size=3):
 
 
 @pytest.mark.parametrize("fn, message", [
-    (copied_earlier, "coursekit's own tournament is not available while your copied_earlier is graded"),
-    (renamed_copy, "coursekit's own tournament is not available while your renamed_copy is graded"),
-    (padded_copy, "coursekit's own tournament is not available while your padded_copy is graded"),
-    (retyped_copy, "coursekit's own tournament is not available while your retyped_copy is graded"),
+    (copied_earlier, "copy has the instructions of coursekit's own tournament (a copy made before grading"),
+    (renamed_copy, "mine has the instructions of coursekit's own tournament (a copy made before grading"),
+    (padded_copy, "tournament has the instructions of coursekit's own tournament (a copy made before grading"),
+    (retyped_copy, "tournament has the instructions of coursekit's own tournament (a copy made before grading"),
     (compiled_from_a_tree, "compiling a syntax tree is not available while a function is graded"),
+    (run_deferred, "coursekit's own code of the graded functions may not be compiled or loaded afresh"),
+    (compiled_undocumented, "coursekit's own code of the graded functions may not be compiled or loaded afresh"),
     (rebuilt_from_saved_code, "function.__new__ is not available while a function is graded"),
     (compiled_from_source, "coursekit's own code of the graded functions may not be compiled or loaded afresh"),
     (loaded_afresh, "coursekit's own code of the graded functions may not be compiled or loaded afresh"),
@@ -243,7 +262,7 @@ def test_a_copy_hidden_by_a_gc_freeze_is_still_found():
         recs = run_cases(copied_earlier, CASES, "indices", timeout=20, refuse=CHECK.reference)
     finally:
         gc.unfreeze()
-    assert recs[0]["status"] == "error" and "coursekit's own tournament is not available" in recs[0]["error"], recs[0]
+    assert recs[0]["status"] == "error" and "has the instructions of coursekit's own tournament" in recs[0]["error"], recs[0]
 
 
 def reproduce_by_largest_remainder(fitness, k, rng, survival=0.2):
@@ -276,3 +295,38 @@ def test_the_librarys_equivalents_under_other_names_are_refused_too(name, fn, no
                      refuse=refused(check, notebook_checks))
     assert {r["status"] for r in recs} == {"error"} and "is not available while your" in recs[0]["error"], recs[0]
     assert not set(check.library_uses) & set(of(notebook_checks))  # not withheld: the library runs with them
+
+
+def honest_karva(symbols, arity):
+    """An own breadth-first reader, written without the library's (red team, round 4: refused by a
+    looser match of names and constants, which no longer decides)."""
+    kids = [()] * len(symbols)
+    frontier, free = [0], 1
+    while frontier:
+        following = []
+        for i in frontier:
+            n = arity(symbols[i])
+            kids[i] = tuple(range(free, free + n))
+            following.extend(kids[i])
+            free += n
+        frontier = following
+    return kids
+
+
+def honest_decode(symbols):
+    from coursekit.pictures import primitives
+
+    kids = honest_karva(symbols, primitives.arity)
+
+    def tree(i):
+        return [symbols[i], *[tree(j) for j in kids[i]]] if kids[i] else symbols[i]
+    return tree(0)
+
+
+def test_honest_code_in_the_librarys_style_is_never_taken_for_the_library():
+    from coursekit.grading.withheld import refused
+
+    check = checks.get("pictures.decode")
+    recs = run_cases(honest_decode, check.cases(np.random.default_rng(2)), check.output, timeout=20,
+                     refuse=refused(check, checks.for_notebook("02_picture_mutations")))
+    assert {r["status"] for r in recs} == {"ok"}, recs[0]

@@ -5,13 +5,16 @@ implementation is not the student's answer). Shipped with :mod:`coursekit.gradin
 :mod:`coursekit.grading.runner` as source text into the grading kernel, so standard library
 only. :class:`Refusing` swaps the code of the library's versions for a stub that raises; in a
 forked worker that only serves calls, :meth:`Refusing.forever` does so for good, copies made in
-a cell included, and :func:`lock_down` adds an audit hook (PEP 578, never removable) that
-refuses what could fetch the library's code around the stubs: compiling or loading it afresh,
-starting a fresh Python, C calls through ctypes, rebuilding functions from code objects.
+a cell included -- found by what they compute (:func:`_content`: the instructions, names and
+loaded constants, whatever the name, file, docstring or local names) -- and :func:`lock_down`
+adds an audit hook (PEP 578, never removable) that refuses what could fetch the library's code
+around the stubs: compiling or loading it afresh, running code that defines a copy, compiling a
+syntax tree, starting a fresh Python, C calls through ctypes, rebuilding functions from code
+objects.
 
-What it cannot see: the library's source pasted into a cell (that is writing the function, as
-far as any grader can tell), or a notebook that replaced the interpreter's own ``sys`` module
-before the worker started.
+What it cannot see: the library's source pasted into a cell and edited, or any other copy with
+instructions of its own (that is writing the function, as far as any grader can tell), or a
+notebook that replaced the interpreter's own ``sys`` module before the worker started.
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ class Refusing:
     """
 
     def __init__(self, paths, function):
-        self.saved = []
+        self.saved, self.copies = [], []  # (the library's function, its code, its stub); (code it is known by, its name)
         self.files, self.texts = set(), []
         for path in paths:
             try:
@@ -56,6 +59,12 @@ class Refusing:
             ns = {}
             exec(compile(f"def stub(*args, **kwargs):\n    raise RuntimeError({message!r})", STUB, "exec"), ns)
             self.saved.append((obj, obj.__code__, ns["stub"].__code__))
+            try:  # its definition compiled alone (as a cell would) gives other instructions than in its module
+                fresh = compile(self.texts[-1], "<source>", "exec") if self.texts else None
+            except SyntaxError:
+                fresh = None
+            self.copies.append((obj.__code__, name))
+            self.copies += [(c, name) for c in (_nested(fresh) if fresh else ()) if c.co_name == obj.__name__]
 
     def _source(self, path):
         """Note the file of ``path``'s module and the source text of its definition (for
@@ -101,12 +110,16 @@ class Refusing:
         # A copy rebuilt from the code in a cell before grading (code.replace with another name, file,
         # docstring or extra constants, or its source compiled again with such changes) is another code
         # object that computes the same: stubbed too. The cheap part of the key picks the candidates.
-        same = {_content(code): stub for _, code, stub in self.saved}
-        names = {code.co_names for _, code, _ in self.saved}
+        same = {_content(code): name for code, name in self.copies}
+        names, library = {key[1] for key in same}, {id(obj) for obj, _, _ in self.saved}
         for holder in gc.get_objects():
             code = getattr(holder, "__code__", None) if type(holder) is type(_content) else None
-            if code is not None and code.co_filename != STUB and code.co_names in names and _content(code) in same:
-                holder.__code__ = same[_content(code)]
+            if (code is not None and code.co_filename != STUB and id(holder) not in library and code.co_names in names
+                    and _content(code) in same):
+                ns, why = {}, (f"{holder.__name__} has the instructions of coursekit's own {same[_content(code)]} (a copy "
+                               "made before grading, under another name): write your own")
+                exec(compile(f"def stub(*args, **kwargs):\n    raise RuntimeError({why!r})", STUB, "exec"), ns)
+                holder.__code__ = ns["stub"].__code__
         for obj, code, stub in self.saved:
             obj.__code__ = stub
             for holder in gc.get_referrers(code):
@@ -117,21 +130,29 @@ class Refusing:
                         holder[k] = stub
                 elif type(holder) is list:
                     holder[:] = [stub if v is code else v for v in holder]
-        files, texts = frozenset(self.files), tuple(self.texts)
-        self.saved = []  # the library's code is no longer held here, where a frame could reach it
-        lock_down(files, texts)
+        files, texts, keys = frozenset(self.files), tuple(self.texts), frozenset(same)
+        self.saved, self.copies = [], []  # the library's code is no longer held here, where a frame could reach it
+        lock_down(files, texts, keys)
 
 
 def _content(code):
-    """What a code object computes, whatever its name, file, line numbers, docstring, local variable
-    names, unused constants or the compiler's choice of instructions (one Python compiles a method
-    call as LOAD_METHOD, another as LOAD_ATTR): its arguments, the global and attribute names it
-    uses in order, and the constants it loads in order (nested code by its content too)."""
+    """What a code object computes, whatever its name, file, line numbers, docstring or unused
+    constants: its instructions, the names they use and the constants they load (nested code by
+    its content too). Any other change -- one more name, another constant, another operator --
+    makes it other code: an honest function is never taken for the library's."""
     import dis
 
     loaded = tuple(_content(i.argval) if type(i.argval) is type(code) else (type(i.argval).__name__, repr(i.argval))
                    for i in dis.get_instructions(code) if i.opcode in dis.hasconst)
-    return code.co_argcount, code.co_kwonlyargcount, code.co_names, loaded
+    return code.co_code, code.co_names, loaded
+
+
+def _nested(code):
+    """``code`` and every code object among its constants, all the way down."""
+    yield code
+    for c in code.co_consts:
+        if type(c) is type(code):
+            yield from _nested(c)
 
 
 #: Audit events refused in a locked-down process: starting programs (a fresh Python would import
@@ -148,13 +169,16 @@ RELOADED = ("coursekit's own code of the graded functions may not be compiled or
             "graded: write the function yourself (the rest of the library may be used)")
 
 
-def lock_down(files, texts):
+def lock_down(files, texts, keys=frozenset()):
     """Make this process (a kernel or worker that only serves calls now) refuse, through an audit hook (PEP 578:
     it can never be removed), what could fetch the library's versions around the stubs: compiling
     or running code from their source files or with their source text (``inspect.getsource``,
-    ``importlib``, a reload), ``marshal``-loading it, setting a function's ``__code__``, and the
+    ``importlib``, a reload), running code that defines a copy of them (``keys``: their
+    :func:`_content`), ``marshal``-loading it, setting a function's ``__code__``, and the
     events of :data:`REFUSED_EVENTS`. Raises ``RuntimeError`` when the hook is not in place (a
     notebook that replaced ``sys.addaudithook``): the worker then refuses every call."""
+    import dis  # noqa: F401  (for _content, loaded before the hook is in place)
+
     encoded = tuple(f.encode() for f in files)
     seen = []
 
@@ -172,8 +196,10 @@ def lock_down(files, texts):
                 text = source.decode(errors="replace") if type(source) is bytes else source
                 bad = filename in files or any(t in text for t in texts)
                 why = RELOADED if bad else None
-            elif event == "exec":
-                why = RELOADED if getattr(args[0], "co_filename", None) in files else None
+            elif event == "exec":  # the library's code, or code that defines a copy of it (compiled before grading)
+                bad = getattr(args[0], "co_filename", None) in files or (
+                    type(args[0]) is type(hook.__code__) and any(_content(c) in keys for c in _nested(args[0])))
+                why = RELOADED if bad else None
             elif event == "marshal.loads":
                 why = RELOADED if any(f in bytes(args[0]) for f in encoded) else None
             elif event == "object.__setattr__":  # a function's code: only ever to one of our stubs
