@@ -54,11 +54,9 @@ class Refusing:
             if obj.__code__.co_filename == STUB:  # refused already (a kernel locked down before this worker)
                 continue
             name = path.partition(":")[2]
-            message = (f"coursekit's own {name} is not available while your {function} is graded: "
-                       f"{function} must do the work itself (the rest of the library may be used)")
-            ns = {}
-            exec(compile(f"def stub(*args, **kwargs):\n    raise RuntimeError({message!r})", STUB, "exec"), ns)
-            self.saved.append((obj, obj.__code__, ns["stub"].__code__))
+            self.saved.append((obj, obj.__code__, _stub(f"coursekit's own {name} is not available while your {function} "
+                                                        f"is graded: {function} must do the work itself (the rest of "
+                                                        "the library may be used)")))
             try:  # its definition compiled alone (as a cell would) gives other instructions than in its module
                 fresh = compile(self.texts[-1], "<source>", "exec") if self.texts else None
             except SyntaxError:
@@ -116,10 +114,8 @@ class Refusing:
             code = getattr(holder, "__code__", None) if type(holder) is type(_content) else None
             if (code is not None and code.co_filename != STUB and id(holder) not in library and code.co_names in names
                     and _content(code) in same):
-                ns, why = {}, (f"{holder.__name__} has the instructions of coursekit's own {same[_content(code)]} (a copy "
-                               "made before grading, under another name): write your own")
-                exec(compile(f"def stub(*args, **kwargs):\n    raise RuntimeError({why!r})", STUB, "exec"), ns)
-                holder.__code__ = ns["stub"].__code__
+                holder.__code__ = _stub(f"{holder.__name__} has the instructions of coursekit's own {same[_content(code)]} "
+                                        "(a copy made before grading, under another name): write your own")
         for obj, code, stub in self.saved:
             obj.__code__ = stub
             for holder in gc.get_referrers(code):
@@ -135,11 +131,18 @@ class Refusing:
         lock_down(files, texts, keys)
 
 
+def _stub(message: str):
+    """The code of a function that raises ``RuntimeError(message)``, compiled under :data:`STUB`."""
+    ns = {}
+    exec(compile(f"def stub(*args, **kwargs):\n    raise RuntimeError({message!r})", STUB, "exec"), ns)
+    return ns["stub"].__code__
+
+
 def _content(code):
     """What a code object computes, whatever its name, file, line numbers, docstring or unused
     constants: its instructions, the names they use and the constants they load (nested code by
     its content too). Any other change -- one more name, another constant, another operator --
-    makes it other code: an honest function is never taken for the library's."""
+    makes it other code, so code written for itself is not taken for the library's."""
     import dis
 
     loaded = tuple(_content(i.argval) if type(i.argval) is type(code) else (type(i.argval).__name__, repr(i.argval))
