@@ -2,8 +2,9 @@
 
 With the user as the fitness function (paper section 3.4) every picture on the screen costs a
 judgement, so a slot that shows a flat, black, one-colour or plain picture (a pale wash, a faint
-gradient), or a copy of its parent or of a sibling, is a wasted click. Two cheap previews prevent that; both render low-resolution
-thumbnails (:data:`PREVIEW`, 32 x 32) and never change what the genomes are:
+gradient), or a copy of its parent or of a sibling, is a wasted click. Two cheap previews prevent
+that; both render low-resolution thumbnails (:data:`PREVIEW`, 32 x 32) and never change what the
+genomes are:
 
 - :func:`random_population` draws random genomes (:meth:`Genome.random`, whose draw weights
   already favour colour and structure) and redraws those with a tiny coding part, those whose
@@ -173,8 +174,8 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     expression (:func:`~coursekit.pictures.operators.coding`) is not one already there: a
     parent's or another child's. The ``n`` children are then previewed at ``size``; slot by
     slot, one within :data:`SAME` (mean absolute difference) of a parent or of an already
-    accepted child, or one duller than its liveliest parent (:func:`dullness`: flat, black or one colour,
-    then plain), is drawn again the same way, at most ``tries`` rounds (what is left then is the
+    accepted child, or one duller than its liveliest parent (:func:`dullness`: flat, black or one
+    colour, then plain), is drawn again the same way, at most ``tries`` rounds (what is left then is the
     slot's best draw: a lively one before a flat one, then the most different); each
     distinct expression is previewed once (a picture depends on nothing else). From round ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is
     replaced by ``again(c, accepted)`` instead (``accepted``: the children kept so far): the

@@ -328,6 +328,16 @@ STAGES = ("t, y, v", "t + h/2, y + h/2 v + h^2/8 a1, v + h/2 a1", "t + h/2, y + 
           "t + h, y + h v + h^2/2 a3, v + h a3")
 
 
+def _nystrom_stage(k, t, y, v, h, a):
+    """``(t, y, v)`` at which Nystrom's stage ``k`` (0 to 3) evaluates f, from the accelerations ``a``
+    of the stages before it."""
+    if k == 0:
+        return t, y, v
+    if k < 3:
+        return t + h / 2, y + h / 2 * v + h * h / 8 * a[0], v + h / 2 * a[k - 1]
+    return t + h, y + h * v + h * h / 2 * a[2], v + h * a[2]
+
+
 def _rkn_stages(ctx):
     ctx.out("count")
     t, y, v, h = _start(ctx, "count")
@@ -339,10 +349,7 @@ def _rkn_stages(ctx):
         return False, "could not read where f was evaluated"
     f, a = odes.ODES[json.loads(ctx.case("count")["args"][0]["json"])["ode"]], []
     for k, (tk, yk, vk) in enumerate(points[:4]):
-        want = [(t, y, v), (t + h / 2, y + h / 2 * v + h * h / 8 * a[0], v + h / 2 * a[0]) if k > 0 else None,
-                (t + h / 2, y + h / 2 * v + h * h / 8 * a[0], v + h / 2 * a[1]) if k > 1 else None,
-                (t + h, y + h * v + h * h / 2 * a[2], v + h * a[2]) if k > 2 else None][k]
-        wt, wy, wv = want
+        wt, wy, wv = _nystrom_stage(k, t, y, v, h, a)
         scale = 1 + float(np.max(np.abs(np.r_[wy, wv])))
         if not (math.isclose(tk, wt, abs_tol=1e-12) and yk.shape == wy.shape and vk.shape == wv.shape
                 and np.max(np.abs(np.r_[yk - wy, vk - wv])) <= 1e-9 * scale):
