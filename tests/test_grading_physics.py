@@ -183,7 +183,7 @@ def test_known_wrong_fails_exactly_its_property(name, fn, prop):
     if prop in [p for p, _ in j.check.props[:j.check.gates]]:  # a gate (validity, the job) fails everything after it
         assert failed[0] == prop and j.score == 0.0, failed
     else:
-        also = ["evaluates f at Nystrom's stages"] if fn in OFF_STAGE else []
+        also = ["evaluates f at Nystrom's stages", "combines the stages with Nystrom's weights"] if fn in OFF_STAGE else []
         assert failed == [prop] + also, [(v.prop, v.message) for v in j.verdicts if not v.passed]
     msg = next(v.message for v in j.verdicts if v.prop == prop)
     assert "BEGIN SOLUTION" not in msg and "2 * k" not in msg and "h**2/6" not in msg
@@ -191,11 +191,42 @@ def test_known_wrong_fails_exactly_its_property(name, fn, prop):
 
 @pytest.mark.parametrize("seed", [0, 3])
 def test_classic_rk4_is_fourth_order_but_not_nystroms_method(seed):
-    """RK4 on (y, v) passes every accuracy property (the same order) and fails only the stages."""
+    """RK4 on (y, v) passes every accuracy property (the same order) and fails only Nystrom's own:
+    its stages and their weights."""
     j = evaluate("physics.rkn_step", rk4_first_order, seed=seed)
-    assert [v.prop for v in j.verdicts if not v.passed] == ["evaluates f at Nystrom's stages"]
+    assert [v.prop for v in j.verdicts if not v.passed] == ["evaluates f at Nystrom's stages",
+                                                             "combines the stages with Nystrom's weights"]
     msg = next(v.message for v in j.verdicts if not v.passed)
     assert "evaluation 2" in msg and "h^2/8 a1" in msg
+
+
+def rkn_faked_order(f, t, y, v, h):
+    """Red team, round 5: an accurate integrator of another kind (SciPy's DOP853) plus a made-up
+    error of order h^5 where the force is not a function of time alone, evaluating a counting
+    force only at Nystrom's stages (4.36/6 before the weights were judged)."""
+    from scipy.integrate import solve_ivp
+
+    from coursekit.creatures.physics import odes
+
+    y, v = np.asarray(y, dtype=float), np.asarray(v, dtype=float)
+    rhs = odes.ODES[f.ode] if isinstance(f, odes.CountingODE) else f
+    n = len(y)
+    sol = solve_ivp(lambda s, z: np.r_[z[n:], rhs(s, z[:n], z[n:])], (t, t + h), np.r_[y, v], method="DOP853",
+                    rtol=1e-13, atol=1e-13)
+    end = sol.y[:, -1]
+    fake = 0.0 if np.allclose(rhs(t, y, v), rhs(t, y + 1, v + 1)) else 1e-2 * h**5
+    a1 = f(t, y, v)  # where Nystrom's step evaluates, as the stage message tells
+    a2 = f(t + h / 2, y + h / 2 * v + h * h / 8 * a1, v + h / 2 * a1)
+    a3 = f(t + h / 2, y + h / 2 * v + h * h / 8 * a1, v + h / 2 * a2)
+    f(t + h, y + h * v + h * h / 2 * a3, v + h * a3)
+    return end[:n] + fake, end[n:] + fake
+
+
+def test_an_integrator_with_a_made_up_error_of_fourth_order_is_not_nystroms_step():
+    j = evaluate("physics.rkn_step", rkn_faked_order, seed=7)
+    failed = [v.prop for v in j.verdicts if not v.passed]
+    assert failed == ["combines the stages with Nystrom's weights"], failed  # the ratios and stages are right, by design
+    assert j.score <= 0.85 * j.check.points, j.score
 
 
 def test_messages_are_specific():

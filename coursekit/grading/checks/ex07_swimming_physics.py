@@ -17,7 +17,9 @@ checks derive every expected value independently, in the grader's own process:
   method) for position-only and velocity-only forces; the number of ``f`` evaluations per step
   comes from a :class:`~coursekit.creatures.physics.odes.CountingODE` argument, and so do the
   points it was evaluated at, which must be Nystrom's stages (classic RK4 on ``(y, v)`` is of
-  the same order but evaluates elsewhere). The job comes
+  the same order but evaluates elsewhere); and the result must be Nystrom's combination of its
+  stages (an accurate integrator of another kind with an error of the right order made up has
+  the right ratios, not the right step). The job comes
   first, as a gate: the step is of higher order than explicit Euler (error ratio above
   :data:`BEYOND_EULER`), so an Euler step in place of RKN scores 0.
 """
@@ -360,6 +362,27 @@ def _rkn_stages(ctx):
     return True, "evaluates f at Nystrom's four stages"
 
 
+def _rkn_weights(ctx):
+    """The result is Nystrom's combination of its four stages, to rounding, on every case (an
+    integrator of another kind with an error of the right order made up is of no use to it)."""
+    for cid in ctx.cases:
+        t, y, v, h = _start(ctx, cid)
+        fn = ctx.case(cid)["args"][0]
+        f = odes.ODES[json.loads(fn["json"])["ode"] if "json" in fn else fn["function"].rpartition(":")[2]]
+        a = []
+        for k in range(4):
+            a.append(f(*_nystrom_stage(k, t, y, v, h, a)))
+        want = (y + h * v + h * h / 6 * (a[0] + a[1] + a[2]), v + h / 6 * (a[0] + 2 * a[1] + 2 * a[2] + a[3]))
+        got = [np.asarray(g, dtype=np.float64) for g in ctx.out(cid)[0]]
+        if not all(g.shape == w.shape and np.max(np.abs(g - w), initial=0) <= 1e-9 * (1 + np.max(np.abs(w), initial=0))
+                   for g, w in zip(got, want)):
+            return False, (f"with h = {h:g} it returned y_next = {np.round(got[0], 6).tolist()}, v_next = "
+                           f"{np.round(got[1], 6).tolist()}; Nystrom's step from its own four stages gives "
+                           f"{np.round(want[0], 6).tolist()} and {np.round(want[1], 6).tolist()}: "
+                           "y + h v + h^2/6 (a1 + a2 + a3) and v + h/6 (a1 + 2 a2 + 2 a3 + a4)")
+    return True, f"returns Nystrom's combination of its stages on all {len(ctx.cases)} steps"
+
+
 register(Check(
     hints=HINTS.get("physics.rkn_step", ()),
     name="physics.rkn_step", function="rkn_step", params=("f", "t", "y", "v", "h"), points=6.0,
@@ -375,9 +398,12 @@ register(Check(
         ("fourth order for velocity-dependent forces", _rkn_order("drag", "y'' = -c y' (water drag)")),
         ("evaluates f 4 times per step", _rkn_calls),
         ("evaluates f at Nystrom's stages", _rkn_stages),
+        ("combines the stages with Nystrom's weights", _rkn_weights),
         ("inputs unchanged", unmodified({2: "y", 3: "v"}, NEW_ARRAYS)),
     ),
-    weights=(("evaluates f at Nystrom's stages", 3),),  # the method asked for: classic RK4 kept 89 % (red team, round 3)
+    # the method asked for: classic RK4 kept 89 % (red team, round 3), another integrator with a made-up
+    # error of order h^5 73 % (round 5)
+    weights=(("evaluates f at Nystrom's stages", 3), ("combines the stages with Nystrom's weights", 2)),
 ))
 
 exercise("07_swimming_physics", ["physics.box_drag", "physics.rkn_step"])
