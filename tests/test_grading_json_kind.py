@@ -49,6 +49,19 @@ def test_pairs_plain_data_and_refusals():
     assert validate_call({**rec, "output": ["x" * 200_001, "x"]}, check, call) is None
 
 
+def test_an_argument_reported_as_json_the_grader_cannot_parse_is_refused():
+    """The kernel serialises an object argument after the call (its to_json, patchable there): text
+    that is not JSON, or JSON nested past the recursion limit, is a malformed record, not a crash
+    of the grader (red team, round 5: one such notebook cost the whole batch its results file)."""
+    check = checks.Check("t.clone", "clone", ("h", "rng"), 1, "clone", "json", lambda rng: [], ())
+    call = calls_of([make_case()])[0]
+    rec = {"check": "t.clone", "id": call["id"], "status": "ok", "output": History().to_json(),
+           "inputs_after": [{"json": History().to_json()}, None]}
+    assert validate_call(rec, check, call) is not None
+    for text in ("not json at all {", "[" * 20_000 + "]" * 20_000, '{"x": NaN}'):
+        assert validate_call({**rec, "inputs_after": [{"json": text}, None]}, check, call) is None, text[:20]
+
+
 def test_function_arguments_name_only_coursekit_attributes():
     assert decode({"function": "coursekit.profile:sized"}, 0).__name__ == "sized"
     try:

@@ -292,7 +292,7 @@ def test_the_librarys_equivalents_under_other_names_are_refused_too(name, fn, no
     check = checks.get(name)
     notebook_checks = checks.for_notebook(notebook)
     recs = run_cases(fn, check.cases(np.random.default_rng(3)), check.output, timeout=20,
-                     refuse=refused(check, notebook_checks))
+                     refuse=refused(check, of(notebook_checks)))
     assert {r["status"] for r in recs} == {"error"} and "is not available while your" in recs[0]["error"], recs[0]
     assert not set(check.library_uses) & set(of(notebook_checks))  # not withheld: the library runs with them
 
@@ -324,9 +324,9 @@ def honest_decode(symbols):
 
 
 def test_honest_code_in_the_librarys_style_is_never_taken_for_the_library():
-    from coursekit.grading.withheld import refused
+    from coursekit.grading.withheld import of, refused
 
     check = checks.get("pictures.decode")
     recs = run_cases(honest_decode, check.cases(np.random.default_rng(2)), check.output, timeout=20,
-                     refuse=refused(check, checks.for_notebook("02_picture_mutations")))
+                     refuse=refused(check, of(checks.for_notebook("02_picture_mutations"))))
     assert {r["status"] for r in recs} == {"ok"}, recs[0]

@@ -71,7 +71,13 @@ def _valid_after(a, encoded, max_len) -> bool:
         return False
     if set(a) == {"ndarray", "dtype"}:
         return type(a["dtype"]) is str and _plain_list(a["ndarray"], max_len, 1)
-    return set(a) == {"json"} and type(a["json"]) is str and len(a["json"]) <= max_len
+    if set(a) != {"json"} or type(a["json"]) is not str or len(a["json"]) > max_len:
+        return False
+    try:  # the supervisor compares it with what it sent: it must parse there
+        json.loads(a["json"], parse_constant=_reject_constant)
+    except (ValueError, RecursionError):
+        return False
+    return True
 
 
 def validate_call(rec, check, call) -> dict | None:

@@ -41,7 +41,9 @@ scores, and never imports or runs student code:
   runs in the student's kernel, so a notebook can take it over (an input transformer sees the
   harvest cell's socket address and token) and answer the calls from code of its own choosing;
   withholding is what makes that worth nothing: no process in the sandbox can run the
-  library's version of a graded function, and array arguments are read back outside.
+  library's version of a graded function, and array arguments are read back outside. A function
+  the library needs while some checks are graded (``Check.library_uses``) but that answers
+  another check is withheld for that one in a second run of the notebook (:func:`.withheld.runs`).
 - A notebook part of which could not run -- a cell skipped for time, memory or a crash, a
   harvest that did not finish, no execution report -- is reported **not graded**, with the
   reasons, and ``coursekit grade`` exits with status 3: an instructor never gets a silent 0.
@@ -137,8 +139,9 @@ def new_seed() -> int:
     return secrets.randbits(63)
 
 
-def make_plan(checks: Sequence, cases: dict, rng: np.random.Generator) -> tuple[list, dict]:
-    """The calls sent to the grading child, and how to read their records.
+def make_plan(checks: Sequence, cases: dict, rng: np.random.Generator, held: Sequence[str] = ()) -> tuple[list, dict]:
+    """The calls sent to the grading child, and how to read their records (``held``: what its
+    sandbox withholds, refused by name while each function runs).
 
     Every call gets a random id (it tells the kernel nothing about its case) and the calls of each
     check are sent in a random order, so a notebook cannot tell which call repeats which seed or
@@ -157,7 +160,7 @@ def make_plan(checks: Sequence, cases: dict, rng: np.random.Generator) -> tuple[
                 ids[call["id"]] = (case["id"], i, call)
                 calls.append(call)
         calls = [calls[k] for k in rng.permutation(len(calls))]
-        plans.append({"name": c.name, "function": c.function, "output": c.output, "refuse": withheld.refused(c, checks),
+        plans.append({"name": c.name, "function": c.function, "output": c.output, "refuse": withheld.refused(c, held),
                       "calls": calls})
         lookup[c.name] = ids
     return plans, lookup
@@ -196,11 +199,63 @@ def grade_notebook(path: str | os.PathLike[str], *, timeout: float = 60.0, cell_
     seed = new_seed() if seed is None else int(seed)
     rng = np.random.default_rng(seed)
     cases = {c.name: c.cases(rng) for c in checks}
-    plans, lookup = make_plan(checks, cases, rng)
-    plan = {"timeout": float(timeout), "memory_mb": int(memory_mb), "checks": plans}
+    try:
+        nb_bytes = path.read_bytes()
+    except OSError as exc:
+        return NotebookResult(str(path), _zero(checks, f"could not read {path}: {exc.strerror}"), [],
+                              [f"could not read {path}: {exc.strerror}"])
     ids = supervisor.grading_user(user)
     if sandboxed and ids and sandbox.available(ids, show=[PKG_ROOT / "coursekit"]) is not None:
         ids = None  # the sandbox works for this user only: run it as this user, capabilities dropped
+    notes = [] if ids or os.geteuid() != 0 else [f"ran as root: user {user!r} could not run this Python, so privileges were not dropped"
+                                                  + (" (inside the sandbox, every capability dropped)" if sandboxed else "")]
+    if not sandboxed:
+        notes.append("graded without a sandbox (--unsafe): the notebook could read solutions/ and other submissions")
+    problems, judgements, start = [], {}, time.monotonic()
+    groups = withheld.runs(checks) if sandboxed else [(checks, ())]
+    for k, (group, held) in enumerate(groups):
+        plans, lookup = make_plan(group, cases, rng, held)
+        left = notebook_timeout - (time.monotonic() - start)
+        if left < 1:  # the first run took it all
+            stopped = f"grading stopped after {notebook_timeout:.0f} s (--notebook-timeout {notebook_timeout:g} s)"
+            problems += [] if stopped in problems else [stopped]
+            break
+        results, run_notes, run_problems = _run(nb_bytes, {"timeout": float(timeout), "memory_mb": int(memory_mb), "checks": plans},
+                                                group, lookup, held if sandboxed else None, ids, timeout=timeout,
+                                                cell_timeout=cell_timeout, memory_mb=memory_mb, hide_files=hide_files,
+                                                left=left, notebook_timeout=notebook_timeout, max_processes=max_processes, disk_mb=disk_mb)
+        if k:  # the second run: its own cells' notes only where they differ from the first's
+            what = ", ".join(c.function for c in group)
+            run_notes = [f"{what} graded in a second run, the library's equivalents withheld: {n}" for n in run_notes if n not in notes]
+            run_problems = [f"{what} (second run): {p}" for p in run_problems]
+        notes += run_notes
+        problems += run_problems
+        for c in group:
+            judgements[c.name] = _judge(c, cases[c.name], results[c.name], problems)
+    return NotebookResult(str(path), [judgements.get(c.name) or _zero([c], f"not run: {c.function} was to be graded in a second run")[0]
+                                      for c in checks], notes, problems, seed=seed)
+
+
+def _judge(check, cases, records, problems) -> Judgement:
+    """``check``'s judgement of its ``records``; a record the grader cannot read (a bug the
+    notebook's data reached) zeroes the check and adds to ``problems``: the notebook is then not
+    graded, and the other notebooks of the run are."""
+    if not records:
+        return _zero([check], f"no results: {check.function} could not be called (the notebook stopped before grading; see the notes)")[0]
+    try:
+        return registry.judge(check, cases, {r["case"]: r for r in assemble(cases, records)})
+    except Exception as exc:  # noqa: BLE001 -- whatever it is, this notebook alone pays for it
+        why = clean(f"the grader failed to judge {check.function}: {type(exc).__name__}: {exc}")[:300]
+        problems.append(why)
+        return _zero([check], why)[0]
+
+
+def _run(nb_bytes: bytes, plan: dict, checks: Sequence, lookup: dict, held: Sequence[str] | None, ids, *, timeout: float,
+         cell_timeout: float, memory_mb: int, hide_files: Sequence, left: float, notebook_timeout: float, max_processes: int,
+         disk_mb: int) -> tuple[dict, list, list]:
+    """Run the notebook once in a grading child (in the sandbox, withholding ``held``; None: no
+    sandbox) with ``plan``'s calls, within the ``left`` seconds of the notebook's ``notebook_timeout``;
+    ``(records by check, notes, problems)``."""
     private = supervisor.private_dir()
     child = None
     rfd = wfd = None
@@ -212,11 +267,6 @@ def grade_notebook(path: str | os.PathLike[str], *, timeout: float = 60.0, cell_
                 os.chown(box / d, *ids)
         if ids:
             os.chmod(private, 0o711)
-        try:
-            nb_bytes = path.read_bytes()
-        except OSError as exc:
-            return NotebookResult(str(path), _zero(checks, f"could not read {path}: {exc.strerror}"), [],
-                                  [f"could not read {path}: {exc.strerror}"])
         (box / "submission.ipynb").write_bytes(nb_bytes)
         calls_file = box / "calls.json"  # read and deleted by the child before the notebook runs
         fd = os.open(calls_file, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
@@ -233,9 +283,9 @@ def grade_notebook(path: str | os.PathLike[str], *, timeout: float = 60.0, cell_
         cmd = [sys.executable, "-m", "coursekit.grading.executor", "--notebook", str(box / "submission.ipynb"),
                "--calls", str(calls_file), "--results-fd", str(wfd),
                "--cwd", str(box / "work"), "--cell-timeout", str(cell_timeout)]
-        if sandboxed:
+        if held is not None:
             cmd += ["--max-processes", str(max_processes)]  # RLIMIT_NPROC inside, where it holds (sandbox.limit_processes)
-            replace, compiled = withheld.withhold(withheld.of(checks), private / "withheld")
+            replace, compiled = withheld.withhold(held, private / "withheld")
             kernels = warm.copy_into(box / "numba", [module for _, module in replace])  # the simulator compiled once, not per notebook
             if kernels is not None:
                 env["NUMBA_CACHE_DIR"] = str(kernels)
@@ -245,13 +295,8 @@ def grade_notebook(path: str | os.PathLike[str], *, timeout: float = 60.0, cell_
             cmd = sandbox.command(box, show=[PKG_ROOT / "coursekit"], hide_dirs=[PKG_ROOT / "solutions", PKG_ROOT / ".git"],
                                   hide_files=[*hide_files, *compiled], replace=replace) + cmd
         # The child bounds every cell and call itself; this bounds the notebook as a whole.
-        wall = min(float(notebook_timeout),
-                   2 * cell_timeout * (min(nb_bytes.count(b'"cell_type"'), 500) + 2) + (4 * timeout + 60) * len(checks))
-        notes = [] if ids or os.geteuid() != 0 else [f"ran as root: user {user!r} could not run this Python, so privileges were not dropped"
-                                                      + (" (inside the sandbox, every capability dropped)" if sandboxed else "")]
-        if not sandboxed:
-            notes.append("graded without a sandbox (--unsafe): the notebook could read solutions/ and other submissions")
-        problems = []
+        wall = min(float(left), 2 * cell_timeout * (min(nb_bytes.count(b'"cell_type"'), 500) + 2) + (4 * timeout + 60) * len(checks))
+        notes, problems = [], []
         watch = supervisor.Watch(memory_mb, max_processes=max_processes, folder=box, disk_mb=disk_mb)
         with open(private / "child.log", "wb") as log:
             child = subprocess.Popen(cmd, cwd=box / "work", env=env, stdin=subprocess.DEVNULL, stdout=log,
@@ -264,8 +309,8 @@ def grade_notebook(path: str | os.PathLike[str], *, timeout: float = 60.0, cell_
             rfd = None
             collector.start()
             if not watch.wait(child, wall):
-                problems.append(f"grading stopped after {wall:.0f} s (--notebook-timeout {notebook_timeout:g} s)"
-                                if wall == notebook_timeout else f"grading stopped after {wall:.0f} s")
+                problems.append(f"grading stopped after {notebook_timeout:.0f} s (--notebook-timeout {notebook_timeout:g} s)"
+                                if wall == left else f"grading stopped after {wall:.0f} s")
             supervisor.stop(child)
             child = None
             collector.join(10)
@@ -281,11 +326,7 @@ def grade_notebook(path: str | os.PathLike[str], *, timeout: float = 60.0, cell_
         unreadable = any(n.startswith("could not read the notebook") for n in more_notes)
         if not unreadable and not more_problems and any(not results[c.name] for c in checks):
             problems.append("no results came back for " + ", ".join(c.function for c in checks if not results[c.name]))
-        judgements = [registry.judge(c, cases[c.name], {r["case"]: r for r in assemble(cases[c.name], results[c.name])})
-                      if results[c.name] else
-                      _zero([c], f"no results: {c.function} could not be called (the notebook stopped before grading; see the notes)")[0]
-                      for c in checks]
-        return NotebookResult(str(path), judgements, notes, problems, seed=seed)
+        return results, notes, problems
     finally:
         for fd in (rfd, wfd):
             if fd is not None:
@@ -353,15 +394,22 @@ def main(args: argparse.Namespace) -> int:
     try:
         for nb, exercise in zip(args.notebooks, exercises):
             t0 = time.monotonic()
-            results.append(grade_notebook(nb, timeout=args.timeout, cell_timeout=getattr(args, "cell_timeout", 300.0),
-                                          memory_mb=getattr(args, "memory_mb", 4096), exercise=exercise,
-                                          sandboxed=not unsafe, hide_files=hide,
-                                          notebook_timeout=getattr(args, "notebook_timeout", 3600.0),
-                                          seed=getattr(args, "seed", None),
-                                          max_processes=getattr(args, "max_processes", supervisor.MAX_PROCESSES),
-                                          disk_mb=getattr(args, "disk_mb", supervisor.DISK_MB)))
+            try:
+                results.append(grade_notebook(nb, timeout=args.timeout, cell_timeout=getattr(args, "cell_timeout", 300.0),
+                                              memory_mb=getattr(args, "memory_mb", 4096), exercise=exercise,
+                                              sandboxed=not unsafe, hide_files=hide,
+                                              notebook_timeout=getattr(args, "notebook_timeout", 3600.0),
+                                              seed=getattr(args, "seed", None),
+                                              max_processes=getattr(args, "max_processes", supervisor.MAX_PROCESSES),
+                                              disk_mb=getattr(args, "disk_mb", supervisor.DISK_MB)))
+            except supervisor.Terminated:
+                raise
+            except Exception as exc:  # noqa: BLE001 -- a grader bug costs this notebook its grade, not the batch its results
+                why = clean(f"the grader failed on this notebook: {type(exc).__name__}: {exc}")[:300]
+                results.append(NotebookResult(nb, _zero(registry.for_notebook(exercise), why), [], [why]))
             results[-1].seconds = round(time.monotonic() - t0, 2)
-            results[-1].notes.append(f"graded in {results[-1].seconds:.1f} s (cases drawn with --seed {results[-1].seed})")
+            if results[-1].seed is not None:
+                results[-1].notes.append(f"graded in {results[-1].seconds:.1f} s (cases drawn with --seed {results[-1].seed})")
     except supervisor.Terminated as exc:  # the notebook's processes and private folder are gone already
         print(f"coursekit grade: {exc}; no results written", file=sys.stderr)
         return 128 + exc.signum

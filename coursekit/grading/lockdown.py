@@ -12,6 +12,11 @@ around the stubs: compiling or loading it afresh, running code that defines a co
 syntax tree, starting a fresh Python, C calls through ctypes, rebuilding functions from code
 objects.
 
+In sandboxed grading this is the second line: the functions it refuses are not in the sandbox
+at all there (:mod:`.withheld`, in a run of their own where the library needs them elsewhere),
+and what it stubs are their withheld stand-ins; it is the only line in ``--unsafe`` grading and
+in the exercise's own ``check()``.
+
 What it cannot see: the library's source pasted into a cell and edited, or any other copy with
 instructions of its own (that is writing the function, as far as any grader can tell), or a
 notebook that replaced the interpreter's own ``sys`` module before the worker started.

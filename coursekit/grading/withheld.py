@@ -60,11 +60,30 @@ def of(checks) -> list[str]:
     return sorted(helpers({r for c in checks for r in c.reference} - uses) - uses)
 
 
-def refused(check, checks) -> list[str]:
+def runs(checks) -> list[tuple[list, list[str]]]:
+    """The sandboxed runs of one notebook that grade its ``checks``: ``[(checks, withheld)]``.
+
+    A function the library needs while some of a notebook's functions are graded (the picture
+    operators decode with ``karva``) is the answer, or a step of it, for another (``decode``).
+    Refusing it inside the kernel is not enough: a kernel can reach an unlocked process of its own
+    (a thread, a forked helper, a hijacked harvest) or hide the function from the lockdown. So the
+    checks that such a function could answer are graded in a second run of the notebook, in a
+    sandbox that withholds every reference of the notebook's checks with its helpers; the others
+    in the first, which keeps what the library needs (:func:`of`). A notebook whose checks need
+    nothing of the kind runs once.
+    """
+    uses = {r for c in checks for r in c.library_uses}
+    first = [c for c in checks if not helpers(set(c.reference)) & uses]
+    second = [c for c in checks if c not in first]
+    every = sorted(helpers({r for c in checks for r in c.reference}))
+    return [(group, held) for group, held in ((first, of(checks)), (second, every)) if group]
+
+
+def refused(check, held) -> list[str]:
     """What the process that runs ``check``'s function refuses (:class:`.lockdown.Refusing`): its
-    references with their helpers, and what the sandbox withholds for its notebook's ``checks``
-    (a function the library needs for the other checks stays usable while they are graded)."""
-    return sorted(helpers(set(check.reference)) | set(of(checks)))
+    references with their helpers, and what the sandbox withholds in that run (``held``, from
+    :func:`runs`), so that a stub's call says which function it stands for."""
+    return sorted(helpers(set(check.reference)) | set(held))
 
 
 def helpers(paths) -> set[str]:
