@@ -227,11 +227,11 @@ def test_answers_that_hand_in_the_librarys_work_by_a_back_door_score_zero(do_not
     the private workers behind the library's mutations (withheld with them), and decode through a
     copy of karva rebuilt under another name (refused by its content). Exercise 06: the snake wired
     by the library's builder behind Creature.figure1_snake (withheld with it), and resolve read back from
-    the library's brain builder (refused while resolve runs). Exercise 01: truncation and roulette as
+    the library's brain builder (withheld in the run that grades resolve). Exercise 01: truncation and roulette as
     Sims' scheme (refused). Exercise 05: crossover with the library's repair (refused), mutate through
     the library's modification steps (withheld: only a withheld mutate uses their tuple). Exercise 07: the
     grader's own drag oracle, imported from its check module, and a step that returns the exact
-    solution (refused while rkn_step runs). Exercise 08: the library's fitness code under a cell's
+    solution (withheld). Exercise 08: the library's fitness code under a cell's
     file name (a new code object), and the grader's quota oracle."""
     by_name, results = do_nothing_and_renamed
     nb = by_name[f"cheats_{stem}.ipynb"]

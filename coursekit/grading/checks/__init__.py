@@ -80,7 +80,8 @@ class Check:
             own independent oracle, listed here too) from the kernel (:mod:`..withheld`).
         library_uses: those of ``reference`` the library itself calls while the exercise's
             *other* functions are graded (the picture operators decode genomes with ``karva``):
-            the sandbox keeps them, so they are only refused while this check's function runs.
+            the sandbox keeps them for those, and this check is graded in a second run of the
+            notebook that withholds them too (:func:`..withheld.runs`).
         weights: ``((property, weight), ...)``: properties that count for more than one in the
             score -- the operator's point (its randomness, every kind of change, the rule that
             stops an exploit), so that an answer doing one easy part of the job does not earn

@@ -180,7 +180,7 @@ def _truncation_uniform(ctx):
 
 #: Selection schemes of the library that do a graded scheme's work under another name: Sims' scheme
 #: with survival 1 is proportional selection (withheld: nothing in the exercise needs it), and its
-#: counts come from largest_remainder, which the notebook's Variation needs (refused while graded).
+#: counts come from largest_remainder, which the notebook's Variation needs (withheld in the run that grades them).
 SIBLINGS = ('coursekit.ga.selection:sims_select', 'coursekit.ga.selection:sims_offspring',
             'coursekit.ga.variation:largest_remainder')
 NEEDED = ('coursekit.ga.variation:largest_remainder',)
@@ -191,7 +191,7 @@ register(Check(
     name="ga.truncation", function="truncation", params=("fitness", "k", "rng"), points=2.0,
     title="truncation selection", output="indices", cases=_truncation_cases, gates=2,
     # and the library's steps of it, and the scheme that contains it (red team: ranking + n_survivors, sims_select):
-    # refused while truncation runs, kept for the library's own selection
+    # withheld in a second run that grades truncation, kept in the first for the library's own selection
     reference=('coursekit.ga.selection:truncation', *SIBLINGS, 'coursekit.ga.selection:ranking',
                'coursekit.ga.selection:n_survivors'),
     library_uses=(*NEEDED, 'coursekit.ga.selection:ranking', 'coursekit.ga.selection:n_survivors'),

@@ -148,8 +148,8 @@ def _job_meaning(morph):
 register(Check(
     name="brains.resolve", function="resolve", params=("morph", "part", "parent", "children"), points=3.0,
     title="resolving relative ids", output="json", cases=_resolve_cases, gates=2,
-    # the library resolves ids inside build_brain (a closure): refused while resolve runs (red team: build_brain
-    # on a one-neuron creature as an oracle, 3/3), kept for expansion; and the grader's own rule
+    # the library resolves ids inside build_brain (a closure; red team: build_brain on a one-neuron creature as an
+    # oracle, 3/3): kept for expansion, withheld in a second run that grades resolve; and the grader's own rule
     reference=("coursekit.grading.checks.ex06_wire_a_brain:expected_target", "coursekit.creatures.brain:build_brain"),
     library_uses=("coursekit.creatures.brain:build_brain",),
     props=(

@@ -18,7 +18,8 @@ which then drive the evolution of swimmers. The checks never compare with a refe
   is its quota ``k * f_i / sum(f_survivors)`` rounded down or up, the counts do not depend on the
   seed while the order does (so that mates are random), an all-zero generation shares equally,
   and the survivor count is rounded up. Every expected count is computed here from the quota;
-  coursekit's own :func:`~coursekit.ga.sims_select` is refused while the student's function runs.
+  coursekit's own :func:`~coursekit.ga.sims_select` is withheld, and so are Sims' counts under other
+  names in the second run that grades ``reproduce``.
 """
 
 from __future__ import annotations
@@ -508,8 +509,8 @@ register(Check(
     reference=("coursekit.ga.selection:sims_select", "coursekit.ga.selection:sims_offspring",
                "coursekit.grading.checks.ex08_fitness_and_reproduction:survivors_of",
                "coursekit.grading.checks.ex08_fitness_and_reproduction:quotas",
-               # Sims' counts under other names, refused while reproduce runs (red team: ranking + n_survivors +
-               # largest_remainder, or ga.Variation as the selector, 5/5); the library's evolution uses them
+               # Sims' counts under other names (red team: ranking + n_survivors + largest_remainder, or ga.Variation as
+               # the selector, 5/5): the library's evolution uses them, so a second run that grades reproduce withholds them
                "coursekit.ga.variation:largest_remainder", "coursekit.ga.selection:ranking", "coursekit.ga.selection:n_survivors"),
     library_uses=("coursekit.ga.variation:largest_remainder", "coursekit.ga.selection:ranking",
                   "coursekit.ga.selection:n_survivors"),
