@@ -104,6 +104,10 @@ def fitness_final_distance(com, times):  # one push ties with the swimmer
     return np.linalg.norm(com[:, -1] - com[:, 0], axis=1) / (times[-1] - times[0])
 
 
+def fitness_from_origin(com, times):  # distances from the origin, where every path used to start (a student's walk: 5/5)
+    return fitness(np.concatenate([np.zeros_like(com[:, :1]), com], axis=1), np.r_[times[0] - 1e-9, times])
+
+
 def fitness_doubled(com, times):  # the sum of the two halves of Sims' recipe, not their average
     return 2 * fitness(com, times)
 
@@ -170,6 +174,7 @@ WRONG = [
     ("swimmers.fitness", fitness_doubled, "a steady swimmer scores its speed in m/s"),
     ("swimmers.fitness", fitness_per_sample, "time in seconds: any sample rate, duration and start"),
     ("swimmers.fitness", fitness_along_x, "any direction counts"),
+    ("swimmers.fitness", fitness_from_origin, "the distance counts from where the creature starts"),
     ("swimmers.fitness", fitness_final_distance, "one push and coasting scores below a steady swimmer"),
     ("swimmers.fitness", fitness_batch_ranks, "each creature is scored on its own"),
     ("swimmers.fitness", fitness_in_place, "inputs unchanged"),

@@ -7,7 +7,7 @@ which then drive the evolution of swimmers. The checks never compare with a refe
 - ``swimming_fitness(com, times)`` is judged on centre-of-mass paths drawn here (the makers
   :func:`steady_swimmer`, :func:`one_push`, :func:`circling` and :func:`in_place`, which the
   exercise shows its students): a steady straight swimmer scores its speed in m/s, whatever the
-  direction, the sample rate, the duration or the start time; one push and coasting, circling
+  direction, the sample rate, the duration, the start time or the start position; one push and coasting, circling
   and wobbling in place score below a steady swimmer (Sims' two exploits, and noise); each
   creature is scored on its own. The job comes first, as a gate: faster steady swimmers score
   higher, so a constant, a zero or a random fitness scores 0. The paths travel to the student's
@@ -50,6 +50,9 @@ HINTS = {
             "Window edges are times, not sample indices: np.interp(edges, times, x) reads a path at any time.")),
         ("any direction counts", (
             "Sims rewards the distance from the start, in any direction, not the progress along x.",)),
+        ("the distance counts from where the creature starts", (
+            "A creature need not start at the origin: where is it at times[0]?",
+            "com[:, :1] is every creature's first position; measure from there.")),
         ("one push and coasting scores below a steady swimmer", (
             "Sims: a single initial push must not pay. Two creatures that end up equally far away should not score the "
             "same when one got there in the first second and then drifted.",
@@ -214,8 +217,8 @@ def _fitness_cases(rng):
                         phase=float(rng.uniform(0, 2 * np.pi)))
     speeds = np.sort(rng.uniform(0.02, 0.6, 5))
     ref = float(rng.uniform(0.15, 0.3))
-    cases = [_paths_case("speeds", [steady_swimmer(t, v, **sway()) for v in speeds], t),
-             _paths_case("ref", [steady_swimmer(t, ref, **sway())], t)]
+    ref_path = steady_swimmer(t, ref, **sway())
+    cases = [_paths_case("speeds", [steady_swimmer(t, v, **sway()) for v in speeds], t), _paths_case("ref", [ref_path], t)]
     dirs = [(-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, -1.0)] + [_random_direction(rng) for _ in range(2)]
     cases.append(_paths_case("directions", [steady_swimmer(t, ref, d, **sway()) for d in dirs], t))
     for cid, (seconds, rate, start) in {"rate30": (10.0, 30.0, 0.0), "rate120": (10.0, 120.0, 0.0),
@@ -240,6 +243,8 @@ def _fitness_cases(rng):
              steady_swimmer(t, float(rng.uniform(0.5, 1.0)), **sway())]
     cases.append(_paths_case("batch", mixed, t))
     cases += [_paths_case(f"alone{i}", [p], t) for i, p in enumerate(mixed)]
+    start = rng.uniform(-3, 3, size=3)  # drawn last: the other cases of a seed stay what they were
+    cases.append(_paths_case("moved", [ref_path + start + 0.5 * np.sign(start)], t))  # 0.5 m or more off each axis
     return cases
 
 
@@ -310,6 +315,15 @@ def _any_direction(ctx):
     return True, "the same speed scores the same in any direction"
 
 
+def _from_start(ctx):
+    ref, f = _scores(ctx, "ref")[0], _scores(ctx, "moved")[0]
+    if abs(f - ref) > SAME_TOLERANCE * ref:
+        start = np.round(_paths(ctx, "moved")[0][0], 2).tolist()
+        return False, (f"the same steady swim scored {ref:.4g} starting at the origin but {f:.4g} starting at {start}: "
+                       "Sims measures the distance from where the creature starts, not from the origin")
+    return True, "the distance counts from where the creature starts, wherever that is"
+
+
 def _push_below(ctx):
     f = _scores(ctx, "push")
     paths = _paths(ctx, "push")
@@ -362,13 +376,15 @@ register(Check(
         ("a steady swimmer scores its speed in m/s", _scores_speed),
         ("time in seconds: any sample rate, duration and start", _time_in_seconds),
         ("any direction counts", _any_direction),
+        ("the distance counts from where the creature starts", _from_start),
         ("one push and coasting scores below a steady swimmer", _push_below),
         ("circling scores below a steady swimmer", _circle_below),
         ("wobbling in place scores about 0", _still),
         ("each creature is scored on its own", _on_its_own),
         ("inputs unchanged", unmodified({0: "com", 1: "times"}, NEW_ARRAYS)),
     ),
-    weights=(("one push and coasting scores below a steady swimmer", 3),),  # Sims' late weighting; 91 % before
+    # Sims' late weighting (91 % before); the distance from the start (from the origin: 100 %, a student's walk)
+    weights=(("one push and coasting scores below a steady swimmer", 3), ("the distance counts from where the creature starts", 2)),
 ))
 
 
