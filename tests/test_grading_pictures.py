@@ -124,6 +124,18 @@ def decode_depth_first(symbols):
     return read()
 
 
+def decode_wrapped_terminals(symbols):  # the right reading, terminals as ["x"] (a student's walk)
+    def wrap(t):
+        return [t] if isinstance(t, str) else [t[0], *map(wrap, t[1:])]
+    return wrap(PC.karva(symbols))
+
+
+def test_terminals_written_as_lists_are_told_apart_from_a_wrong_reading_order():
+    j = evaluate("pictures.decode", decode_wrapped_terminals, seed=2)
+    [failed] = [v for v in j.verdicts if not v.passed]
+    assert failed.prop == "reads breadth-first (Karva)" and "the reading order is right" in failed.message, failed.message
+
+
 def decode_sexpr_text(symbols):
     return str(PC.karva(symbols))
 

@@ -149,10 +149,20 @@ def _decode_root(ctx):
     return True, "the root is the first chromosome"
 
 
+def _bare(tree):
+    """``tree`` with one-element lists (a terminal written ``["x"]``) made bare names."""
+    if isinstance(tree, list):
+        return tree[0] if len(tree) == 1 else [_bare(t) for t in tree]
+    return tree
+
+
 def _decode_karva(ctx):
     for cid in ctx.cases:
         syms = ctx.case(cid)["symbols"]
         if _tree(ctx, cid) != karva(syms):
+            if _bare(_tree(ctx, cid)) == karva(syms):
+                return False, (f"decode({syms}) gave {json.dumps(_tree(ctx, cid))}: the reading order is right, but a "
+                               "terminal is its bare name (\"x\"), not a list of one name ([\"x\"])")
             return False, (f"decode({syms}) gave {json.dumps(_tree(ctx, cid))}, which is not the breadth-first "
                            f"reading: the children of one level are the next chromosomes of the string, "
                            f"left to right, level after level")
