@@ -102,10 +102,14 @@ def test_one_flaw_of_the_wiring_fails_exactly_its_property(wire, prop):
     assert [p for p, ok in v.items() if not ok] == [prop], v
 
 
-@pytest.mark.parametrize("wire", [_wire(phase=0.0), lambda snake: snake.copy()])
-def test_segments_in_step_or_no_wiring_score_zero(wire):
+@pytest.mark.parametrize("wire, says", [(_wire(phase=0.0), "no wave travels along the body"),
+                                        (lambda snake: snake.copy(), "a signal that oscillates")])
+def test_segments_in_step_or_no_wiring_score_zero(wire, says):
+    """Both fail the swimming gate; its message tells moving joints with no travelling wave (a phase
+    step of 0, a student's walk) from joints that get no signal."""
     j, v = verdicts("brains.wire_snake", wire)
     assert j.score == 0.0
+    assert says in next(x.message for x in j.verdicts if x.prop == "the snake swims")
 
 
 def test_a_changed_body_scores_zero():

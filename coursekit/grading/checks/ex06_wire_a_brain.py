@@ -242,9 +242,16 @@ def _swim_text(m):
 def _wire_swims(ctx):
     m = _swims(ctx)[0]
     if m["bl"] < SWIM_MIN:
+        lags, amplitude = phase_lags(m["spine"])
+        moving = amplitude.size and np.all(amplitude >= 1e-6 * max(1.0, amplitude.max()))
+        standing = np.any(np.abs(lags) < WAVE_LAG) or np.any(np.abs(lags) > np.pi - WAVE_LAG) or not (
+            np.all(lags > 0) or np.all(lags < 0))
+        why = (f"Its joints move, but no wave travels along the body: neighbours move in step or in opposition (phase "
+               f"differences {np.round(lags, 2).tolist()} rad), and a body that bends in place gets nowhere. Let each "
+               "segment's oscillator lag its parent's by a phase step." if moving and standing else
+               "Does every segment's joint get a signal that oscillates?")
         return False, (f"the snake of {SEGMENTS[0]} segments swims {_swim_text(m)} in {SECONDS:g} s; it must reach "
-                       f"{SWIM_MIN} body lengths/s. Does every segment's joint get a signal that oscillates? Nothing else "
-                       "is judged until it swims")
+                       f"{SWIM_MIN} body lengths/s. {why} Nothing else is judged until it swims")
     return True, f"the snake of {SEGMENTS[0]} segments swims {_swim_text(m)}"
 
 
