@@ -443,6 +443,23 @@ def test_the_report_gives_one_note_per_distinct_cell_error_and_keeps_skipped_cel
     assert problems == ["cell 13: skipped: the notebook's time ran out"]
 
 
+def test_a_cells_error_is_shown_short_and_cut_between_words():
+    """A demo cell that hits a withheld function is named by the function (the message would fill
+    the results' line, cut mid-word: a student's walk); any other long message ends in "…" at a
+    word boundary."""
+    from coursekit.grading.executor import ERROR_CHARS, _error_name
+    from coursekit.grading.withheld import MESSAGE
+
+    def cell(ename, evalue):
+        return {"outputs": [{"output_type": "error", "ename": ename, "evalue": evalue}]}
+
+    said = _error_name(cell("RuntimeError", MESSAGE.format(name="Creature.figure1_snake")))
+    assert said == "uses coursekit's own Creature.figure1_snake, withheld while grading (this costs nothing)"
+    long = _error_name(cell("ValueError", "the shape " + "is wrong " * 40))
+    assert len(long) <= ERROR_CHARS and long[:-1].rsplit(" ", 1)[1] in ("is", "wrong") and long.endswith("…"), long
+    assert _error_name(cell("ValueError", "bad")) == "ValueError: bad" and _error_name({"outputs": []}) is None
+
+
 # -- one easy part of the job is not nearly full marks ----------------------------------------------
 
 
