@@ -380,6 +380,29 @@ def interp_children_independent(a, b, rng):
     return _interp(a, b, rng, _one, same_u=False)
 
 
+def interp_same_symbols_only(a, b, rng):  # a student's walk: parents unchanged where the primitives differ (1.83/2)
+    return _interp(a, b, rng, _one)
+
+
+def _lerp_own(x, y, u):
+    """``x`` with the parameters it shares with ``y`` blended: its own symbol whatever ``u``."""
+    py = {s.name: v for s, v in zip(P.get(y.symbol).params, y.params)}
+    return Chromosome(x.symbol, tuple((1 - u) * v + u * py[s.name] if s.name in py else v
+                                      for s, v in zip(P.get(x.symbol).params, x.params)))
+
+
+def interp_own_symbol(a, b, rng):  # each child keeps its own parent's primitive, even nearer the other one
+    rows = [(key, sa, sb, i) for (key, sa, _), (_, sb, _) in zip(strings_of(a), strings_of(b)) for i in range(len(sa))
+            if sa[i] != sb[i] and {s.name for s in P.get(sa[i].symbol).params} & {s.name for s in P.get(sb[i].symbol).params}]
+    if not rows:
+        return a, b
+    key, sa, sb, i = rows[int(rng.integers(len(rows)))]
+    u = float(rng.random())
+    ra, rb = list(sa), list(sb)
+    ra[i], rb[i] = _lerp_own(sa[i], sb[i], u), _lerp_own(sb[i], sa[i], u)
+    return with_string(a, key, ra), with_string(b, key, rb)
+
+
 def interp_half(a, b, rng):
     return _interp(a, b, rng, lambda rng, n: [0.5] * n)
 
@@ -495,6 +518,8 @@ WRONG = SHARED + DO_NOTHING + [
     ("random_interpolation", interp_u_per_parameter, "one u per chromosome"),
     ("random_interpolation", interp_children_independent, "complementary children"),
     ("random_interpolation", interp_half, "u is random"),
+    ("random_interpolation", interp_same_symbols_only, "blends different primitives too"),
+    ("random_interpolation", interp_own_symbol, "the symbol of the nearer parent"),
 ]
 
 

@@ -384,7 +384,7 @@ register(Check(
         ("inputs unchanged", unmodified({0: "com", 1: "times"}, NEW_ARRAYS)),
     ),
     # Sims' late weighting (91 % before); the distance from the start (from the origin: 100 %, a student's walk)
-    weights=(("one push and coasting scores below a steady swimmer", 3), ("the distance counts from where the creature starts", 2)),
+    weights=(("one push and coasting scores below a steady swimmer", 4), ("the distance counts from where the creature starts", 2)),
 ))
 
 
