@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from coursekit.creatures import Creature, operators
-from coursekit.creatures.genotype import random_link, random_node, renumber
+from coursekit.creatures.genotype import preorder, random_link, random_node, renumber
 from coursekit.grading import checks, evaluate
 from coursekit.grading.checks import creature_expansion as cc
 from solution_cells import solution_functions
@@ -185,6 +185,40 @@ def crossover_drops_orphans(a, b, rng):
     return Creature(renumber(slots), copy.deepcopy(a.brain))
 
 
+def crossover_keeps_loops(a, b, rng):
+    """The solution without removing the links that close a cycle (a student's walk: 4/4 before the
+    grader's parents could close one); orphans still join where they close none."""
+    pa, pb = [a.nodes[i] for i in preorder(a.nodes)], [b.nodes[i] for i in preorder(b.nodes)]
+    L = max(len(pa), len(pb))
+    n, m = (int(v) for v in rng.integers(1, L + 1, size=2))
+    slots, pos, from_a = [], 0, True
+    while pos < L:
+        src, span = (pa, n) if from_a else (pb, m)
+        slots += [copy.deepcopy(src[k]) if k < len(src) else None for k in range(pos, min(pos + span, L))]
+        pos += span
+        from_a = not from_a
+    for node in slots:
+        if node is not None:
+            node.children = [lk for lk in node.children if slots[lk.child] is not None]
+            node.symmetry = [s for s in node.symmetry if any(lk.child == s.child for lk in node.children)]
+    while True:
+        reach = set(preorder(slots))
+        orphans = [i for i, node in enumerate(slots) if node is not None and i not in reach]
+        if not orphans:
+            return Creature(renumber(slots), copy.deepcopy(a.brain))
+        i = orphans[0]
+        hosts = sorted(h for h in reach if len(slots[h].children) < 4 and not SOL["reaches"](slots, i, h))
+        host = hosts[int(rng.integers(len(hosts)))]
+        slots[host].children.append(random_link(rng, i, slots[host], slots[i]))
+
+
+def test_a_crossover_that_keeps_links_closing_a_loop_fails_only_for_parents_that_can_close_one():
+    j = evaluate("creatures.crossover", crossover_keeps_loops, seed=1, timeout=30)
+    failed = [v for v in j.verdicts if not v.passed]
+    assert {v.prop for v in failed} == {"runs", "the repair leaves no loop"}, [(v.prop, v.message[:200]) for v in failed]
+    assert "cycle" in failed[-1].message and j.score <= 0.8 * j.check.points
+
+
 def crossover_changes_links(a, b, rng):
     child = _sol("crossover")(a, b, rng)
     for node in child.nodes:
@@ -266,6 +300,7 @@ WRONG = [
     ("creatures.crossover", crossover_changes_links, "links between taken nodes are kept"),
     ("creatures.crossover", crossover_always_a, "n and m are random"),
     ("creatures.crossover", crossover_fixed_blocks, "n and m are random"),
+    ("creatures.crossover", crossover_keeps_loops, "the repair leaves no loop"),
     ("creatures.crossover", crossover_global_rng, "deterministic for a seed"),
     ("creatures.crossover", crossover_modifies_a, "inputs unchanged"),
     ("creatures.mutate", make_mutate(off_list=True), "values from the predefined lists"),

@@ -34,6 +34,17 @@ def _parent_pair(rng, lo, hi):
             return a, b
 
 
+def _cycle_prone_pair(rng):
+    """Two random parents such that a child can close a loop: ``a`` links LR position ``i`` to a later
+    ``j`` and ``b`` links ``j`` back to ``i`` (a child taking ``i`` from ``a`` and ``j`` from ``b``
+    holds both links unless its repair removes one)."""
+    while True:
+        a, b = (random_creature(rng, n_nodes=(3, 6), brain_neurons=(2, 2), p_symmetry=0.5) for _ in range(2))
+        forward = {(i, lk.child) for i, n in enumerate(a.nodes) for lk in n.children if lk.child > i}
+        if _forward_only(a) and any((lk.child, j) in forward for j, n in enumerate(b.nodes) for lk in n.children):
+            return a, b
+
+
 def make_cases(rng):
     s = seeds(rng, 80)
     cases = []
@@ -44,12 +55,34 @@ def make_cases(rng):
     for k in range(6):
         a, b = _parent_pair(rng, 2, 7)
         cases.append({"id": f"pair{k}", "args": [obj(a), obj(b), RNG], "seeds": s[41 + 3 * k:44 + 3 * k]})
+    more = seeds(rng, 3 * LOOP_SEEDS)  # drawn last: the other cases of a seed stay what they were
+    for k in range(3):
+        a, b = _cycle_prone_pair(rng)
+        cases.append({"id": f"loop{k}", "args": [obj(a), obj(b), RNG], "seeds": more[k * LOOP_SEEDS:(k + 1) * LOOP_SEEDS]})
     for case in cases:
         case["max_len"] = MAX_JSON
     return cases
 
 
 CASES = ("basic", "many") + tuple(f"pair{k}" for k in range(6))
+LOOP_SEEDS = 12
+LOOP_CASES = tuple(f"loop{k}" for k in range(3))
+
+
+def no_loops(ctx):
+    """On parents whose links can close a loop in a child, every child is a valid creature."""
+    for cid in LOOP_CASES:
+        rec = ctx.records.get(cid) or {"status": "no result"}
+        if rec.get("status") != "ok":
+            return False, (f"on parents whose links can close a loop (test input {cid!r}) it failed: "
+                           f"{str(rec.get('error', rec.get('status')))[:200]}. The repair removes a link that would close a "
+                           "cycle, and a new link for an orphan must not close one either")
+        for k, text in enumerate(ctx.out(cid)):
+            try:
+                parse(text)
+            except (ValueError, TypeError) as exc:
+                return False, f"on parents whose links can close a loop (test input {cid!r}), call {k + 1} gave an invalid creature: {exc}"
+    return True, f"no loop in {LOOP_SEEDS * len(LOOP_CASES)} children of parents whose links could close one"
 
 
 def _trace(a, b, child):
