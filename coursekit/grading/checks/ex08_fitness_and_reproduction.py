@@ -243,8 +243,10 @@ def _fitness_cases(rng):
              steady_swimmer(t, float(rng.uniform(0.5, 1.0)), **sway())]
     cases.append(_paths_case("batch", mixed, t))
     cases += [_paths_case(f"alone{i}", [p], t) for i, p in enumerate(mixed)]
-    start = rng.uniform(-3, 3, size=3)  # drawn last: the other cases of a seed stay what they were
-    cases.append(_paths_case("moved", [ref_path + start + 0.5 * np.sign(start)], t))  # 0.5 m or more off each axis
+    # drawn last (the other cases of a seed stay what they were): 4-8 m off the line the swim takes (+x), so
+    # that the distance from the origin grows at another rate than the distance from the start
+    side = rng.uniform(4, 8, size=2) * rng.choice((-1, 1), size=2)
+    cases.append(_paths_case("moved", [ref_path + np.array([0.0, side[0], side[1]])], t))
     return cases
 
 
