@@ -33,6 +33,7 @@ import argparse
 import hmac
 import json
 import os
+import re
 import secrets
 import socket
 import sys
@@ -126,8 +127,6 @@ ERROR_CHARS = 180
 def _error_name(cell) -> str | None:
     """``"Name: message"`` of a cell's error, short: a withheld function's long message as the
     function's name, anything else cut between words."""
-    import re
-
     for out in cell.get("outputs", []):
         if out.get("output_type") == "error":
             value = str(out.get("evalue", ""))

@@ -243,6 +243,12 @@ def _interp_changes(ctx):
     return True, f"{changed} of {n} calls blended a pair of chromosomes"
 
 
+def _named(x) -> dict:
+    """A chromosome's parameters by name."""
+    _, P = lib()
+    return {s.name: v for s, v in zip(P.get(x.symbol).params, x.params)}
+
+
 def _between(a, b, c1, c2):
     _, P = lib()
     ra, rb = rows(a), rows(b)
@@ -252,8 +258,7 @@ def _between(a, b, c1, c2):
                 xa, xb = ra[k][0][i], rb[k][0][i]
                 if x.symbol not in (xa.symbol, xb.symbol):
                     return f"child {n} has {x.symbol!r} at position {i} of {row_name(k)}, the primitive of neither parent there"
-                pa = {s.name: v for s, v in zip(P.get(xa.symbol).params, xa.params)}
-                pb = {s.name: v for s, v in zip(P.get(xb.symbol).params, xb.params)}
+                pa, pb = _named(xa), _named(xb)
                 for spec, v in zip(P.get(x.symbol).params, x.params):
                     vals = [p[spec.name] for p in (pa, pb) if spec.name in p]
                     lo, hi = min(vals), max(vals)
@@ -290,16 +295,14 @@ def _mixed_blends(ctx):
 
 
 def _nearer_parent(a, b, c1, c2):
-    _, P = lib()
     pos = _changed_positions(a, b, c1, c2)
     if len(pos) != 1:
         return None
     (k, i), = pos
     xa, xb = rows(a)[k][0][i], rows(b)[k][0][i]
-    pa = {s.name: v for s, v in zip(P.get(xa.symbol).params, xa.params)}
-    pb = {s.name: v for s, v in zip(P.get(xb.symbol).params, xb.params)}
+    pa, pb = _named(xa), _named(xb)
     for n, x, (near, far), (pn, pf) in ((1, rows(c1)[k][0][i], (xa, xb), (pa, pb)), (2, rows(c2)[k][0][i], (xb, xa), (pb, pa))):
-        px = {s.name: v for s, v in zip(P.get(x.symbol).params, x.params)}
+        px = _named(x)
         us = [(px[m] - pn[m]) / (pf[m] - pn[m]) for m in px if m in pn and m in pf and pf[m] != pn[m]]
         if not us or abs(us[0] - 0.5) < 1e-6:
             continue

@@ -340,6 +340,12 @@ def _nystrom_stage(k, t, y, v, h, a):
     return t + h, y + h * v + h * h / 2 * a[2], v + h * a[2]
 
 
+def _force(ctx, cid):
+    """The right-hand side ``f(t, y, v)`` case ``cid`` hands the step: a named ODE, or a counting one's."""
+    fn = ctx.case(cid)["args"][0]
+    return odes.ODES[json.loads(fn["json"])["ode"] if "json" in fn else fn["function"].rpartition(":")[2]]
+
+
 def _rkn_stages(ctx):
     ctx.out("count")
     t, y, v, h = _start(ctx, "count")
@@ -349,7 +355,7 @@ def _rkn_stages(ctx):
                   for p in json.loads(after["json"])["points"]]
     except (TypeError, KeyError, ValueError, IndexError):
         return False, "could not read where f was evaluated"
-    f, a = odes.ODES[json.loads(ctx.case("count")["args"][0]["json"])["ode"]], []
+    f, a = _force(ctx, "count"), []
     for k, (tk, yk, vk) in enumerate(points[:4]):
         wt, wy, wv = _nystrom_stage(k, t, y, v, h, a)
         scale = 1 + float(np.max(np.abs(np.r_[wy, wv])))
@@ -366,9 +372,7 @@ def _rkn_weights(ctx):
     """The result is Nystrom's combination of its four stages, to rounding, on every case (an
     integrator of another kind with an error of the right order made up is of no use to it)."""
     for cid in ctx.cases:
-        t, y, v, h = _start(ctx, cid)
-        fn = ctx.case(cid)["args"][0]
-        f = odes.ODES[json.loads(fn["json"])["ode"] if "json" in fn else fn["function"].rpartition(":")[2]]
+        t, y, v, h, f = *_start(ctx, cid), _force(ctx, cid)
         a = []
         for k in range(4):
             a.append(f(*_nystrom_stage(k, t, y, v, h, a)))

@@ -7,9 +7,9 @@ which then drive the evolution of swimmers. The checks never compare with a refe
 - ``swimming_fitness(com, times)`` is judged on centre-of-mass paths drawn here (the makers
   :func:`steady_swimmer`, :func:`one_push`, :func:`circling` and :func:`in_place`, which the
   exercise shows its students): a steady straight swimmer scores its speed in m/s, whatever the
-  direction, the sample rate, the duration, the start time or the start position; one push and coasting, circling
-  and wobbling in place score below a steady swimmer (Sims' two exploits, and noise); each
-  creature is scored on its own. The job comes first, as a gate: faster steady swimmers score
+  direction, the sample rate, the duration, the start time or the start position; one push and
+  coasting, circling and wobbling in place score below a steady swimmer (Sims' two exploits, and
+  noise); each creature is scored on its own. The job comes first, as a gate: faster steady swimmers score
   higher, so a constant, a zero or a random fitness scores 0. The paths travel to the student's
   function as :class:`Paths`, a numpy array that the grader can compare before and after a call.
 - ``reproduce(fitness, k, rng, survival=0.2)`` is judged on the parent indices it returns: only
