@@ -214,7 +214,7 @@ INTERP_CASES = ("basic", "many", "single", "mixed")
 def _interpolation_cases(rng):
     cases = _recombination_cases(rng, same_symbols=True)
     a, b = distinct_pair(rng, 3, 4)
-    cases.append({"id": "mixed", "args": [obj(a), obj(b), RNG], "seeds": seeds(rng, 20), "max_len": MAX_JSON})
+    cases.append({"id": "mixed", "args": [obj(a), obj(b), RNG], "seeds": seeds(rng, 40), "max_len": MAX_JSON})
     return cases
 
 
@@ -283,12 +283,15 @@ def _u_of(a, b, c1, c2):
 
 
 def _mixed_blends(ctx):
+    """On parents whose primitives differ at every position, some call changes a chromosome. Not
+    every call need: where the two share no parameter and u < 0.5 a child is its own parent (the
+    reference solution changes 5 to 20 of 20 calls, over 40 seeds)."""
     n = changed = 0
     for _, a, b, c1, c2 in pair_results(ctx, "mixed"):
         n += 1
         changed += bool(_changed_positions(a, b, c1, c2))
-    if changed < n / 2:
-        return False, (f"on parents with different primitives only {changed} of {n} calls changed anything; "
+    if not changed:
+        return False, (f"on parents whose primitives differ at every position none of {n} calls changed anything; "
                        "interpolation blends the parameters two different primitives share by name too (prefer a "
                        "position where they share one)")
     return True, f"{changed} of {n} calls on parents with different primitives changed a chromosome"
