@@ -237,12 +237,6 @@ def substitution_out_of_range(genome, rng):
     return _substitute(genome, key, i, Chromosome(c.symbol, tuple(10 * v + 1000 for v in c.params)))
 
 
-def substitution_never_the_preheader(genome, rng):  # a student's walk: 2/2 before
-    key, chroms, h = _pick(rng, [r for r in strings_of(genome) if r[0] != "pre"])
-    i = int(rng.integers(len(chroms)))
-    return _substitute(genome, key, i, random_chromosome(rng, "head" if i < h else "tail"))
-
-
 def substitution_root_only(genome, rng):
     key, chroms, h = _pick(rng, strings_of(genome))
     return _substitute(genome, key, 0, random_chromosome(rng, "head"))
@@ -504,7 +498,6 @@ WRONG = SHARED + DO_NOTHING + [
     ("substitution", substitution_constant, "the new chromosome is random"),
     ("substitution", substitution_out_of_range, "the new chromosome is random"),
     ("substitution", substitution_root_only, "any position can be replaced"),
-    ("substitution", substitution_never_the_preheader, "any position can be replaced"),
     ("head_tail_rotation", rotation_two_strings, "changes one string only"),
     ("head_tail_rotation", rotation_both_regions, "a cyclic shift of exactly one region"),
     ("head_tail_rotation", rotation_may_be_zero, "a cyclic shift of exactly one region"),
