@@ -237,6 +237,23 @@ def substitution_out_of_range(genome, rng):
     return _substitute(genome, key, i, Chromosome(c.symbol, tuple(10 * v + 1000 for v in c.params)))
 
 
+def substitution_coding_only(genome, rng):
+    """Aimed at the coding part, like coursekit's own: only a chromosome the picture reads is replaced."""
+    coding = genome.active
+    key, chroms, h = _pick(rng, [r for r in strings_of(genome) if coding[r[0]]])
+    i = int(rng.choice(sorted(coding[key])))
+    return _substitute(genome, key, i, random_chromosome(rng, "head" if i < h else "tail"))
+
+
+# Seed 32 drew case genomes whose coding parts stayed in the heads (but in one call repeated four times):
+# "any position can be replaced" failed coursekit's own substitution there.
+@pytest.mark.parametrize("seed", [0, 32])
+def test_a_substitution_aimed_at_the_coding_part_gets_full_marks(seed):
+    for fn in (substitution_coding_only, O.substitution):
+        j = evaluate("pictures.substitution", fn, seed=seed)
+        assert j.score == j.check.points, [v for v in j.verdicts if not v.passed]
+
+
 def substitution_root_only(genome, rng):
     key, chroms, h = _pick(rng, strings_of(genome))
     return _substitute(genome, key, 0, random_chromosome(rng, "head"))

@@ -29,7 +29,9 @@ determinism for a seed and inputs left unmodified.
 
 Case genomes are built so that every outcome can be read off the result: within a string (and
 across the two parents' strings) no two chromosomes are equal, so an interchange, a clone, a
-rotation or a copy is never invisible.
+rotation or a copy is never invisible. The one-string genome of the mutations' cases has a third of
+its coding chromosomes or more in its tail, so that a mutation aimed at the coding part (as
+coursekit's own are: a change there always shows in the picture) reaches both regions.
 """
 
 from __future__ import annotations
