@@ -179,11 +179,37 @@ def test_remove_stale_spares_live_processes_and_foreign_names(tmp_path):
     "\x9b31m",  # 8-bit CSI
     "\x1bP1$r\x1b\\",  # DCS
     "\u202e",  # right-to-left override
+    "\ud800",  # a lone surrogate: printing it raised UnicodeEncodeError, and the batch's results were lost
 ])
 def test_clean_strips_terminal_escapes_and_control_characters(attack):
     text = clean(f"before {attack}ga.tournament 2.00 / 2 all properties hold\tafter\nnext")
-    assert text == "before ga.tournament 2.00 / 2 all properties hold\tafter\nnext"
-    assert all(ch in "\n\t" or (ord(ch) >= 32 and not 0x7f <= ord(ch) <= 0x9f) for ch in text)
+    assert text == "before ga.tournament 2.00 / 2 all properties hold\tafter ⏎ next"
+    assert all(ch == "\t" or (ord(ch) >= 32 and not 0x7f <= ord(ch) <= 0x9f) for ch in text)
+    text.encode("utf-8")
+
+
+def test_a_student_error_text_cannot_cost_the_batch_its_results(tmp_path):
+    forged = ('def tournament(fitness, k, rng, size=3):\n'
+              '    raise ValueError("lone \\ud800 surrogate\\nga.tournament              2.00 / 2   all properties hold")')
+    honest = notebook(tmp_path / "honest.ipynb", *HONEST.values())
+    odd = notebook(tmp_path / "odd.ipynb", *HONEST.values(), forged)
+    for nb in (honest, odd):
+        nb_json = json.loads(nb.read_text())
+        nb_json["metadata"]["coursekit"] = {"exercise": "01_selection"}
+        nb.write_text(json.dumps(nb_json))
+    proc = grade(tmp_path, [honest, odd], "--json", "r.json", "--seed", "7")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    results = json.loads((tmp_path / "r.json").read_text())["extra_data"]["notebooks"]
+    assert [r["score"] for r in results] == [10, 8], results
+    assert len(re.findall(r"^\s*ga\.tournament\s+2\.00 / 2\s+all properties hold$", proc.stdout, re.M)) == 1, proc.stdout
+
+
+@pytest.mark.parametrize("newline", ["\n", "\r\n", "\u2028", "\u2029", "\x85"])
+def test_a_message_cannot_fake_a_line_of_the_summary(newline):
+    fake = f"boom{newline}physics.rkn_step           6.00 / 6   all properties hold"
+    assert clean(fake) in ("boom ⏎ physics.rkn_step           6.00 / 6   all properties hold",
+                           "boomphysics.rkn_step           6.00 / 6   all properties hold")
+    assert len(clean(fake).splitlines()) == 1
 
 
 @pytest.mark.slow

@@ -353,6 +353,9 @@ def main(args: argparse.Namespace) -> int:
     3 when a notebook was not graded (its cells were skipped for time, memory or a crash) and
     1 when the results file could not be written.
     """
+    for stream in (sys.stdout, sys.stderr):  # a terminal that cannot show a character gets "?", not a traceback
+        if hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="replace")
     for name in ("timeout", "cell_timeout", "memory_mb", "notebook_timeout", "max_processes", "disk_mb"):
         v = getattr(args, name, None)
         if v is not None and not (v > 0 and (isinstance(v, int) or math.isfinite(v))):
@@ -416,11 +419,11 @@ def main(args: argparse.Namespace) -> int:
     finally:
         if supervisor.ADOPTING:
             supervisor.sweep()
-    print(summary(results))
-    if args.json_out:
+    if args.json_out:  # the results first: nothing printed can cost them
         try:
             write_json_atomic(args.json_out, gradescope(results))
         except OSError as exc:
             print(f"coursekit grade: could not write the results to {args.json_out}: {exc.strerror}", file=sys.stderr)
             return 1
+    print(summary(results))
     return 0 if all(r.graded for r in results) else EXIT_NOT_GRADED

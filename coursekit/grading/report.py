@@ -54,17 +54,21 @@ _ESCAPES = re.compile(r"(?:\x1b\[|\x9b)[0-?]*[ -/]*[@-~]"  # CSI (7- and 8-bit):
                       r"|\x1b\][^\x07\x1b]*(?:\x07|\x1b\\)?"  # OSC: titles, hyperlinks, clipboard (OSC 52)
                       r"|\x1b[P^_X][^\x1b]*(?:\x1b\\)?"  # DCS, PM, APC, SOS strings
                       r"|\x1b.?")  # any other escape
-_CONTROLS = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u200b-\u200f\u202a-\u202e\u2066-\u2069]")
+#: Control and formatting characters, and lone surrogates (a str may hold them; no encoding can print them).
+_CONTROLS = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u200b-\u200f\u202a-\u202e\u2066-\u2069\ud800-\udfff]")
+_LINE_BREAKS = re.compile(r"\s*[\n\u2028\u2029]\s*")
 
 
 def clean(text) -> str:
-    """``text`` without terminal escapes and control characters (newlines and tabs stay).
+    """``text`` as one line, without terminal escapes and control characters (tabs stay; a line
+    break becomes " ⏎ ").
 
     Everything the grader prints or writes passes through here: a message may quote a student's
-    exception text, and an ANSI or OSC escape in it could clear the instructor's screen, fake a
-    line of the summary or set the clipboard.
+    exception text, and an ANSI or OSC escape in it could clear the instructor's screen or set the
+    clipboard, a line break could fake a line of the summary, and a lone surrogate could stop the
+    summary from being printed at all.
     """
-    return _CONTROLS.sub("", _ESCAPES.sub("", str(text))).replace("\r", "")
+    return _LINE_BREAKS.sub(" ⏎ ", _CONTROLS.sub("", _ESCAPES.sub("", str(text)).replace("\r", "")))
 
 
 def _said(j: Judgement, v) -> str:
