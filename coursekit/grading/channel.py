@@ -38,7 +38,8 @@ def read_untrusted(path: Path, limit: int) -> bytes | None:
     return data
 
 
-def _reject_constant(name):
+def reject_constant(name):
+    """``json.loads``'s ``parse_constant``: NaN and infinities are not plain data."""
     raise ValueError(f"non-finite number {name}")
 
 
@@ -74,7 +75,7 @@ def _valid_after(a, encoded, max_len) -> bool:
     if set(a) != {"json"} or type(a["json"]) is not str or len(a["json"]) > max_len:
         return False
     try:  # the supervisor compares it with what it sent: it must parse there
-        json.loads(a["json"], parse_constant=_reject_constant)
+        json.loads(a["json"], parse_constant=reject_constant)
     except (ValueError, RecursionError):
         return False
     return True
@@ -122,7 +123,7 @@ def read_results(data: bytes, checks: list, plan: dict) -> tuple[dict, dict | No
     report, rejected = None, 0
     for line in data.splitlines():
         try:
-            rec = json.loads(line, parse_constant=_reject_constant)
+            rec = json.loads(line, parse_constant=reject_constant)
         except (ValueError, RecursionError):
             rejected += 1
             continue

@@ -218,6 +218,7 @@ class Relay(threading.Thread):
             stream.write(json.dumps(obj).encode() + b"\n")
             stream.flush()
 
+        from coursekit.grading.channel import reject_constant
         from coursekit.grading.runner import send_line
 
         failed = set()
@@ -232,8 +233,8 @@ class Relay(threading.Thread):
                     send_line(conn, json.dumps({"call": sent}).encode() + b"\n", fds)
                     line = stream.readline(MAX_RECORD)
                     try:
-                        rec = json.loads(line) if line.endswith(b"\n") else None
-                    except ValueError:
+                        rec = json.loads(line, parse_constant=reject_constant) if line.endswith(b"\n") else None
+                    except (ValueError, RecursionError):
                         pass
                 finally:
                     ok = type(rec) is dict and rec.get("id") == call["id"]
@@ -248,6 +249,8 @@ class Relay(threading.Thread):
             send({"end": True})
         except (OSError, socket.timeout) as exc:
             self.problem = f"the harvest's connection broke ({type(exc).__name__})"
+        except Exception as exc:  # noqa: BLE001 -- a record the grader cannot pass on: the harvest is broken, not a call
+            self.problem = f"the harvest sent a record the grader cannot pass on ({type(exc).__name__})"
 
 
 def execute(nb, plan: dict, results: Results, cwd: str, cell_timeout: float) -> dict:

@@ -562,6 +562,26 @@ for i in range(8):
         f.write(b"x" * 10 * 2**20)
 time.sleep(5)'''],
     },
+    "nan_record": {
+        "about": "patches json.dumps in the kernel so that the harvest's records carry NaN after the first few calls: "
+                 "such a record is not a record, so the notebook is not graded (it was: a silent 'did not "
+                 "return in time' for the functions graded after, and exit 0).",
+        "sabotaged": {},
+        "not_graded": "the harvest answered out of turn",
+        "cells": ['''import json
+_dumps, _seen = json.dumps, [0]
+
+
+def _with_nan(obj, *args, **kwargs):
+    if type(obj) is dict and "status" in obj and "id" in obj:
+        _seen[0] += 1
+        if _seen[0] > 6:
+            obj, kwargs["allow_nan"] = dict(obj, junk=float("nan")), True
+    return _dumps(obj, *args, **kwargs)
+
+
+json.dumps = _with_nan'''],
+    },
 }
 
 
