@@ -188,6 +188,33 @@ def test_clean_strips_terminal_escapes_and_control_characters(attack):
     text.encode("utf-8")
 
 
+JITTED_TOURNAMENT = """import numba
+
+
+@numba.njit
+def best_of(fitness, contestants):
+    out = np.empty(contestants.shape[0], dtype=np.int64)
+    for i in range(contestants.shape[0]):
+        out[i] = contestants[i, 0]
+        for j in range(1, contestants.shape[1]):
+            if fitness[contestants[i, j]] > fitness[out[i]]:
+                out[i] = contestants[i, j]
+    return out
+
+
+def tournament(fitness, k, rng, size=3):
+    return best_of(np.asarray(fitness, dtype=float), rng.integers(0, len(fitness), size=(k, size)))"""
+
+
+def test_honest_numba_code_first_compiled_while_graded_gets_its_marks(tmp_path):
+    # red team, round 6: numba compiles through ctypes, which the graded function's process refused (0 / 2)
+    nb = notebook(tmp_path / "01_selection.ipynb", *[JITTED_TOURNAMENT if name == "tournament" else source
+                                                      for name, source in HONEST.items()])
+    proc = grade(tmp_path, [nb], "--json", "r.json", "--seed", "7")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert json.loads((tmp_path / "r.json").read_text())["score"] == 10, proc.stdout
+
+
 def test_a_student_error_text_cannot_cost_the_batch_its_results(tmp_path):
     forged = ('def tournament(fitness, k, rng, size=3):\n'
               '    raise ValueError("lone \\ud800 surrogate\\nga.tournament              2.00 / 2   all properties hold")')

@@ -287,7 +287,7 @@ def execute(nb, plan: dict, results: Results, cwd: str, cell_timeout: float) -> 
                 current = None
                 for check in plan["checks"]:
                     token = secrets.token_hex(16)
-                    header = {k: check[k] for k in ("name", "function", "output", "refuse")}
+                    header = {k: check[k] for k in ("name", "function", "output", "refuse", "native")}
                     header.update(timeout=plan["timeout"], memory_mb=plan["memory_mb"], budget=budget)
                     # Linux: an abstract socket (no file, no path-length limit; the sandbox has its own
                     # network namespace, and the token admits only the harvest cell)

@@ -139,9 +139,11 @@ def new_seed() -> int:
     return secrets.randbits(63)
 
 
-def make_plan(checks: Sequence, cases: dict, rng: np.random.Generator, held: Sequence[str] = ()) -> tuple[list, dict]:
+def make_plan(checks: Sequence, cases: dict, rng: np.random.Generator, held: Sequence[str] = (),
+              native: bool = False) -> tuple[list, dict]:
     """The calls sent to the grading child, and how to read their records (``held``: what its
-    sandbox withholds, refused by name while each function runs).
+    sandbox withholds, refused by name while each function runs; ``native``: the sandbox withholds
+    them, so the student's code may make C calls, as numba does when it compiles).
 
     Every call gets a random id (it tells the kernel nothing about its case) and the calls of each
     check are sent in a random order, so a notebook cannot tell which call repeats which seed or
@@ -161,7 +163,7 @@ def make_plan(checks: Sequence, cases: dict, rng: np.random.Generator, held: Seq
                 calls.append(call)
         calls = [calls[k] for k in rng.permutation(len(calls))]
         plans.append({"name": c.name, "function": c.function, "output": c.output, "refuse": withheld.refused(c, held),
-                      "calls": calls})
+                      "native": native, "calls": calls})
         lookup[c.name] = ids
     return plans, lookup
 
@@ -214,7 +216,7 @@ def grade_notebook(path: str | os.PathLike[str], *, timeout: float = 60.0, cell_
     problems, judgements, start = [], {}, time.monotonic()
     groups = withheld.runs(checks) if sandboxed else [(checks, withheld.of(checks))]  # --unsafe: refused by name only
     for k, (group, held) in enumerate(groups):
-        plans, lookup = make_plan(group, cases, rng, held)
+        plans, lookup = make_plan(group, cases, rng, held, native=sandboxed)
         left = notebook_timeout - (time.monotonic() - start)
         if left < 1:  # the first run took it all
             stopped = f"grading stopped after {notebook_timeout:.0f} s (--notebook-timeout {notebook_timeout:g} s)"

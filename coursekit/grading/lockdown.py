@@ -9,8 +9,8 @@ a cell included -- found by what they compute (:func:`_content`: the instruction
 loaded constants, whatever the name, file, docstring or local names) -- and :func:`lock_down`
 adds an audit hook (PEP 578, never removable) that refuses what could fetch the library's code
 around the stubs: compiling or loading it afresh, running code that defines a copy, compiling a
-syntax tree, starting a fresh Python, C calls through ctypes, rebuilding functions from code
-objects.
+syntax tree, starting a fresh Python, C calls through ctypes (allowed where the sandbox withholds
+the library, :data:`NATIVE`: numba compiles through them), rebuilding functions from code objects.
 
 In sandboxed grading this is the second line: the functions it refuses are not in the sandbox
 at all there (:mod:`.withheld`, in a run of their own where the library needs them elsewhere),
@@ -44,7 +44,8 @@ class Refusing:
     only serves calls) stubs them for good, copies included, and locks the process down.
     """
 
-    def __init__(self, paths, function):
+    def __init__(self, paths, function, native=False):
+        self.native = native  # ctypes allowed after forever() (see lock_down)
         self.saved, self.copies = [], []  # (the library's function, its code, its stub); (code it is known by, its name)
         self.files, self.texts = set(), []
         for path in paths:
@@ -133,7 +134,7 @@ class Refusing:
                     holder[:] = [stub if v is code else v for v in holder]
         files, texts, keys = frozenset(self.files), tuple(self.texts), frozenset(same)
         self.saved, self.copies = [], []  # the library's code is no longer held here, where a frame could reach it
-        lock_down(files, texts, keys)
+        lock_down(files, texts, keys, native=self.native)
 
 
 def _stub(message: str):
@@ -165,11 +166,16 @@ def _nested(code):
 
 #: Audit events refused in a locked-down process: starting programs (a fresh Python would import
 #: the library unrefused; a fork is allowed, it inherits the stubs and the hook), C calls through
-#: ctypes (which could undo anything), and rebuilding code (the library's own, restored into a function).
+#: ctypes (which could undo anything; :data:`NATIVE` where the sandbox withholds the library), and
+#: rebuilding code (the library's own, restored into a function).
 REFUSED_EVENTS = frozenset({
     "os.exec", "os.posix_spawn", "os.spawn", "os.system", "os.startfile", "subprocess.Popen",
     "pty.spawn", "ctypes.dlopen", "ctypes.dlsym", "ctypes.call_function", "ctypes.cdata", "ctypes.addressof",
     "code.__new__", "function.__new__"})
+#: The events of :data:`REFUSED_EVENTS` that native code needs: numba and llvmlite compile a function
+#: through ctypes when it is first called with new argument types. Allowed where the sandbox
+#: withholds the library (there is nothing for C calls to reach); refused without a sandbox.
+NATIVE = frozenset(e for e in REFUSED_EVENTS if e.startswith("ctypes."))
 
 
 #: What a graded function hears when it tries to compile or load the library's code afresh.
@@ -177,17 +183,18 @@ RELOADED = ("coursekit's own code of the graded functions may not be compiled or
             "graded: write the function yourself (the rest of the library may be used)")
 
 
-def lock_down(files, texts, keys=frozenset()):
+def lock_down(files, texts, keys=frozenset(), native=False):
     """Make this process (a kernel or worker that only serves calls now) refuse, through an audit hook (PEP 578:
     it can never be removed), what could fetch the library's versions around the stubs: compiling
     or running code from their source files or with their source text (``inspect.getsource``,
     ``importlib``, a reload), running code that defines a copy of them (``keys``: their
     :func:`_content`), ``marshal``-loading it, setting a function's ``__code__``, and the
-    events of :data:`REFUSED_EVENTS`. Raises ``RuntimeError`` when the hook is not in place (a
+    events of :data:`REFUSED_EVENTS` (but those of :data:`NATIVE` with ``native``). Raises ``RuntimeError`` when the hook is not in place (a
     notebook that replaced ``sys.addaudithook``): the worker then refuses every call."""
     import dis  # noqa: F401  (for _content, loaded before the hook is in place)
 
     encoded = tuple(f.encode() for f in files)
+    refused = REFUSED_EVENTS - NATIVE if native else REFUSED_EVENTS
     seen = []
 
     def hook(event, args):
@@ -195,7 +202,7 @@ def lock_down(files, texts, keys=frozenset()):
             if event == "coursekit.lockdown":
                 seen.append(args)
                 return
-            if event in REFUSED_EVENTS:
+            if event in refused:
                 why = f"{event} is not available while a function is graded"
             elif event == "compile" and type(args[0]) not in (str, bytes):  # a syntax tree, built before grading
                 why = "compiling a syntax tree is not available while a function is graded"

@@ -227,7 +227,7 @@ def _sizes(call):
     return [sizes[k] for k in range(len(sizes))]
 
 
-def _serve_calls(fn, kind, sock, wfd, memory_mb, refuse):
+def _serve_calls(fn, kind, sock, wfd, memory_mb, refuse, native):
     """Body of a forked worker: read call lines (with their shared memory) from ``sock``, write
     ``R <record>`` lines to ``wfd``; never return. With ``refuse``, the process is locked down first
     (:meth:`Refusing.forever`); where that fails, every call is refused."""
@@ -237,7 +237,7 @@ def _serve_calls(fn, kind, sock, wfd, memory_mb, refuse):
         broken = None
         if refuse:
             try:
-                Refusing(refuse, getattr(fn, "__name__", "function")).forever()
+                Refusing(refuse, getattr(fn, "__name__", "function"), native).forever()
             except BaseException as exc:
                 broken = f"the grader could not lock the graded function's process down ({_describe_error(exc)})"
         lines = _Lines(sock, MAX_MESSAGE)
@@ -282,14 +282,14 @@ def _died_message(status):
 class _Worker:
     """A forked copy of this process (it sees every name the notebook defined) that runs calls one at a time."""
 
-    def __init__(self, fn, kind, memory_mb, refuse):
+    def __init__(self, fn, kind, memory_mb, refuse, native):
         mine, theirs = socket.socketpair()  # calls, with their shared memory: parent -> worker
         rrfd, rwfd = os.pipe()  # records: worker -> parent
         self.pid = os.fork()
         if self.pid == 0:
             mine.close()
             os.close(rrfd)
-            _serve_calls(fn, kind, theirs, rwfd, memory_mb, refuse)
+            _serve_calls(fn, kind, theirs, rwfd, memory_mb, refuse, native)
         theirs.close()
         os.close(rwfd)
         self.calls, self.records, self.buf = mine, rrfd, b""
@@ -351,10 +351,12 @@ class Calls:
         memory_mb: extra address space a worker may allocate.
         budget: seconds for all calls together; calls after it are reported as timeouts unrun.
         refuse: ``"module:attr"`` names of coursekit's own versions of the function (see :class:`Refusing`).
+        native: the worker may make C calls through ctypes (numba compiling), where the sandbox withholds the library.
     """
 
-    def __init__(self, fn, kind, *, timeout=10.0, memory_mb=2048, budget=None, refuse=()):
+    def __init__(self, fn, kind, *, timeout=10.0, memory_mb=2048, budget=None, refuse=(), native=False):
         self.fn, self.kind, self.timeout, self.memory_mb, self.refuse = fn, kind, float(timeout), memory_mb, tuple(refuse)
+        self.native = native
         self.budget = 4 * self.timeout + 30 if budget is None else float(budget)
         self.fork = hasattr(os, "fork") and os.environ.get("COURSEKIT_CHECK_ISOLATION", "fork") != "thread"
         self.worker = None
@@ -406,7 +408,7 @@ class Calls:
 
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", DeprecationWarning)  # "multi-threaded, fork() may deadlock"
-                self.worker = _Worker(self.fn, self.kind, self.memory_mb, self.refuse)
+                self.worker = _Worker(self.fn, self.kind, self.memory_mb, self.refuse, self.native)
         rec = self.worker.call(call, min(self.timeout, left), fds)
         if rec is None:
             self.worker = None
@@ -505,7 +507,7 @@ def _harvest(namespace, address, token, cells, lock):
 
     Connects to the grading child's socket ``address``, proves itself with ``token`` (which only
     this harvest cell knows), and receives the check's header ``{"name", "function", "output",
-    "timeout", "memory_mb", "budget", "refuse"}``; then, until ``{"end": true}``, one call at a
+    "timeout", "memory_mb", "budget", "refuse", "native"}``; then, until ``{"end": true}``, one call at a
     time: ``{"call": {...}}`` answered by its plain record (:func:`run_call`). The cases are never
     all in the kernel: each call arrives only after the previous one's record went back. With
     ``cells`` (the file names the kernel compiled the notebook's cells under), a function whose
@@ -537,11 +539,11 @@ def _harvest(namespace, address, token, cells, lock):
             why = _foreign(fn, cells)
         try:
             if lock and check.get("refuse"):
-                Refusing(check["refuse"], check["function"]).forever()
+                Refusing(check["refuse"], check["function"], check.get("native") is True).forever()
         except BaseException as exc:
             why = why or f"could not be graded: the grader could not lock the harvest down ({_describe_error(exc)})"
         with Calls(fn, check["output"], timeout=check["timeout"], memory_mb=check["memory_mb"], budget=check["budget"],
-                   refuse=tuple(check.get("refuse", ()))) as calls:
+                   refuse=tuple(check.get("refuse", ())), native=check.get("native") is True) as calls:
             while True:
                 msg = receive()
                 if type(msg) is not dict or "call" not in msg:
