@@ -1,7 +1,8 @@
 """Which exercise a notebook answers (issue 13, part 7): its metadata, so renamed files still grade.
 
 ``coursekit grade`` reads the notebook metadata field ``coursekit.exercise``; ``--exercise``
-overrides it; a notebook without it is known by its file stem. Exercises generated from the
+overrides it; a notebook without it is known by its file stem, and one whose file name names another
+exercise is graded as its metadata says but not graded silently. Exercises generated from the
 solutions carry the field. (A renamed solution graded end to end: tests/test_grading_integrity.py.)
 """
 
@@ -78,3 +79,18 @@ def test_metadata_is_read_in_a_fresh_process_before_anything_else_loaded_the_che
     code = f"from coursekit.grading.grader import exercise_of; print(exercise_of({str(nb)!r}))"
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={"PYTHONPATH": str(ROOT)})
     assert proc.returncode == 0 and proc.stdout.strip() == "01_selection", proc.stderr
+
+
+def test_a_file_named_for_one_exercise_that_answers_another_is_not_graded_silently(tmp_path):
+    # red team, round 6: exercise 01's solution handed in as 03_picture_recombination.ipynb scored 10 / 10, more
+    # than the 6 points exercise 03 is worth, and nothing said which exercise had been graded
+    nb = tmp_path / "03_picture_recombination.ipynb"
+    nb.write_bytes((ROOT / "solutions" / "01_selection.ipynb").read_bytes())
+    proc = subprocess.run([sys.executable, "-m", "coursekit", "grade", str(nb), "--json", "r.json", "--seed", "7"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=900,
+                          env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(ROOT), "COURSEKIT_PROFILE": "ci"})
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    assert f"{nb}: NOT GRADED: its file name names exercise 03_picture_recombination, but its metadata field " \
+           "coursekit.exercise says 01_selection" in proc.stdout and "(graded as exercise 01_selection)" in proc.stdout
+    [result] = json.loads((tmp_path / "r.json").read_text())["extra_data"]["notebooks"]
+    assert result["exercise"] == "01_selection" and not result["graded"]

@@ -412,7 +412,12 @@ def main(args: argparse.Namespace) -> int:
             except Exception as exc:  # noqa: BLE001 -- a grader bug costs this notebook its grade, not the batch its results
                 why = clean(f"the grader failed on this notebook: {type(exc).__name__}: {exc}")[:300]
                 results.append(NotebookResult(nb, _zero(registry.for_notebook(exercise), why), [], [why]))
-            results[-1].seconds = round(time.monotonic() - t0, 2)
+            results[-1].seconds, results[-1].exercise = round(time.monotonic() - t0, 2), exercise
+            stem = Path(nb).stem
+            if stem != exercise and stem in registry.EXERCISES and not getattr(args, "exercise", None):
+                results[-1].not_graded.append(  # a file handed in as one exercise that answers another
+                    f"its file name names exercise {stem}, but its metadata field coursekit.exercise says {exercise}: "
+                    f"graded as {exercise}; pass --exercise to say which exercise it answers")
             if results[-1].seed is not None:
                 results[-1].notes.append(f"graded in {results[-1].seconds:.1f} s (cases drawn with --seed {results[-1].seed})")
     except supervisor.Terminated as exc:  # the notebook's processes and private folder are gone already

@@ -33,6 +33,7 @@ class NotebookResult:
     not_graded: list = field(default_factory=list)  # why the score does not stand (cells skipped...)
     seed: int | None = None  # the seed of the grading cases (``--seed`` repeats them)
     seconds: float | None = None  # wall time of its grading, kernel start and sandbox included
+    exercise: str | None = None  # the exercise it was graded as
 
     @property
     def graded(self) -> bool:
@@ -82,6 +83,12 @@ def _messages(j: Judgement) -> str:
 
 
 def _headline(r: NotebookResult) -> str:
+    if r.exercise and r.exercise != Path(r.path).stem:
+        return f"{_score_line(r)} (graded as exercise {r.exercise})"
+    return _score_line(r)
+
+
+def _score_line(r: NotebookResult) -> str:
     if r.graded:
         return f"{r.score:g} / {r.max_score:g} points"
     return (f"NOT GRADED: {clean(r.not_graded[0])}"
@@ -110,7 +117,7 @@ def gradescope(results: list) -> dict:
         "tests": tests,
         "extra_data": {"format": RESULTS_FORMAT,
                        "notebooks": [{"path": clean(r.path), "score": r.score, "max_score": r.max_score, "graded": r.graded,
-                                      "not_graded": [clean(n) for n in r.not_graded], "seed": r.seed,
+                                      "exercise": r.exercise, "not_graded": [clean(n) for n in r.not_graded], "seed": r.seed,
                                       "seconds": r.seconds} for r in results]},
     }
 
