@@ -102,6 +102,10 @@ def drag_face_centres(h, k):  # face-centre velocities only: no turning resistan
     return d
 
 
+def drag_constant(h, k):  # red team, round 6: no physics, but non-zero, positive and proportional to k (2.18 / 4)
+    return k * np.ones(6)
+
+
 def drag_ignores_k(h, k):
     return box_drag(h, 1.0)
 
@@ -160,6 +164,7 @@ WRONG = [
     ("physics.box_drag", drag_three_values, "returns the 6 diagonal entries"),
     ("physics.box_drag", drag_one_face_sliding, "sliding drag matches the face integral (k = 1)"),
     ("physics.box_drag", drag_face_centres, "turning drag matches the face integral (k = 1)"),
+    ("physics.box_drag", drag_constant, "the water resists sliding, face first most"),
     ("physics.box_drag", drag_ignores_k, "proportional to k"),
     ("physics.box_drag", drag_force_sign, "never adds energy"),
     ("physics.box_drag", drag_in_place, "inputs unchanged"),

@@ -42,7 +42,7 @@ _FACES = ("Each face resists motion along its normal: the force per area is -k (
           "Count both faces of each pair, and keep half-extents and full side lengths apart: a factor of 2 slips in easily.")
 HINTS = {
     "physics.box_drag": (
-        ("the water resists sliding", ("Sliding along x meets the two faces whose normal is x: their area sets D_vx.",) + _FACES[1:]),
+        ("the water resists sliding, face first most", ("Sliding along x meets the two faces whose normal is x: their area sets D_vx.",) + _FACES[1:]),
         ("sliding drag matches the face integral (k = 1)", _FACES),
         ("turning drag matches the face integral (k = 1)", (
             "Spinning about x moves the faces whose normals are y and z: the speed grows with the distance from the axis.",
@@ -138,7 +138,16 @@ def _drag_resists(ctx):
             return False, (f"for a box with half_extents={np.round(ctx.arg(cid, 0), 4).tolist()} in water (k=1), "
                            f"{COMPONENTS[i]} = 0: nothing would resist {MEANING[i]}. Water resists a box sliding in any "
                            "direction. Nothing else is judged until it does")
-    return True, f"D_vx, D_vy, D_vz are not 0 on {len(UNIT)} boxes in water: something resists sliding"
+    for cid, what in (("unit4", "a thin plate"), ("unit5", "a rod")):  # face areas 6 to 20 times apart
+        sliding = np.abs(np.asarray(ctx.out(cid)[0][3:], dtype=np.float64))
+        if sliding.max() < 2 * sliding.min():
+            return False, (f"for {what}, half_extents={np.round(ctx.arg(cid, 0), 4).tolist()} (k=1), the resistance to "
+                           f"sliding is about the same in every direction (D_vx, D_vy, D_vz = "
+                           f"{', '.join(f'{d:.4g}' for d in sliding)}); the water pushes on the faces a box moves "
+                           "against, so a plate resists moving face first far more than edge first. Nothing else "
+                           "is judged until it does")
+    return True, (f"D_vx, D_vy, D_vz are not 0 on {len(UNIT)} boxes in water, and a plate and a rod resist sliding "
+                  "more across than along")
 
 
 def _how_far(got, want):
@@ -209,7 +218,7 @@ register(Check(
     reference=('coursekit.creatures.physics.water:drag_diagonal', 'coursekit.grading.checks.ex07_swimming_physics:face_integral_drag'),
     props=(
         ("returns the 6 diagonal entries", _drag_shape),
-        ("the water resists sliding", _drag_resists),
+        ("the water resists sliding, face first most", _drag_resists),
         ("sliding drag matches the face integral (k = 1)", _drag_values("linear")),
         ("turning drag matches the face integral (k = 1)", _drag_values("angular")),
         ("proportional to k", _drag_linear_in_k),

@@ -543,6 +543,7 @@ register(Check(
         ("rounds the survivor count up", _rounds_up),
         ("input unchanged", unmodified({0: "fitness"}, COPY_ARRAY)),
     ),
+    weights=(("offspring in proportion to fitness", 4),),  # equal shares for every survivor kept 90 % (round 6)
 ))
 
 exercise("08_fitness_and_reproduction", ["swimmers.fitness", "swimmers.reproduce"])
