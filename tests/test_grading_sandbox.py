@@ -46,6 +46,8 @@ test -e {marker} && echo seen || echo unseen
 ls /proc | grep -c '^[0-9]'
 ls -A {ROOT}/.git {ROOT}/tests {ROOT}/lessons 2>/dev/null | grep -vc ':$'
 test -r {ROOT}/coursekit/grading/sandbox.py && echo package
+echo x 2>/dev/null > /dev/coursekit-x && echo wrote-dev || echo dev-read-only
+head -c 100000000 /dev/zero 2>/dev/null > /dev/shm/big && echo shm-unbounded || echo shm-full
 """
     try:
         run = subprocess.run(sandbox.command(box, show=[ROOT / "coursekit"], hide_dirs=[ROOT / "solutions"], hide_files=[other])
@@ -58,7 +60,9 @@ test -r {ROOT}/coursekit/grading/sandbox.py && echo package
     assert lines[:4] == ["0", "0", "box", "unseen"], lines  # solutions hidden, other submission empty, box writable, /tmp private
     assert int(lines[4]) < 10  # its own PID namespace: a handful of processes, not the machine's
     # nothing of the checkout but the package (its git history holds the solutions)
-    assert lines[5:] == ["0", "package"], lines
+    assert lines[5:7] == ["0", "package"], lines
+    # /dev holds device nodes only, and /dev/shm is small (red team, round 6: 700 MB written there counted nowhere)
+    assert lines[7:] == ["dev-read-only", "shm-full"], lines
     assert not (ROOT / "coursekit" / "PWNED").exists() and (ROOT / "solutions" / "01_selection.ipynb").stat().st_size > 0
 
 

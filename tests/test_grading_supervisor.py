@@ -24,6 +24,7 @@ import pytest
 from nbformat.v4 import new_code_cell, new_notebook
 
 from coursekit.grading import supervisor
+from coursekit.grading.supervisor import Watch, held_files
 from coursekit.grading.report import clean
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -213,6 +214,34 @@ def test_honest_numba_code_first_compiled_while_graded_gets_its_marks(tmp_path):
     proc = grade(tmp_path, [nb], "--json", "r.json", "--seed", "7")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert json.loads((tmp_path / "r.json").read_text())["score"] == 10, proc.stdout
+
+
+def test_files_without_a_name_count_as_memory_and_disk(tmp_path):
+    # red team, round 6: memfd shared memory never mapped, and a deleted file kept open, counted nowhere
+    code = ("import os, time\nfd = os.memfd_create('x')\nos.write(fd, b'x' * 8 * 2**20)\n"
+            f"f = open({str(tmp_path / 'gone')!r}, 'wb')\nf.write(b'y' * 4 * 2**20)\nf.flush()\nos.unlink(f.name)\n"
+            "print('ready', flush=True)\ntime.sleep(60)")
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE)
+    try:
+        assert child.stdout.readline() == b"ready\n"
+        memory, disk = held_files([child.pid, child.pid])  # each file once
+        assert list(memory) == [child.pid] and 8 * 2**20 <= memory[child.pid] < 9 * 2**20, memory
+        assert 4 * 2**20 <= disk < 5 * 2**20, disk
+        watch = Watch(limit_mb=10**6, disk_mb=3)
+        watch.poll()
+        assert child.wait(10) == -signal.SIGKILL and "MiB of files, over the limit of 3 MiB" in watch.events[0]
+    finally:
+        child.kill()
+        child.wait()
+
+
+@pytest.mark.slow
+def test_shared_memory_a_notebook_never_maps_counts_against_its_memory(tmp_path):
+    hoard = "import os, time\nfd = os.memfd_create('hoard')\nfor _ in range(600):\n    os.write(fd, b'x' * 2**20)\ntime.sleep(5)"
+    nb = notebook(tmp_path / "01_selection.ipynb", hoard, *HONEST.values())
+    proc = grade(tmp_path, [nb], "--memory-mb", "500", "--seed", "7")
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    assert "NOT GRADED: the notebook's kernel was stopped" in proc.stdout and "over the limit of 500 MiB" in proc.stdout
 
 
 def test_a_student_error_text_cannot_cost_the_batch_its_results(tmp_path):

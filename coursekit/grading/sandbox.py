@@ -12,7 +12,9 @@ Part of the summative grader (seed paper section 4, exercises graded; see
   taken out, and their compiled ``__pycache__`` files masked (:mod:`.withheld`), so that no
   trick inside the kernel -- not even one that takes over the grading harvest -- can run
   coursekit's own version of a graded function;
-- a private ``/tmp`` (a tmpfs of at most :data:`TMP_BYTES` that disappears with the sandbox), private PID, IPC, UTS and
+- a private ``/tmp`` (a tmpfs of at most :data:`TMP_BYTES` that disappears with the sandbox), a ``/dev``
+  of device nodes only, read-only but for a ``/dev/shm`` of at most :data:`SHM_BYTES` (bubblewrap's
+  own ``/dev`` is a tmpfs as large as half the machine's memory, which no limit counted), private PID, IPC, UTS and
   cgroup namespaces (the grader's processes and their ``/proc/<pid>/environ`` are not there),
   no network (a fresh network namespace with loopback only), every capability dropped, and
   ``--die-with-parent``.
@@ -48,6 +50,8 @@ from pathlib import Path
 _PROBE: dict = {}
 #: Size of the sandbox's private /tmp (a tmpfs: memory the notebook's processes do not hold).
 TMP_BYTES = 512 * 2**20
+#: Size of its /dev/shm (POSIX shared memory and multiprocessing's semaphores); the rest of /dev is read-only.
+SHM_BYTES = 64 * 2**20
 
 
 #: What the sandbox sees of the system: programs, libraries and configuration (each read-only;
@@ -80,7 +84,8 @@ def command(box: Path | None, *, show=(), hide_dirs=(), hide_files=(), replace=(
             args += ["--symlink", os.readlink(d), d]
         elif os.path.isdir(d):
             args += ["--ro-bind", d, d]
-    args += ["--dev", "/dev", "--proc", "/proc", "--size", str(TMP_BYTES), "--tmpfs", "/tmp"]
+    args += ["--dev", "/dev", "--perms", "1777", "--size", str(SHM_BYTES), "--tmpfs", "/dev/shm", "--remount-ro", "/dev",
+             "--proc", "/proc", "--size", str(TMP_BYTES), "--tmpfs", "/tmp"]
     seen = _outermost([*((sys.prefix, sys.base_prefix, sys.exec_prefix) if python else ()), *show])
     for d in seen:  # after the private /tmp: a Python or checkout under /tmp (a CI clone) stays visible
         args += ["--ro-bind", d, d]

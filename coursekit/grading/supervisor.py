@@ -20,7 +20,10 @@ child subreaper). This module bounds that tree by what it really uses:
   process of the notebook is killed; the grader reports it not graded. Inside the sandbox the
   kernel also runs under ``RLIMIT_NPROC`` where that holds (a user of its own, ``nobody``, or the
   sandbox's own user namespace: :func:`coursekit.grading.sandbox.limit_processes`), and
-  ``RLIMIT_FSIZE`` bounds any one file.
+  ``RLIMIT_FSIZE`` bounds any one file. Files without a name count too (:func:`held_files`):
+  shared memory made with ``memfd_create`` counts as memory, a deleted file still held open as
+  disk -- neither is in a process's PSS or under a folder, and a red team filled 1.4 GB of the
+  machine's memory and 600 MB of its disk with them under limits of 400 and 100 MiB.
 - **Private folders are removed even after a kill.** Each is named
   ``coursekit-grade-<pid>-*`` after the grading process; :func:`remove_stale` deletes those of
   grading processes that are gone (a ``SIGKILL`` leaves no chance to clean up), and
@@ -41,6 +44,7 @@ import re
 import resource
 import shutil
 import signal
+import stat
 import subprocess
 import sys
 import tempfile
@@ -156,6 +160,35 @@ def folder_bytes(folder) -> int:
     return total
 
 
+def held_files(pids) -> tuple[dict, int]:
+    """Bytes of the files without a name that the processes ``pids`` hold open, each file once (for
+    the first process that holds it): ``({pid: memfd_create shared memory}, deleted files)``. Read
+    from ``/proc/PID/fd``."""
+    seen, memory, disk = set(), {}, 0
+    for pid in pids:
+        fds = f"/proc/{pid}/fd"
+        try:
+            entries = os.listdir(fds)
+        except OSError:
+            continue
+        for fd in entries:
+            try:
+                target = os.readlink(f"{fds}/{fd}")
+                memfd = target.startswith("/memfd:")
+                if not (memfd or target.endswith(" (deleted)")):
+                    continue
+                st = os.stat(f"{fds}/{fd}")
+            except OSError:
+                continue
+            if stat.S_ISREG(st.st_mode) and (st.st_dev, st.st_ino) not in seen:
+                seen.add((st.st_dev, st.st_ino))
+                if memfd:
+                    memory[pid] = memory.get(pid, 0) + st.st_blocks * 512
+                else:
+                    disk += st.st_blocks * 512
+    return memory, disk
+
+
 class Watch:
     """Bound a graded notebook's processes from outside: resident memory, their number, the disk they fill.
 
@@ -179,6 +212,7 @@ class Watch:
         self.events: list[str] = []
         self.peak = 0
         self._next_disk = 0.0
+        self._held_memory: dict = {}  # {pid: memfd shared memory it holds}, at the last files poll
 
     def _kill_all(self, procs, why):
         for p in procs:
@@ -199,14 +233,15 @@ class Watch:
             self._kill_all(procs, f"the notebook ran {len(procs)} processes at once, over the limit of "
                                   f"{self.max_processes}; all were stopped")
             return 0
-        if self.folder is not None and time.monotonic() >= self._next_disk:
+        if time.monotonic() >= self._next_disk:  # files, once a second: the folder and what is held without a name
             self._next_disk = time.monotonic() + 1.0
-            used = folder_bytes(self.folder)
+            self._held_memory, deleted = held_files(p.pid for p in procs)
+            used = deleted + (folder_bytes(self.folder) if self.folder is not None else 0)
             if used > self.disk:
                 self._kill_all(procs, f"the notebook wrote {used / 2**20:.0f} MiB of files, over the limit of "
                                       f"{self.disk / 2**20:.0f} MiB; all its processes were stopped")
                 return 0
-        sizes = [(_memory(p), p) for p in procs]
+        sizes = [(_memory(p) + self._held_memory.get(p.pid, 0), p) for p in procs]
         total = sum(s for s, _ in sizes)
         self.peak = max(self.peak, total)
         if total > self.limit and sizes:
@@ -216,6 +251,7 @@ class Watch:
                 victim.kill()
             except psutil.Error:
                 return total
+            self._held_memory.pop(victim.pid, None)
             self.events.append(f"{role} was stopped: the notebook's processes held {total / 2**20:.0f} MiB of memory, "
                                f"over the limit of {self.limit / 2**20:.0f} MiB (--memory-mb); it held {size / 2**20:.0f} MiB")
         return total
