@@ -54,9 +54,27 @@ def test_bad_metadata_is_refused_naming_the_field(tmp_path, value):
     nb = with_metadata(tmp_path / "01_selection.ipynb", {"exercise": value})
     with pytest.raises(ValueError, match=r"metadata field coursekit\.exercise is .*names no exercise; known: 01_selection"):
         exercise_of(nb)
-    proc = subprocess.run([sys.executable, "-m", "coursekit", "grade", str(nb)], capture_output=True, text=True,
-                          env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(ROOT)})
-    assert proc.returncode == 2 and "coursekit.exercise" in proc.stderr and proc.stdout == ""
+    proc = subprocess.run([sys.executable, "-m", "coursekit", "grade", str(nb), "--json", "r.json"], capture_output=True,
+                          text=True, cwd=tmp_path, env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(ROOT)})
+    assert proc.returncode == 3 and f"{nb}: NOT GRADED: {nb}: metadata field coursekit.exercise is " in proc.stdout
+    [result] = json.loads((tmp_path / "r.json").read_text())["extra_data"]["notebooks"]
+    assert not result["graded"] and result["max_score"] == 0
+
+
+def test_one_notebook_of_unknown_exercise_does_not_stop_the_batch(tmp_path):
+    # red team, round 7: a notebook whose metadata names no exercise (or a file with neither metadata nor an
+    # exercise's name) stopped the whole batch with status 2 and no results file
+    honest = tmp_path / "alice" / "01_selection.ipynb"
+    honest.parent.mkdir()
+    honest.write_bytes((ROOT / "solutions" / "01_selection.ipynb").read_bytes())
+    odd = with_metadata(tmp_path / "my homework.ipynb", None)
+    proc = subprocess.run([sys.executable, "-m", "coursekit", "grade", str(honest), str(odd), "--json", "r.json",
+                           "--seed", "7"], cwd=tmp_path, capture_output=True, text=True, timeout=900,
+                          env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(ROOT), "COURSEKIT_PROFILE": "ci"})
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    first, second = json.loads((tmp_path / "r.json").read_text())["extra_data"]["notebooks"]
+    assert first["graded"] and first["score"] == 10 and not second["graded"]
+    assert "no exercise is registered for notebook 'my homework'" in second["not_graded"][0]
 
 
 @pytest.mark.parametrize("stem", STEMS)
@@ -84,7 +102,7 @@ def test_metadata_is_read_in_a_fresh_process_before_anything_else_loaded_the_che
 def test_a_file_named_for_one_exercise_that_answers_another_is_not_graded_silently(tmp_path):
     # red team, round 6: exercise 01's solution handed in as 03_picture_recombination.ipynb scored 10 / 10, more
     # than the 6 points exercise 03 is worth, and nothing said which exercise had been graded
-    nb = tmp_path / "03_picture_recombination.ipynb"
+    nb = tmp_path / "Alice_03_Picture_Recombination (1).ipynb"  # as a browser and a course site may name it (round 7)
     nb.write_bytes((ROOT / "solutions" / "01_selection.ipynb").read_bytes())
     proc = subprocess.run([sys.executable, "-m", "coursekit", "grade", str(nb), "--json", "r.json", "--seed", "7"],
                           cwd=tmp_path, capture_output=True, text=True, timeout=900,

@@ -75,6 +75,7 @@ import argparse
 import json
 import math
 import os
+import re
 import secrets
 import shutil
 import subprocess
@@ -129,6 +130,14 @@ def exercise_of(path: str | os.PathLike[str], override: str | None = None) -> st
     raise ValueError(f"{path}: metadata field coursekit.exercise is {clean(repr(name))[:80]}, which names no exercise; "
                      f"known: {', '.join(sorted(registry.EXERCISES))} (or pass --exercise)")
 
+
+
+def named_exercises(path: str | os.PathLike[str]) -> list[str]:
+    """The registered exercises whose names a notebook's file name holds, whatever the case, the
+    separators and what a browser or a course site adds around it (``03_Picture_Recombination (1)``,
+    ``alice_03_picture_recombination``)."""
+    stem = "_" + re.sub(r"[^a-z0-9]+", "_", Path(path).name.lower().removesuffix(".ipynb")) + "_"
+    return [name for name in sorted(registry.EXERCISES) if f"_{name}_" in stem]
 
 
 # -- the grading plan and one notebook's run ------------------------------------------------------
@@ -367,11 +376,18 @@ def main(args: argparse.Namespace) -> int:
     if missing:  # a mistyped path, before any notebook is graded
         print(f"coursekit grade: no such notebook file: {', '.join(map(repr, missing))}", file=sys.stderr)
         return 2
+    override = getattr(args, "exercise", None)
     try:
-        exercises = [exercise_of(nb, getattr(args, "exercise", None)) for nb in args.notebooks]
+        registry.for_notebook(override) if override else registry._load()
     except ValueError as exc:
-        print(f"coursekit grade: {exc}", file=sys.stderr)
+        print(f"coursekit grade: --exercise: {exc}", file=sys.stderr)
         return 2
+    exercises = []
+    for nb in args.notebooks:  # a notebook whose exercise is unknown is not graded; the others are
+        try:
+            exercises.append(exercise_of(nb, override))
+        except ValueError as exc:
+            exercises.append(exc)
     if args.json_out:
         why = check_results_path(args.json_out)
         if why:
@@ -390,7 +406,7 @@ def main(args: argparse.Namespace) -> int:
     if not supervisor.become_subreaper():
         print("coursekit grade: warning: cannot adopt orphaned processes (no PR_SET_CHILD_SUBREAPER); "
               "processes a notebook daemonises may outlive grading", file=sys.stderr)
-    if not unsafe:  # before the first notebook, so that its time is its own
+    if not unsafe and any(type(e) is str for e in exercises):  # before the first notebook, so that its time is its own
         if not warm.cached():
             print("coursekit grade: compiling the simulator once, for every notebook to load (10-20 s, the first "
                   "time on this machine)", file=sys.stderr, flush=True)
@@ -399,6 +415,9 @@ def main(args: argparse.Namespace) -> int:
     try:
         for nb, exercise in zip(args.notebooks, exercises):
             t0 = time.monotonic()
+            if isinstance(exercise, ValueError):
+                results.append(NotebookResult(nb, [], [], [clean(exercise)]))
+                continue
             try:
                 results.append(grade_notebook(nb, timeout=args.timeout, cell_timeout=getattr(args, "cell_timeout", 300.0),
                                               memory_mb=getattr(args, "memory_mb", 4096), exercise=exercise,
@@ -413,10 +432,10 @@ def main(args: argparse.Namespace) -> int:
                 why = clean(f"the grader failed on this notebook: {type(exc).__name__}: {exc}")[:300]
                 results.append(NotebookResult(nb, _zero(registry.for_notebook(exercise), why), [], [why]))
             results[-1].seconds, results[-1].exercise = round(time.monotonic() - t0, 2), exercise
-            stem = Path(nb).stem
-            if stem != exercise and stem in registry.EXERCISES and not getattr(args, "exercise", None):
-                results[-1].not_graded.append(  # a file handed in as one exercise that answers another
-                    f"its file name names exercise {stem}, but its metadata field coursekit.exercise says {exercise}: "
+            named = named_exercises(nb)
+            if named and exercise not in named and not override:  # a file handed in as one exercise that answers another
+                results[-1].not_graded.append(
+                    f"its file name names exercise {named[0]}, but its metadata field coursekit.exercise says {exercise}: "
                     f"graded as {exercise}; pass --exercise to say which exercise it answers")
             if results[-1].seed is not None:
                 results[-1].notes.append(f"graded in {results[-1].seconds:.1f} s (cases drawn with --seed {results[-1].seed})")
