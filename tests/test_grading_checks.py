@@ -443,6 +443,21 @@ def test_the_report_gives_one_note_per_distinct_cell_error_and_keeps_skipped_cel
     assert problems == ["cell 13: skipped: the notebook's time ran out"]
 
 
+def test_a_cell_skipped_after_hundreds_of_others_still_stops_the_grade_standing():
+    # red team, round 7: only the first 200 cells were read, so a cell skipped for time at the end of a long
+    # notebook left it graded (exit 0)
+    from coursekit.grading.channel import read_report
+
+    cells = [{"index": i, "status": f"error: ValueError: {i}"} for i in range(300)] + [
+        {"index": 300, "status": "skipped: did not finish within 10 s"}]
+    notes, problems = read_report({"format": "coursekit.execution/1", "harvested": True, "cells": cells})
+    assert problems == ["cell 301: skipped: did not finish within 10 s"]
+    assert len(notes) == 21 and notes[-1] == "and 280 more kinds"
+    notes, _ = read_report({"format": "coursekit.execution/1", "harvested": True,
+                            "cells": [{"index": i, "status": "error: E"} for i in range(50)]})
+    assert notes == [f"cells {', '.join(map(str, range(1, 21)))} and 30 more: error: E"]
+
+
 def test_a_cells_error_is_shown_short_and_cut_between_words():
     """A demo cell that hits a withheld function is named by the function (the message would fill
     the results' line, cut mid-word: a student's walk); any other long message ends in "…" at a

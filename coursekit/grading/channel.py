@@ -143,6 +143,10 @@ def read_results(data: bytes, checks: list, plan: dict) -> tuple[dict, dict | No
     return results, report, rejected
 
 
+#: Cells named per status, and statuses listed, in a notebook's notes (the rest are counted).
+MAX_CELLS_SHOWN = 20
+
+
 def read_report(rep) -> tuple[list, list]:
     """``(notes, problems)`` from the execution report: which cells failed, and which were skipped.
 
@@ -160,12 +164,16 @@ def read_report(rep) -> tuple[list, list]:
         problems.append(rep["harvest_problem"][:300])
     cells = rep.get("cells") if type(rep.get("cells")) is list else []
     failed: dict[str, list[int]] = {}  # status -> cells, in the order first seen: one line per distinct status
-    for c in cells[:200]:
+    for c in cells:  # every cell: one skipped after the 200th still means part of the notebook never ran
         if type(c) is dict and type(c.get("status")) is str and type(c.get("index")) is int and c["status"] != "ok":
             failed.setdefault(c["status"][:200], []).append(c["index"] + 1)
+    lines: dict[bool, list] = {True: [], False: []}
     for status, where in failed.items():
-        line = f"cell {where[0]}: {status}" if len(where) == 1 else f"cells {', '.join(map(str, where))}: {status}"
-        (problems if status.startswith(("skipped", "not run")) else notes).append(line)
+        shown = ", ".join(map(str, where[:MAX_CELLS_SHOWN])) + \
+            (f" and {len(where) - MAX_CELLS_SHOWN} more" if len(where) > MAX_CELLS_SHOWN else "")
+        lines[status.startswith(("skipped", "not run"))].append(f"cell{'s' * (len(where) > 1)} {shown}: {status}")
+    for out, more in ((notes, lines[False]), (problems, lines[True])):
+        out += more[:MAX_CELLS_SHOWN] + ([f"and {len(more) - MAX_CELLS_SHOWN} more kinds"] if len(more) > MAX_CELLS_SHOWN else [])
     return notes, problems
 
 
