@@ -11,8 +11,8 @@ import json
 
 from coursekit.grading.checks import Check, exercise, register
 from coursekit.grading.checks.picture_genomes import (
-    MAX_JSON, N_STAT, REPEATS, Bad, both_occur, changes, diff, distinct_pair, each, lib, obj, one_string, region,
-    results, row_name, rows, valid)
+    MAX_JSON, N_STAT, REPEATS, Bad, both_occur, changes, diff, distinct_pair, each, lib, obj, one_string, reaching_tail,
+    region, results, row_name, rows, valid)
 from coursekit.grading.checks.properties import NEW_GENOME, RNG, deterministic, seeds, unmodified
 
 
@@ -190,20 +190,9 @@ register(Check(
 MUT_CASES = ("basic", "many", "single")
 
 
-def _coding_tail(rng, h):
-    """A one-string genome with head length ``h`` at least a third of whose coding chromosomes are
-    in its tail: a mutation aimed at the coding part (as coursekit's own are) reaches the tail there
-    too, so "any position" can ask for both regions. One in three random strings qualifies."""
-    while True:
-        g = distinct_pair(rng, 1, h)[0]
-        coding = g.active[0]
-        if 3 * sum(i >= h for i in coding) >= len(coding):
-            return g
-
-
 def _mutation_cases(rng):
     s = seeds(rng, 2 + N_STAT + N_STAT // 2)
-    g3, g5, g1 = distinct_pair(rng, 3, 4)[0], distinct_pair(rng, 5, 3)[0], _coding_tail(rng, 5)
+    g3, g5, g1 = distinct_pair(rng, 3, 4)[0], distinct_pair(rng, 5, 3)[0], reaching_tail(lambda *a: distinct_pair(*a)[0], rng, 5)
     return [
         {"id": "basic", "args": [obj(g3), RNG], "seeds": [s[0]] * REPEATS, "max_len": MAX_JSON},
         {"id": "many", "args": [obj(g5), RNG], "seeds": s[2:2 + N_STAT], "max_len": MAX_JSON},

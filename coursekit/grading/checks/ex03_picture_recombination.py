@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from coursekit.grading.checks import Check, exercise, register
 from coursekit.grading.checks.picture_genomes import (
-    MAX_JSON, N_STAT, REPEATS, diff, distinct_pair, lib, mixes, obj, pair_results, region, row_name, rows,
-    same_symbols_pair, valid)
+    MAX_JSON, N_STAT, REPEATS, diff, distinct_pair, lib, mixes, obj, pair_results, reaching_tail, region, row_name,
+    rows, same_symbols_pair, valid)
 from coursekit.grading.checks.properties import NEW_GENOME, RNG, deterministic, seeds, unmodified
 
 
@@ -37,7 +37,7 @@ REC_CASES = ("basic", "many", "single")
 def _recombination_cases(rng, same_symbols=False):
     s = seeds(rng, 2 + N_STAT + N_STAT // 2)
     make = same_symbols_pair if same_symbols else distinct_pair
-    p3, p5, p1 = make(rng, 3, 4), make(rng, 5, 3), make(rng, 1, 5)
+    p3, p5, p1 = make(rng, 3, 4), make(rng, 5, 3), reaching_tail(make, rng, 5)
 
     def args(pair):
         return [obj(pair[0]), obj(pair[1]), RNG]

@@ -29,9 +29,8 @@ determinism for a seed and inputs left unmodified.
 
 Case genomes are built so that every outcome can be read off the result: within a string (and
 across the two parents' strings) no two chromosomes are equal, so an interchange, a clone, a
-rotation or a copy is never invisible. The one-string genome of the mutations' cases has a third of
-its coding chromosomes or more in its tail, so that a mutation aimed at the coding part (as
-coursekit's own are: a change there always shows in the picture) reaches both regions.
+rotation or a copy is never invisible. The one-string genomes of the cases code in their tails
+(:func:`reaching_tail`), so that an operator aimed at the coding part reaches both regions.
 """
 
 from __future__ import annotations
@@ -71,6 +70,18 @@ def distinct_pair(rng, n_strings, h):
     pre = rng.choice(funcs, size=2 * n_pre, replace=False)
     return tuple(G.Genome(tuple(parents[p]), tuple(G.Chromosome.random(rng, str(s)) for s in pre[p * n_pre:(p + 1) * n_pre]))
                  for p in (0, 1))
+
+
+def reaching_tail(make, rng, h):
+    """``make(rng, 1, h)`` (one-string genomes: a genome or a pair) drawn until each genome codes in
+    its tail at least a third of its coding chromosomes (a Karva string codes a prefix: at least
+    ``h / 2`` tail chromosomes), so that an operator aimed at the coding part -- as coursekit's own
+    are, a change there always shows in the picture -- reaches the tail too. One random string in
+    three qualifies."""
+    while True:
+        made = make(rng, 1, h)
+        if all(3 * sum(i >= h for i in g.active[0]) >= len(g.active[0]) for g in (made if type(made) is tuple else (made,))):
+            return made
 
 
 def same_symbols_pair(rng, n_strings, h):
