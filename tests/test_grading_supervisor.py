@@ -263,8 +263,8 @@ def test_a_student_error_text_cannot_cost_the_batch_its_results(tmp_path):
 @pytest.mark.parametrize("newline", ["\n", "\r\n", "\u2028", "\u2029", "\x85"])
 def test_a_message_cannot_fake_a_line_of_the_summary(newline):
     fake = f"boom{newline}physics.rkn_step           6.00 / 6   all properties hold"
-    assert clean(fake) in ("boom ⏎ physics.rkn_step           6.00 / 6   all properties hold",
-                           "boomphysics.rkn_step           6.00 / 6   all properties hold")
+    assert clean(fake) in ("boom ⏎ physics.rkn_step 6.00 / 6   all properties hold",
+                           "boomphysics.rkn_step 6.00 / 6   all properties hold")
     assert len(clean(fake).splitlines()) == 1
 
 
@@ -281,3 +281,10 @@ def test_a_notebook_past_its_total_time_is_stopped_and_not_graded(tmp_path):
 def test_notebook_timeout_must_be_positive(tmp_path):
     proc = grade(tmp_path, [tmp_path / "01_selection.ipynb"], "--notebook-timeout", "0")
     assert proc.returncode == 2 and "--notebook-timeout must be a positive finite number, got 0.0" in proc.stderr
+
+
+@pytest.mark.parametrize("hidden", ["\u061c", "\ufeff", "\u2060", "\u00ad", "\U000e0041", "\ue000", "\U0010ffff"])
+def test_clean_drops_invisible_and_bidirectional_characters(hidden):
+    # red team, round 7: format, private-use and tag characters passed, and long runs of spaces (which a terminal
+    # wraps into what looks like a line of its own)
+    assert clean(f"a{hidden}b" + " " * 300 + "ga.tournament 2.00 / 2") == "ab ga.tournament 2.00 / 2"

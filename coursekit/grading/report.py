@@ -14,6 +14,7 @@ import json
 import os
 import re
 import tempfile
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -55,21 +56,24 @@ _ESCAPES = re.compile(r"(?:\x1b\[|\x9b)[0-?]*[ -/]*[@-~]"  # CSI (7- and 8-bit):
                       r"|\x1b\][^\x07\x1b]*(?:\x07|\x1b\\)?"  # OSC: titles, hyperlinks, clipboard (OSC 52)
                       r"|\x1b[P^_X][^\x1b]*(?:\x1b\\)?"  # DCS, PM, APC, SOS strings
                       r"|\x1b.?")  # any other escape
-#: Control and formatting characters, and lone surrogates (a str may hold them; no encoding can print them).
-_CONTROLS = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u200b-\u200f\u202a-\u202e\u2066-\u2069\ud800-\udfff]")
 _LINE_BREAKS = re.compile(r"\s*[\n\u2028\u2029]\s*")
+_SPACES = re.compile(r"[ \t]{8,}")  # long enough to wrap a terminal's line; a file name's double space stays
 
 
 def clean(text) -> str:
-    """``text`` as one line, without terminal escapes and control characters (tabs stay; a line
-    break becomes " ⏎ ").
+    """``text`` as one line, without terminal escapes, without control, format, private-use,
+    unassigned or lone surrogate characters (Unicode categories C*; a single tab stays), a line
+    break as " ⏎ " and a run of eight spaces or more as one.
 
     Everything the grader prints or writes passes through here: a message may quote a student's
     exception text, and an ANSI or OSC escape in it could clear the instructor's screen or set the
-    clipboard, a line break could fake a line of the summary, and a lone surrogate could stop the
-    summary from being printed at all.
+    clipboard, a line break or a long run of spaces (wrapped by the terminal) could fake a line of
+    the summary, bidirectional and invisible characters could make it read other than it is, and
+    a lone surrogate could stop the summary from being printed at all.
     """
-    return _LINE_BREAKS.sub(" ⏎ ", _CONTROLS.sub("", _ESCAPES.sub("", str(text)).replace("\r", "")))
+    text = _ESCAPES.sub("", str(text))
+    text = "".join(ch for ch in text if ch in "\t\n\u2028\u2029" or unicodedata.category(ch)[0] != "C")
+    return _SPACES.sub(" ", _LINE_BREAKS.sub(" ⏎ ", text))
 
 
 def _said(j: Judgement, v) -> str:
