@@ -235,6 +235,42 @@ def test_files_without_a_name_count_as_memory_and_disk(tmp_path):
         child.wait()
 
 
+IN_FLIGHT = """import os, socket, time
+a, b = socket.socketpair(socket.AF_UNIX)
+{make}
+os.write(fd, b"x" * 64 * 2**20)
+socket.send_fds(a, [b"x"], [fd])  # the file's only reference is now in flight, in no process's fds
+os.close(fd)
+print("ready", flush=True)
+time.sleep(60)"""
+
+
+@pytest.mark.parametrize("make, limit", [
+    ("fd = os.memfd_create('hidden')", "shared memory"),
+    ("fd = os.open('gone', os.O_CREAT | os.O_RDWR)\nos.unlink('gone')", "free space"),
+])
+def test_what_no_process_holds_is_stopped_by_the_machine_wide_backstop(tmp_path, monkeypatch, make, limit):
+    # red team, round 7: a memfd or a deleted file whose only reference is in flight in a socket, counted nowhere
+    disk = limit == "free space"
+    # one backstop at a time, each with 2 MiB to spare: what other programs do cannot stop this one first
+    monkeypatch.setattr(supervisor, "BACKSTOP_SLACK", 2**20 if disk else 2**20 - supervisor.TMP_BYTES - supervisor.SHM_BYTES)
+    if disk:
+        monkeypatch.setattr(supervisor, "machine_shared_memory", lambda: 1)
+    watch = Watch(limit_mb=1, folder=tmp_path if disk else None, disk_mb=1)
+    watch.poll()
+    assert watch.events == []
+    child = subprocess.Popen([sys.executable, "-c", IN_FLIGHT.format(make=make)], cwd=tmp_path, stdout=subprocess.PIPE)
+    try:
+        assert child.stdout.readline() == b"ready\n"
+        assert held_files([child.pid]) == ({}, 0)  # nothing to see per process
+        watch._next_disk = 0.0
+        watch.poll()
+        assert child.wait(10) == -signal.SIGKILL and limit in watch.events[0], watch.events
+    finally:
+        child.kill()
+        child.wait()
+
+
 @pytest.mark.slow
 def test_shared_memory_a_notebook_never_maps_counts_against_its_memory(tmp_path):
     hoard = "import os, time\nfd = os.memfd_create('hoard')\nfor _ in range(600):\n    os.write(fd, b'x' * 2**20)\ntime.sleep(5)"

@@ -23,7 +23,13 @@ child subreaper). This module bounds that tree by what it really uses:
   ``RLIMIT_FSIZE`` bounds any one file. Files without a name count too (:func:`held_files`):
   shared memory made with ``memfd_create`` counts as memory, a deleted file still held open as
   disk -- neither is in a process's PSS or under a folder, and a red team filled 1.4 GB of the
-  machine's memory and 600 MB of its disk with them under limits of 400 and 100 MiB.
+  machine's memory and 600 MB of its disk with them under limits of 400 and 100 MiB. What no
+  process shows at all (a file whose only reference is in flight in a socket, a SysV segment
+  nothing attaches, the untouched pages of a shared mapping) meets a machine-wide backstop: the
+  machine's shared memory and the box's free disk, against their values when the notebook
+  started, may change by the notebook's limits plus :data:`BACKSTOP_SLACK` (other programs' work)
+  and no more. So such memory is bounded, though more loosely than the limit; a cgroup with a
+  memory controller would bound it exactly, and the CI container offers none.
 - **Private folders are removed even after a kill.** Each is named
   ``coursekit-grade-<pid>-*`` after the grading process; :func:`remove_stale` deletes those of
   grading processes that are gone (a ``SIGKILL`` leaves no chance to clean up), and
@@ -54,6 +60,7 @@ from pathlib import Path
 import psutil
 
 import coursekit
+from coursekit.grading.sandbox import SHM_BYTES, TMP_BYTES
 
 MAX_FILE_BYTES = 2**30  # the largest file a graded notebook's processes may write
 PKG_ROOT = Path(os.path.abspath(coursekit.__file__)).parent.parent  # the coursekit this grader runs (not symlink-resolved)
@@ -139,6 +146,29 @@ def _role(proc: psutil.Process) -> str:
 MAX_PROCESSES = 64
 #: MiB a graded notebook may write in its folder (the sandbox's private /tmp is a bounded tmpfs).
 DISK_MB = 1024
+#: Bytes the machine's shared memory, or its free disk, may change by while a notebook runs beyond
+#: what the notebook may hold (its limit, and for memory its /tmp and /dev/shm): other programs'
+#: work. Past it the machine-wide backstop of :class:`Watch` stops the notebook.
+BACKSTOP_SLACK = 2**30
+
+
+def machine_shared_memory() -> int:
+    """Bytes of shared memory on the machine (``Shmem`` in ``/proc/meminfo``: tmpfs, memfd and SysV
+    pages, whoever holds them); 0 where it cannot be read."""
+    try:
+        with open("/proc/meminfo") as f:
+            return next((int(line.split()[1]) * 1024 for line in f if line.startswith("Shmem:")), 0)
+    except (OSError, ValueError, IndexError):
+        return 0
+
+
+def free_disk(folder) -> int:
+    """Bytes free on the file system that holds ``folder``; 0 where it cannot be read."""
+    try:
+        st = os.statvfs(folder)
+    except (OSError, TypeError):
+        return 0
+    return st.f_bavail * st.f_frsize
 
 
 def folder_bytes(folder) -> int:
@@ -213,6 +243,10 @@ class Watch:
         self.peak = 0
         self._next_disk = 0.0
         self._held_memory: dict = {}  # {pid: memfd shared memory it holds}, at the last files poll
+        # The machine-wide backstop: what no process shows (a memfd or a deleted file whose only reference is
+        # in flight in a socket, a SysV segment no process attaches) still fills the machine's memory or disk.
+        self._shared0, self._shared_cap = machine_shared_memory(), self.limit + TMP_BYTES + SHM_BYTES + BACKSTOP_SLACK
+        self._free0 = free_disk(folder) if folder is not None else 0
 
     def _kill_all(self, procs, why):
         for p in procs:
@@ -241,6 +275,8 @@ class Watch:
                 self._kill_all(procs, f"the notebook wrote {used / 2**20:.0f} MiB of files, over the limit of "
                                       f"{self.disk / 2**20:.0f} MiB; all its processes were stopped")
                 return 0
+            if self._backstop(procs):
+                return 0
         sizes = [(_memory(p) + self._held_memory.get(p.pid, 0), p) for p in procs]
         total = sum(s for s, _ in sizes)
         self.peak = max(self.peak, total)
@@ -255,6 +291,24 @@ class Watch:
             self.events.append(f"{role} was stopped: the notebook's processes held {total / 2**20:.0f} MiB of memory, "
                                f"over the limit of {self.limit / 2**20:.0f} MiB (--memory-mb); it held {size / 2**20:.0f} MiB")
         return total
+
+    def _backstop(self, procs) -> bool:
+        """Stop the notebook when the machine's shared memory grew, or its free disk shrank, by more
+        than the notebook may hold plus :data:`BACKSTOP_SLACK` since it started: memory or files it
+        hides from the per-process count. True when it was stopped."""
+        grown = machine_shared_memory() - self._shared0
+        if self._shared0 and grown > self._shared_cap:
+            self._kill_all(procs, f"the machine's shared memory grew by {grown / 2**20:.0f} MiB while the notebook ran, "
+                                  f"more than it may hold ({self.limit / 2**20:.0f} MiB, --memory-mb, with its /tmp and "
+                                  "/dev/shm) and what other programs may use meanwhile; all its processes were stopped")
+            return True
+        lost = self._free0 - free_disk(self.folder) if self.folder is not None and self._free0 else None
+        if lost is not None and lost > self.disk + BACKSTOP_SLACK:
+            self._kill_all(procs, f"the disk's free space shrank by {lost / 2**20:.0f} MiB while the notebook ran, more "
+                                  f"than it may write ({self.disk / 2**20:.0f} MiB, --disk-mb) and what other programs "
+                                  "may use meanwhile; all its processes were stopped")
+            return True
+        return False
 
     def wait(self, child, timeout: float) -> bool:
         """Poll until ``child`` (a ``subprocess.Popen``) exits or ``timeout`` s pass; True when it exited."""
