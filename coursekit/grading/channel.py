@@ -173,7 +173,9 @@ def read_report(rep) -> tuple[list, list]:
             (f" and {len(where) - MAX_CELLS_SHOWN} more" if len(where) > MAX_CELLS_SHOWN else "")
         lines[status.startswith(("skipped", "not run"))].append(f"cell{'s' * (len(where) > 1)} {shown}: {status}")
     for out, more in ((notes, lines[False]), (problems, lines[True])):
-        out += more[:MAX_CELLS_SHOWN] + ([f"and {len(more) - MAX_CELLS_SHOWN} more kinds"] if len(more) > MAX_CELLS_SHOWN else [])
+        out += more[:MAX_CELLS_SHOWN]
+        if len(more) > MAX_CELLS_SHOWN:
+            out.append(f"and {len(more) - MAX_CELLS_SHOWN} more kinds")
     return notes, problems
 
 

@@ -136,6 +136,7 @@ def named_exercises(path: str | os.PathLike[str]) -> list[str]:
     """The registered exercises whose names a notebook's file name holds, whatever the case, the
     separators and what a browser or a course site adds around it (``03_Picture_Recombination (1)``,
     ``alice_03_picture_recombination``)."""
+    registry._load()
     stem = "_" + re.sub(r"[^a-z0-9]+", "_", Path(path).name.lower().removesuffix(".ipynb")) + "_"
     return [name for name in sorted(registry.EXERCISES) if f"_{name}_" in stem]
 
@@ -377,11 +378,12 @@ def main(args: argparse.Namespace) -> int:
         print(f"coursekit grade: no such notebook file: {', '.join(map(repr, missing))}", file=sys.stderr)
         return 2
     override = getattr(args, "exercise", None)
-    try:
-        registry.for_notebook(override) if override else registry._load()
-    except ValueError as exc:
-        print(f"coursekit grade: --exercise: {exc}", file=sys.stderr)
-        return 2
+    if override:
+        try:
+            registry.for_notebook(override)
+        except ValueError as exc:
+            print(f"coursekit grade: --exercise: {exc}", file=sys.stderr)
+            return 2
     exercises = []
     for nb in args.notebooks:  # a notebook whose exercise is unknown is not graded; the others are
         try:

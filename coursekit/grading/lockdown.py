@@ -189,8 +189,9 @@ def lock_down(files, texts, keys=frozenset(), native=False):
     or running code from their source files or with their source text (``inspect.getsource``,
     ``importlib``, a reload), running code that defines a copy of them (``keys``: their
     :func:`_content`), ``marshal``-loading it, setting a function's ``__code__``, and the
-    events of :data:`REFUSED_EVENTS` (but those of :data:`NATIVE` with ``native``). Raises ``RuntimeError`` when the hook is not in place (a
-    notebook that replaced ``sys.addaudithook``): the worker then refuses every call."""
+    events of :data:`REFUSED_EVENTS` (but those of :data:`NATIVE` with ``native``). Raises
+    ``RuntimeError`` when the hook is not in place (a notebook that replaced
+    ``sys.addaudithook``): the worker then refuses every call."""
     import dis  # noqa: F401  (for _content, loaded before the hook is in place)
 
     encoded = tuple(f.encode() for f in files)

@@ -192,7 +192,8 @@ MUT_CASES = ("basic", "many", "single")
 
 def _mutation_cases(rng):
     s = seeds(rng, 2 + N_STAT + N_STAT // 2)
-    g3, g5, g1 = distinct_pair(rng, 3, 4)[0], distinct_pair(rng, 5, 3)[0], reaching_tail(lambda *a: distinct_pair(*a)[0], rng, 5)
+    g3, g5 = distinct_pair(rng, 3, 4)[0], distinct_pair(rng, 5, 3)[0]
+    g1 = reaching_tail(lambda *a: distinct_pair(*a)[0], rng, 5)
     return [
         {"id": "basic", "args": [obj(g3), RNG], "seeds": [s[0]] * REPEATS, "max_len": MAX_JSON},
         {"id": "many", "args": [obj(g5), RNG], "seeds": s[2:2 + N_STAT], "max_len": MAX_JSON},

@@ -80,7 +80,8 @@ def reaching_tail(make, rng, h):
     three qualifies."""
     while True:
         made = make(rng, 1, h)
-        if all(3 * sum(i >= h for i in g.active[0]) >= len(g.active[0]) for g in (made if type(made) is tuple else (made,))):
+        genomes = made if type(made) is tuple else (made,)
+        if all(3 * sum(i >= h for i in g.active[0]) >= len(g.active[0]) for g in genomes):
             return made
 
 
