@@ -563,20 +563,18 @@ for i in range(8):
 time.sleep(5)'''],
     },
     "nan_record": {
-        "about": "patches json.dumps in the kernel so that the harvest's records carry NaN after the first few calls: "
-                 "such a record is not a record, so the notebook is not graded (it was: a silent 'did not "
-                 "return in time' for the functions graded after, and exit 0).",
+        "about": "patches json.dumps in the kernel so that the harvest's records carry NaN: such a record is not a "
+                 "record, so the notebook is not graded (it was graded, exit 0, with a silent 'did not return in "
+                 "time' for every function after the first such record).",
         "sabotaged": {},
         "not_graded": "the harvest answered out of turn",
         "cells": ['''import json
-_dumps, _seen = json.dumps, [0]
+_dumps = json.dumps
 
 
 def _with_nan(obj, *args, **kwargs):
     if type(obj) is dict and "status" in obj and "id" in obj:
-        _seen[0] += 1
-        if _seen[0] > 6:
-            obj, kwargs["allow_nan"] = dict(obj, junk=float("nan")), True
+        obj, kwargs["allow_nan"] = dict(obj, junk=float("nan")), True
     return _dumps(obj, *args, **kwargs)
 
 
