@@ -72,7 +72,7 @@ def clean(text) -> str:
     a lone surrogate could stop the summary from being printed at all.
     """
     text = _ESCAPES.sub("", str(text))
-    text = "".join(ch for ch in text if ch in "\t\n\u2028\u2029" or unicodedata.category(ch)[0] != "C")
+    text = "".join(ch for ch in text if ch in "\t\n" or unicodedata.category(ch)[0] != "C")
     return _SPACES.sub(" ", _LINE_BREAKS.sub(" ⏎ ", text))
 
 

@@ -14,7 +14,7 @@ Part of the summative grader (seed paper section 4, exercises graded; see
   coursekit's own version of a graded function;
 - a private ``/tmp`` (a tmpfs of at most :data:`TMP_BYTES` that disappears with the sandbox), a ``/dev``
   of device nodes only, read-only but for a ``/dev/shm`` of at most :data:`SHM_BYTES` (bubblewrap's
-  own ``/dev`` is a tmpfs as large as half the machine's memory, which no limit counted), private PID, IPC, UTS and
+  own ``/dev`` is a writable tmpfs as large as half the machine's memory), private PID, IPC, UTS and
   cgroup namespaces (the grader's processes and their ``/proc/<pid>/environ`` are not there),
   no network (a fresh network namespace with loopback only), every capability dropped, and
   ``--die-with-parent``.

@@ -20,15 +20,14 @@ child subreaper). This module bounds that tree by what it really uses:
   process of the notebook is killed; the grader reports it not graded. Inside the sandbox the
   kernel also runs under ``RLIMIT_NPROC`` where that holds (a user of its own, ``nobody``, or the
   sandbox's own user namespace: :func:`coursekit.grading.sandbox.limit_processes`), and
-  ``RLIMIT_FSIZE`` bounds any one file. Files without a name count too (:func:`held_files`):
-  shared memory made with ``memfd_create`` counts as memory, a deleted file still held open as
-  disk -- neither is in a process's PSS or under a folder, and a red team filled 1.4 GB of the
-  machine's memory and 600 MB of its disk with them under limits of 400 and 100 MiB. What no
-  process shows at all (a file whose only reference is in flight in a socket, a SysV segment
-  nothing attaches, the untouched pages of a shared mapping) meets a machine-wide backstop: the
-  machine's shared memory and the box's free disk, against their values when the notebook
-  started, may change by the notebook's limits plus :data:`BACKSTOP_SLACK` (other programs' work)
-  and no more. So such memory is bounded, though more loosely than the limit; a cgroup with a
+  ``RLIMIT_FSIZE`` bounds any one file. Files without a name count too (:func:`held_files`;
+  psutil's ``open_files`` leaves them out): shared memory made with ``memfd_create`` counts as
+  memory, a deleted file still held open as disk -- neither is in a process's PSS or under a
+  folder. What no process shows at all (a file whose only reference is in flight in a socket, a
+  SysV segment nothing attaches, the untouched pages of a shared mapping) meets a machine-wide
+  backstop: the machine's shared memory and the box's free disk, against their values when the
+  notebook started, may change by the notebook's limits plus :data:`BACKSTOP_SLACK` (other
+  programs' work) and no more. So such memory is bounded, though more loosely than the limit; a cgroup with a
   memory controller would bound it exactly, and the CI container offers none.
 - **Private folders are removed even after a kill.** Each is named
   ``coursekit-grade-<pid>-*`` after the grading process; :func:`remove_stale` deletes those of
@@ -153,22 +152,17 @@ BACKSTOP_SLACK = 2**30
 
 
 def machine_shared_memory() -> int:
-    """Bytes of shared memory on the machine (``Shmem`` in ``/proc/meminfo``: tmpfs, memfd and SysV
-    pages, whoever holds them); 0 where it cannot be read."""
-    try:
-        with open("/proc/meminfo") as f:
-            return next((int(line.split()[1]) * 1024 for line in f if line.startswith("Shmem:")), 0)
-    except (OSError, ValueError, IndexError):
-        return 0
+    """Bytes of shared memory on the machine (``Shmem``: tmpfs, memfd and SysV pages, whoever holds
+    them); 0 where it cannot be read."""
+    return getattr(psutil.virtual_memory(), "shared", 0)
 
 
 def free_disk(folder) -> int:
     """Bytes free on the file system that holds ``folder``; 0 where it cannot be read."""
     try:
-        st = os.statvfs(folder)
-    except (OSError, TypeError):
+        return shutil.disk_usage(folder).free
+    except OSError:
         return 0
-    return st.f_bavail * st.f_frsize
 
 
 def folder_bytes(folder) -> int:
