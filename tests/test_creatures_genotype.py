@@ -86,6 +86,26 @@ def test_validation_names_the_field(edit, match):
         Creature(nodes, c.brain)
 
 
+@pytest.mark.parametrize(
+    "edit, match",
+    [
+        (lambda n: n[0].symmetry.__setitem__(0, Symmetry(1, 3)), r"nodes\[0\]\.symmetry\[0\]\.axis.*0, 1 or 2"),
+        (lambda n: n[0].symmetry.__setitem__(0, (1, 2)), r"nodes\[0\]\.symmetry\[0\].*Symmetry"),
+        (lambda n: n[0].children.__setitem__(0, (1, (0.5, 1.0, 0.0))), r"nodes\[0\]\.children\[0\].*ChildLink"),
+        (lambda n: setattr(n[0], "recursion", (1, 2)), r"nodes\[0\]\.recursion.*list"),
+    ],
+)
+def test_expand_and_render_name_the_field_of_a_genotype_changed_after_it_was_built(edit, match):
+    # lesson 05 edits a creature in place and draws it: the error names the field, as simulate's does
+    from coursekit.creatures import render
+
+    for draw in (expand, lambda c: c.expand(), render):
+        c = Creature.figure1_snake()
+        edit(c.nodes)
+        with pytest.raises((ValueError, TypeError), match=match):
+            draw(c)
+
+
 def test_unreachable_node_rejected():
     c = Creature.figure1_snake()
     with pytest.raises(ValueError, match="unreachable"):

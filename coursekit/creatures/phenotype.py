@@ -113,6 +113,8 @@ def expand(creature: Creature, max_parts: int = MAX_PARTS) -> Phenotype:
     """
     if not (isinstance(getattr(creature, "nodes", None), list) and isinstance(getattr(creature, "brain", None), list)):
         raise TypeError(f"expand: expected a Creature, got {type(creature).__name__}")
+    if callable(getattr(creature, "validate", None)):  # a genotype may have been changed since it was built
+        creature.validate()
     if not isinstance(max_parts, (int, np.integer)) or max_parts < 1:
         raise ValueError(f"expand.max_parts: must be an int >= 1, got {max_parts!r}")
     nodes = creature.nodes
