@@ -292,6 +292,16 @@ def test_simulate_validates_creatures_changed_after_they_were_built(change, fiel
             simulate([snake], 1.0, controller=controller)
 
 
+def test_a_misspelt_option_is_named_with_the_closest_allowed_one():
+    from coursekit.creatures import Creature
+    from coursekit.creatures.evolution import evolve_swimmers
+
+    with pytest.raises(TypeError, match=r"simulate: unknown option 'drag_coeficient' \(did you mean 'drag_coefficient'\?\); allowed: .*substeps"):
+        simulate([Creature.figure1_snake()], 1.0, drag_coeficient=2.0)
+    with pytest.raises(TypeError, match=r"unknown option 'setle' \(did you mean 'settle'\?\)"):
+        evolve_swimmers(rng=np.random.default_rng(0), generations=1, population_size=2, setle=0.1, progress=False)
+
+
 def test_a_body_cut_off_at_the_part_cap_scores_zero():
     from coursekit.creatures import ChildLink, Creature, Input, Neuron, Node, Recursion, Symmetry
 

@@ -26,7 +26,7 @@ from coursekit import ga
 from coursekit.creatures import audit, operators
 from coursekit.creatures.genotype import Creature
 from coursekit.creatures.neural import is_int, is_real
-from coursekit.creatures.simulate import simulate
+from coursekit.creatures.simulate import check_options, simulate
 
 
 @dataclass(frozen=True)
@@ -235,6 +235,7 @@ def _breeding(seconds, mutate, crossover, graft, ratios, executor, simulate_opti
         if not (callable(op) or (op is None and name != "mutate")):
             allowed = "a function" if name == "mutate" else "a function or None"
             raise TypeError(f"{name}: must be {allowed}, got {type(op).__name__}")
+    check_options(simulate_options, "simulate options")
     parts = [(ratios[0], mutate, 1)]
     if crossover is not None and ratios[1] > 0:
         parts.append((ratios[1], Mated(crossover, mutate), 2))

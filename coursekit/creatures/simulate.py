@@ -15,6 +15,8 @@ quarter of the range before it was put back), scores 0.
 
 from __future__ import annotations
 
+import difflib
+import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -130,6 +132,7 @@ def simulate(
                         f"function, got {type(controller).__name__}")
     if initial_state is not None and not (isinstance(initial_state, (tuple, list)) and len(initial_state) == 2):
         raise ValueError(f"initial_state: expected a (qpos, qvel) pair, got {type(initial_state).__name__}")
+    check_options(options, "simulate", world_only=True)
     brains, bodies = _brains(creatures) if controller is None else (None, as_trees(creatures))
     world = World(bodies, dt=dt, **options)
     m = world.model
@@ -199,3 +202,16 @@ def simulate(
         trajectory = [np.stack([f[c] for f in frames]) for c in range(m.n_creatures)]
         frame_times = np.arange(len(frames)) * record_every * dt
     return SimulationResult(fitness, com, times, world.diverged.copy(), qpos, qvel, dt, trajectory, frame_times, excess)
+
+
+def check_options(options: dict, where: str, *, world_only: bool = False) -> None:
+    """Raise ``TypeError`` naming the first of ``options`` that neither :func:`simulate` (unless
+    ``world_only``) nor :class:`World` takes, with the closest allowed name and the whole list."""
+    names = [p for p in inspect.signature(World.__init__).parameters if p not in ("self", "creatures")]
+    if not world_only:
+        names = list(dict.fromkeys([p for p in inspect.signature(simulate).parameters if p not in ("creatures", "seconds", "options")] + names))
+    for key in options:
+        if key not in names:
+            near = difflib.get_close_matches(str(key), names, n=1)
+            hint = f" (did you mean {near[0]!r}?)" if near else ""
+            raise TypeError(f"{where}: unknown option {key!r}{hint}; allowed: {', '.join(names)}")
