@@ -82,7 +82,8 @@ class AuditReport:
         verdict = "passed" if self.passed else "FAILED: " + "; ".join(self.reasons)
         return (f"{self.speed:.3f} m/s = {self.body_lengths_per_second:.3f} body lengths/s "
                 f"(in {REFINE} sub-steps: {self.fine_speed:.3f} m/s); drift with effectors off {self.passive_drift:.3f} m, "
-                f"in a vacuum {self.vacuum_drift:.3f} m (in {REFINE} sub-steps: {self.vacuum_drift_fine:.4f} m); "
+                f"in a vacuum in {REFINE} sub-steps {self.vacuum_drift_fine:.4f} m (at the step itself {self.vacuum_drift:.3f} m, "
+                f"not judged: with no water to slow them the limbs move far faster than when swimming); "
                 f"worst limit excess {100 * self.limit_excess:.1f} % of range; energy {self.energy:.3g} J; {verdict}")
 
 
