@@ -51,7 +51,10 @@ SIZE = (160, 120)
 
 
 def _creature_pixels(img):
-    return np.any(img < 250, axis=2)  # white background, no grid, trail or label
+    """Pixels not of the background (the picture's most common colour: white for render, water
+    blue for films), with no grid, trail or label drawn."""
+    colours, counts = np.unique(img.reshape(-1, 3), axis=0, return_counts=True)
+    return np.any(np.abs(img.astype(int) - colours[counts.argmax()]) > 5, axis=2)
 
 
 def _touches_border(fg):
@@ -172,6 +175,8 @@ def test_the_key_frame_strip_is_figure_3(tmp_path):
         assert (strip[:, k * 124 + 120: (k + 1) * 124] == 200).all()  # the gaps
     for a, b in zip(panels, panels[1:]):
         assert np.mean(np.any(a != b, axis=2)) > 0.01  # time moves on from panel to panel
+    water = np.array([int(R.WATER[k: k + 2], 16) for k in (1, 3, 5)])
+    assert all(np.mean(np.abs(p.astype(int) - water).sum(axis=2) < 6) > 0.5 for p in panels)  # swimming in water, not on paper
     # without the stroke phases: evenly spaced, as the film shows them
     clip = Clip(snake, r.trajectory[0], frame_times=r.frame_times, size=(120, 90))
     picks = np.round(np.linspace(0, len(clip) - 1, 4)).astype(int)

@@ -8,7 +8,8 @@ out stays joined to its parent on screen as in the physics.
 - :func:`render`, :func:`view`: one picture, the camera fitted to the projected body (:func:`frame`);
 - :class:`Clip`, :func:`frames`, :func:`animate`: a recorded swim filmed with a camera that
   follows the smoothed centre of mass and keeps every part in the picture over the whole clip,
-  with the centre of mass's trail, over a grid fixed in the water; GIF (Pillow) and MP4
+  with the centre of mass's trail, over a grid fixed in the water, on pale water blue
+  (:data:`WATER`; still pictures stay on white); GIF (Pillow) and MP4
   (H.264 through imageio-ffmpeg's ffmpeg) from one pass;
 - :func:`keyframes`: the paper's Figure 3, key frames side by side with their times.
 
@@ -369,6 +370,7 @@ def _nice_step(length: float) -> float:
 #: Frames from which :func:`animate` and :func:`keyframes` show a progress bar by default
 #: (``progress=None``): about 3 s of filming at 480 x 360.
 BAR_FRAMES = 60
+WATER = "#d6e9f5"  # the films' background: pale water blue, under which the grid and the trail still show
 
 
 class Clip:
@@ -398,7 +400,7 @@ class Clip:
     """
 
     def __init__(self, obj: Any, trajectory: ArrayLike, *, frame_times: ArrayLike | None = None, fps: int = 20,
-                 size: tuple[int, int] = (480, 360), joint_axes: bool = False, background: str = "white",
+                 size: tuple[int, int] = (480, 360), joint_axes: bool = False, background: str = WATER,
                  azimuth: float = 30.0, elevation: float = 25.0, follow: float = 1.0, trail: bool = True,
                  floor: bool = True, label: bool = True, margin: float = 0.8) -> None:
         from scipy.ndimage import gaussian_filter1d
@@ -511,7 +513,7 @@ def frames(obj: Any, trajectory: ArrayLike, **options: Any) -> Iterator[np.ndarr
 
 
 def animate(obj: Any, trajectory: ArrayLike, path: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], *,
-            fps: int = 20, size: tuple[int, int] = (480, 360), joint_axes: bool = False, background: str = "white",
+            fps: int = 20, size: tuple[int, int] = (480, 360), joint_axes: bool = False, background: str = WATER,
             azimuth: float = 30.0, elevation: float = 25.0, progress: bool | None = None, **options: Any) -> Path | list[Path]:
     """Film a creature swimming along a recorded trajectory: a GIF, an MP4, or both from one pass.
 
