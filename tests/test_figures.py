@@ -71,6 +71,24 @@ def test_a_drawn_string_greys_exactly_its_non_coding_chromosomes(seed, h, n_stri
         plt.close(ax.figure)
 
 
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.integers(1, 12), st.sampled_from([(13, 3.6, 3), (4, 3.4, 1)]))
+def test_no_two_labels_of_a_drawn_tree_overlap(seed, h, panels):
+    # lesson 02's Figures 8 and 9 (three panels in a 13-inch figure) once drew "color-noise" over "angle"
+    width, height, n = panels
+    g = Genome.random(np.random.default_rng(seed), n_strings=1, head_length=h)
+    fig, axes = plt.subplots(1, n, figsize=(width, height), squeeze=False)
+    pf.draw_string(g, 0, axes[0, -1])
+    fig.canvas.draw()
+    boxes = [t.get_bbox_patch().get_window_extent() for t in axes[0, -1].texts if t.get_bbox_patch() is not None]
+    assert len(boxes) == len(list(g._string_tree(0).walk()))
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            overlap = min(a.x1, b.x1) - max(a.x0, b.x0), min(a.y1, b.y1) - max(a.y0, b.y0)
+            assert min(overlap) < 0.5, f"two tree labels overlap by {overlap} pixels"
+    plt.close(fig)
+
+
 def test_the_genome_figure_has_the_preheader_ring_and_one_panel_per_string():
     g = Genome.random(np.random.default_rng(7), n_strings=3, head_length=3)
     fig = pf.draw_genome(g)

@@ -16,10 +16,11 @@ dozen lines written here: matplotlib has none, and networkx's tree layouts need 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Sequence
 
 import matplotlib.pyplot as plt
 from matplotlib.patches import FancyArrowPatch, Rectangle
+from matplotlib.textpath import TextPath
 
 from .genome import Genome, karva
 
@@ -31,22 +32,42 @@ if TYPE_CHECKING:
 HEAD, TAIL, PRE, OFF = "#4c72b0", "#55a868", "#c44e52", "#c8c8c8"
 
 
-def tree_layout(children: list, root: int = 0) -> dict:
-    """``{node: (x, depth)}``: leaves at x = 0, 1, 2, ... in order, parents centred over their children."""
-    pos, next_leaf = {}, [0.0]
+def tree_layout(children: list, root: int = 0, widths: Sequence[float] | None = None) -> dict:
+    """``{node: (x, depth)}``: leaves left to right in order, each parent centred over its children,
+    and no two nodes of one depth closer than half their ``widths`` added up (default 1 each: leaves
+    at x = 0, 1, 2, ...). Where a wide label would touch its neighbour, the leaves from the right
+    one's subtree on move right until it does not."""
+    width = [1.0] * len(children) if widths is None else [float(v) for v in widths]
+    depth, first, leaves, levels = {}, {}, [], {}
 
-    def place(i, depth):
+    def walk(i, d):  # depths, leaves in order, each node's first leaf, nodes of each depth in order
+        depth[i] = d
+        levels.setdefault(d, []).append(i)
+        for j in children[i]:
+            walk(j, d + 1)
         if not children[i]:
-            pos[i] = (next_leaf[0], depth)
-            next_leaf[0] += 1.0
-        else:
-            for j in children[i]:
-                place(j, depth + 1)
-            xs = [pos[j][0] for j in children[i]]
-            pos[i] = ((min(xs) + max(xs)) / 2, depth)
-        return pos
+            leaves.append(i)
+        first[i] = first[children[i][0]] if children[i] else len(leaves) - 1
 
-    return place(root, 0)
+    def centre(i, x):
+        for j in children[i]:
+            centre(j, x)
+        if children[i]:
+            x[i] = (x[children[i][0]] + x[children[i][-1]]) / 2
+
+    walk(root, 0)
+    extra = [0.0] * len(leaves)
+    while True:
+        x, at = {}, 0.0
+        for k, leaf in enumerate(leaves):
+            at += ((width[leaves[k - 1]] + width[leaf]) / 2 + extra[k]) if k else 0.0
+            x[leaf] = at
+        centre(root, x)
+        clash = next(((b, (width[a] + width[b]) / 2 - (x[b] - x[a])) for nodes in levels.values()
+                      for a, b in zip(nodes, nodes[1:]) if x[b] - x[a] < (width[a] + width[b]) / 2 - 1e-9), None)
+        if clash is None:
+            return {i: (x[i], depth[i]) for i in depth}
+        extra[first[clash[0]]] += clash[1]
 
 
 def _node(ax, x, y, text, colour, coding, size=7.5):
@@ -77,7 +98,20 @@ def draw_string(genome: Genome, k: int, ax: matplotlib.axes.Axes | None = None, 
     ax = ax or plt.subplots(figsize=(max(3.0, 0.55 * len(s)), 3.4))[1]
     linked = bool(genome.active[k])
     children, orf = karva(s.chromosomes, lambda c: c.arity)
-    pos = tree_layout(children)
+    # The tree's labels are as wide as their names (the font's own widths, in points): the layout
+    # keeps them apart at the scale at which the panel draws its chromosome boxes, in a smaller
+    # font where the names would not fit the panel's width otherwise.
+    size, margin = 7.5, 1.6
+    panel = ax.get_position().width * ax.figure.get_figwidth() * 72
+    label = [TextPath((0, 0), c.symbol, size=size).get_extents().width + 1.4 * size for c in s.chromosomes[:len(children)]]
+    pos = tree_layout(children, widths=label)  # in points
+    lo, hi = min(x - label[i] / 2 for i, (x, _) in pos.items()), max(x + label[i] / 2 for i, (x, _) in pos.items())
+    fit = min(1.0, 0.8 * panel / (hi - lo))
+    size *= fit
+    units = max(len(s) + margin, margin / (1 - fit * (hi - lo) / panel))  # the panel's width, in boxes
+    scale, left_x = fit * units / panel, min(x for x, _ in pos.values())  # points to boxes
+    pos = {i: ((x - left_x) * scale, d) for i, (x, d) in pos.items()}
+    lo, hi = (lo - left_x) * scale, (hi - left_x) * scale
     span = max(x for x, _ in pos.values())
     row_x = lambda i: (i - (len(s) - 1) / 2) * max(1.0, (span + 1) / len(s)) + span / 2  # noqa: E731
     depth = max(d for _, d in pos.values())
@@ -86,7 +120,7 @@ def draw_string(genome: Genome, k: int, ax: matplotlib.axes.Axes | None = None, 
         for j in kids:
             _edge(ax, (pos[i][0], -pos[i][1]), (pos[j][0], -pos[j][1]), linked)
     for i, (x, d) in pos.items():
-        _node(ax, x, -d, s.chromosomes[i].symbol, HEAD if i < s.head_length else TAIL, linked)
+        _node(ax, x, -d, s.chromosomes[i].symbol, HEAD if i < s.head_length else TAIL, linked, size)
     for i, c in enumerate(s.chromosomes):
         coding = linked and i < orf
         colour = HEAD if i < s.head_length else TAIL
@@ -103,8 +137,8 @@ def draw_string(genome: Genome, k: int, ax: matplotlib.axes.Axes | None = None, 
     ax.text((row_x(0) + row_x(h - 1)) / 2, row_y - 1.55, f"head (h={h})", ha="center", fontsize=7, color=HEAD)
     ax.text((row_x(h) + row_x(len(s) - 1)) / 2, row_y - 1.55, f"tail (t={s.tail_length})", ha="center",
             fontsize=7, color=TAIL)
-    left, right = min(row_x(0), 0) - 0.8, max(row_x(len(s) - 1), span) + 0.8
-    ax.set_xlim(left, right)
+    left, right = min(row_x(0) - 0.8, lo), max(row_x(len(s) - 1) + 0.8, hi)
+    ax.set_xlim((left + right - max(units, right - left)) / 2, (left + right + max(units, right - left)) / 2)
     ax.set_ylim(row_y - 2.0, 0.7)
     ax.axis("off")
     if title:
