@@ -94,6 +94,9 @@ def test_apply_from_code_breeds_and_redraws_like_the_buttons(gallery):
     assert [bytes(im.value) for im in gallery.images] == before
     with pytest.raises(ValueError, match="name: 'mutate'"):
         gallery.apply("mutate")
+    for label in ("head tail rotation", "head/tail rotation"):  # what the button says, and what the lessons call it
+        assert gallery.apply(label).startswith("generation 1")
+        assert gallery.state.generation == 1 and gallery.apply("undo") == "back to generation 0"
 
 
 def test_buttons_need_a_selection(gallery):

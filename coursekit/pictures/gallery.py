@@ -273,6 +273,9 @@ class Gallery:
         this (and :meth:`click`, :meth:`key`) to drive the gallery from code: changing
         ``gallery.evolution`` directly changes the session but not the pictures on screen."""
         name = _ALIASES.get(name, name)
+        key = name.replace("/", "_").replace(" ", "_") if isinstance(name, str) else name
+        if name not in self.buttons and key in self.buttons:  # a button's label: "head tail rotation", "head/tail rotation"
+            name = key
         if name not in self.buttons:
             raise ValueError(f"name: {name!r} is not one of {list(self.buttons)}")
         return self._act(name)
