@@ -117,6 +117,8 @@ def test_constructors_refuse_invalid_genomes():
         C("const")
     with pytest.raises(ValueError, match="preheader: 0 chromosomes"):
         Genome((s(1, "x", "y", "x"), s(1, "x", "y", "x")))
+    with pytest.raises(TypeError, match=r"strings: expected a list of ChromosomeStrings \(e.g. Genome\(\[s\]\)\), got ChromosomeString"):
+        Genome(s(1, "x", "y", "x"))  # one string, not in a list
     with pytest.raises(TypeError, match="rng"):
         Genome.random(7)
     with pytest.raises(TypeError, match="rng: expected numpy.random.Generator, got NoneType"):

@@ -330,6 +330,8 @@ class Genome(_CachedHash):
     preheader: tuple[Chromosome, ...] = ()
 
     def __post_init__(self):
+        if isinstance(self.strings, (ChromosomeString, str)) or not hasattr(self.strings, "__iter__"):
+            raise TypeError(f"strings: expected a list of ChromosomeStrings (e.g. Genome([s])), got {type(self.strings).__name__}")
         strings = tuple(self.strings)
         if not strings:
             raise ValueError("strings: a genome needs at least one chromosome string")
