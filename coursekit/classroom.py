@@ -7,8 +7,10 @@ call the student's functions; before a function is written they would stop Run A
 written yet (or a result an earlier, skipped demo would have made) gives one friendly line saying
 what to do, and the notebook runs on to its end. Every other error still raises.
 
-:func:`setup_check` tells a student in one line per item whether 3D rendering, widgets and torch
-work on this machine, and what to install if not (lesson 00).
+:func:`setup_check` tells a student in one line per item whether 3D rendering, widgets, torch and
+the swimmers' compiled physics work on this machine, and what to install if not (lesson 00); the
+physics item compiles the simulator's step, which numba then caches, so the first swim of the
+course does not sit still for its compile time.
 """
 
 from __future__ import annotations
@@ -69,6 +71,8 @@ _FIX = {
                     "(Debian/Ubuntu: sudo apt-get install libegl1 libegl-mesa0 libgl1)",
     "widgets": "pip install ipywidgets jupyterlab_widgets ipyevents, then restart JupyterLab",
     "torch": "pip install torch (CPU is enough: pip install torch --index-url https://download.pytorch.org/whl/cpu)",
+    "swimmers' physics": "pip install numba (the simulator's compiled step; without it the swimmers run on numpy, "
+                         "several times slower)",
 }
 
 
@@ -105,11 +109,27 @@ def _check_torch():
     return f"torch {torch.__version__}, {device}"
 
 
-CHECKS = {"3D rendering": _check_rendering, "widgets": _check_widgets, "torch": _check_torch}
+def _check_physics():
+    import time
+
+    import numba
+
+    from coursekit.creatures import Creature, simulate
+
+    start = time.perf_counter()  # the first run compiles the step (once: numba caches it for later sessions)
+    run = simulate([Creature.figure1_snake(), Creature.paddle_turtle()], 0.25, settle=0.0, compiled=True)
+    if not (run.fitness >= 0).all() or run.diverged.any():
+        raise RuntimeError("a short swim went wrong")
+    return f"numba {numba.__version__}, a short swim in {time.perf_counter() - start:.1f} s, compiling included the first time"
+
+
+CHECKS = {"3D rendering": _check_rendering, "widgets": _check_widgets, "torch": _check_torch,
+          "swimmers' physics": _check_physics}
 
 
 def setup_check(file: TextIO | None = None, progress: bool = False) -> dict:
-    """Check 3D rendering, widgets and torch; print one line each (with the fix when one fails).
+    """Check 3D rendering, widgets, torch and the swimmers' physics; print one line each (with the fix
+    when one fails).
 
     Args:
         file: where the lines go (default: standard output).
@@ -117,7 +137,8 @@ def setup_check(file: TextIO | None = None, progress: bool = False) -> dict:
             seconds, so a notebook shows it is working).
 
     Returns:
-        ``{item: (ok, detail)}`` for ``"3D rendering"``, ``"widgets"`` and ``"torch"``.
+        ``{item: (ok, detail)}`` for ``"3D rendering"``, ``"widgets"``, ``"torch"`` and
+        ``"swimmers' physics"``.
     """
     file = sys.stdout if file is None else file
     results = {}

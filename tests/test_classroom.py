@@ -51,10 +51,11 @@ def test_the_setup_check_gives_one_line_per_item_and_the_fix_when_one_fails(monk
     monkeypatch.setitem(classroom.CHECKS, "torch", broken)
     monkeypatch.setitem(classroom.CHECKS, "3D rendering", lambda: "pyvista x")
     monkeypatch.setitem(classroom.CHECKS, "widgets", lambda: "ipywidgets y")
+    monkeypatch.setitem(classroom.CHECKS, "swimmers' physics", lambda: "numba w")
     out = io.StringIO()
     results = classroom.setup_check(file=out)
     lines = out.getvalue().splitlines()
-    assert list(results) == ["3D rendering", "widgets", "torch"] and len(lines) == 3
+    assert list(results) == ["3D rendering", "widgets", "torch", "swimmers' physics"] and len(lines) == 4
     assert results["torch"][0] is False and "No module named 'torch'" in results["torch"][1]
     assert lines[2].startswith("✘ torch: does not work") and "pip install torch" in lines[2]
     assert lines[0] == "✔ 3D rendering: works (pyvista x)"
@@ -68,14 +69,15 @@ def test_the_real_setup_check_passes_where_the_test_suite_runs():
 
 
 def test_the_setup_check_bar_ends_full_even_when_a_check_fails(monkeypatch, capsys):
-    """Lesson 00 runs it with a bar: saved with the notebook, the bar must read 3/3, not stop short."""
+    """Lesson 00 runs it with a bar: saved with the notebook, the bar must read 4/4, not stop short."""
     def broken():
         raise RuntimeError("no EGL")
 
     monkeypatch.setitem(classroom.CHECKS, "3D rendering", broken)
     monkeypatch.setitem(classroom.CHECKS, "widgets", lambda: "ipywidgets y")
     monkeypatch.setitem(classroom.CHECKS, "torch", lambda: "torch z")
+    monkeypatch.setitem(classroom.CHECKS, "swimmers' physics", lambda: "numba w")
     results = classroom.setup_check(file=io.StringIO(), progress=True)
     bar = capsys.readouterr().err.replace("\r", "\n").splitlines()
     assert results["3D rendering"][0] is False
-    assert any("3/3" in line and "done" in line for line in bar), bar
+    assert any("4/4" in line and "done" in line for line in bar), bar
