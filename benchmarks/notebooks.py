@@ -57,6 +57,8 @@ TRY_MINUTES = 3  # a "Try this" prompt or a self-check: a few minutes of the stu
 NOTE = re.compile(r"^\*About \d+ min: (?:under 1 s|(\d+) s) of computing, plus (?:reading|reading and trying)\.\*$")
 RUN_ALL = re.compile(r"Run All takes about \d+ s")
 TOTAL = re.compile(r"about \d+ minutes to read, run and try")
+HEADER = ("*Time: about 0 minutes to read, run and try; Run All takes about 0 s on a 2-core machine (classroom profile, "
+          "`coursekit bench notebooks`).*")
 
 
 def _seconds(cell) -> float:
@@ -258,7 +260,11 @@ def write_estimates(nb, cell_seconds: dict[int, float], run_all: float | None = 
         changed += 1
     if run_all is not None and nb.cells:
         head = nb.cells[0]
-        text = RUN_ALL.sub(f"Run All takes about {round(run_all)} s", head.source)
+        text = head.source
+        if not (RUN_ALL.search(text) and TOTAL.search(text)):  # a lesson without the line gets it under its title
+            title, _, rest = text.partition("\n")
+            text = f"{title}\n\n{HEADER}\n" + (f"\n{rest.lstrip(chr(10))}" if rest.strip() else "")
+        text = RUN_ALL.sub(f"Run All takes about {round(run_all)} s", text)
         text = TOTAL.sub(f"about {total_minutes(nb, cell_seconds)} minutes to read, run and try", text)
         if text != head.source:
             head.source = text
@@ -298,6 +304,9 @@ def estimates(rows, mode: str) -> tuple[str, int]:
         nb = nbformat.read(r["path"], as_version=4)
         found, have = sections(nb, r["computing"]), noted(nb)
         bad = [(s, old) for s, old in zip(found, have) if stale(old, note(s))]
+        if not (nb.cells and RUN_ALL.search(nb.cells[0].source) and TOTAL.search(nb.cells[0].source)):
+            count += 1
+            report.append(f"{r['notebook']}: no 'about N minutes to read, run and try; Run All takes about N s' line")
         count += len(bad)
         for s, old in bad:
             report.append(f"{r['notebook']} / {s['heading']}: noted {old or '(nothing)'}; measured {note(s)}")

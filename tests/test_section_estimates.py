@@ -85,3 +85,18 @@ def test_every_section_of_every_lesson_has_a_measured_estimate(path):
     assert found, f"{path.name}: no '## ' sections"
     missing = [s["heading"] for s, n in zip(found, notes) if n is None]
     assert not missing, f"{path.name}: no time estimate under {missing} (benchmarks/notebooks.py --estimates write)"
+    head = nb.cells[0].source
+    assert bench.RUN_ALL.search(head) and bench.TOTAL.search(head), \
+        f"{path.name}: no 'Run All takes about N s' line under the title (benchmarks/notebooks.py --estimates write)"
+
+
+def test_writing_gives_a_lesson_without_the_time_line_one_under_its_title():
+    nb = lesson()
+    nb.cells[0].source = "# Title\n\n**Goals.** read"
+    bench.write_estimates(nb, SECONDS, run_all=61.6)
+    assert nb.cells[0].source == ("# Title\n\n*Time: about 9 minutes to read, run and try; Run All takes about 62 s on a "
+                                  "2-core machine (classroom profile, `coursekit bench notebooks`).*\n\n**Goals.** read")
+    text = nb.cells[0].source
+    bench.write_estimates(nb, SECONDS, run_all=61.6)
+    assert nb.cells[0].source == text
+
