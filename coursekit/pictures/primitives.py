@@ -38,6 +38,9 @@ Conventions shared by both evaluators:
   [0, 1], so primitives need not clip.
 - Parameters are floats stored in the chromosome (so random interpolation can blend them);
   integer-like parameters (octaves, picture index) are floored where used.
+- ``grad-dir`` is 0 where its argument is flat, its gradient under :data:`FLAT_GRADIENT` per
+  world unit: there the direction is only the rounding error of a constant field (which would
+  show as noise at every size).
 
 **Draw weights** (for random genomes, not part of the paper, which is silent on them): a random
 chromosome picks a primitive of the wanted kind with probability proportional to its
@@ -60,10 +63,16 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 __all__ = ["Param", "Primitive", "PRIMITIVES", "FORMS", "IMAGE_KERNELS", "PIXEL_KERNELS", "names", "arity", "get",
-           "terminals", "functions", "max_arity", "register_primitive", "image_kernel", "pixel_kernel", "PIXMAPS"]
+           "terminals", "functions", "max_arity", "register_primitive", "image_kernel", "pixel_kernel", "PIXMAPS",
+           "FLAT_GRADIENT"]
 
 #: How the evaluators feed a primitive (module docstring).
 FORMS = ("terminal", "pointwise", "filter", "neighbourhood", "warp")
+
+#: A gradient (per world unit, the larger of its two components) under which ``grad-dir`` calls
+#: its argument flat and gives 0: a change of 1/100 across the unit square, under three grey
+#: levels, which no picture shows.
+FLAT_GRADIENT = 1e-2
 
 
 @dataclass(frozen=True)
@@ -156,7 +165,7 @@ _LIST = [
               "emboss: light a height field (grey of a) from an azimuth", True, root=0.0, form="neighbourhood", cost=0.35),
     Primitive("grad-mag", 1, (Param("gain", 0.01, 0.3),),
               "gain * |gradient of a| (grey of a), world units", True, root=0.0, form="neighbourhood", cost=0.24),
-    Primitive("grad-dir", 1, (), "direction of the gradient of a, 0..1 for a full turn", True, root=0.0, form="neighbourhood", cost=0.23),
+    Primitive("grad-dir", 1, (), "direction of the gradient of a, 0..1 for a full turn; 0 where a is flat", True, root=0.0, form="neighbourhood", cost=0.23),
     # ---- TwoArgChrom --------------------------------------------------------------------
     Primitive("plus", 2, (), "a + b", True),
     Primitive("minus", 2, (), "a - b", True),
