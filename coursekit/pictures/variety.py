@@ -16,9 +16,10 @@ genomes are:
   ``mod`` or a bit operation easily gives flat children: ``benchmarks/picture_variety.py``
   measures them along chains of evolve clicks).
 
-The operators themselves (:mod:`.operators`) already aim at the coding part, so most children
+The operators themselves (:mod:`.operators`) already aim at the coding part, and count swapped
+arguments of a commutative primitive (``plus``, ``times`` ...) as no change, so most children
 pass at once; the preview catches what the genome cannot tell, such as a changed constant under
-a ``round`` or two swapped arguments of ``plus``. Both redraw a bounded number of times, in slot
+a ``round``. Both redraw a bounded number of times, in slot
 order, from the given ``rng``: the same seed gives the same population, bit for bit.
 """
 
