@@ -1,14 +1,14 @@
 """Pictures worth a look: a first generation and children that never waste a slot (sections 3.3, 3.4).
 
 With the user as the fitness function (paper section 3.4) every picture on the screen costs a
-judgement, so a slot that shows a flat, black, one-colour or plain picture (a pale wash, a faint
-gradient), or a copy of its parent or of a sibling, is a wasted click. Two cheap previews prevent
+judgement, so a slot that shows a flat, black, one-colour, plain (a pale wash, a faint gradient)
+or dark picture, or a copy of its parent or of a sibling, is a wasted click. Two cheap previews prevent
 that; both render low-resolution thumbnails (:data:`PREVIEW`, 32 x 32) and never change what the
 genomes are:
 
 - :func:`random_population` draws random genomes (:meth:`Genome.random`, whose draw weights
   already favour colour and structure) and redraws those with a tiny coding part, those whose
-  preview is *dull* (flat, black, one colour almost everywhere, or plain, :func:`dull`) or repeats
+  preview is *dull* (flat, black, one colour almost everywhere, plain or dark, :func:`dull`) or repeats
   another picture of the population, and a greyscale one once (grey pictures stay, as a minority).
 - :func:`distinct_children` takes children from an operator and redraws those whose preview
   is within :data:`SAME` (mean absolute difference, 2/255) of a parent's or of another child's,
@@ -33,8 +33,8 @@ from .evaluate import render
 from .genome import Genome
 from .operators import coding
 
-__all__ = ["PREVIEW", "SAME", "BLACK", "FLAT", "ONE_COLOUR", "PLAIN", "LEVELS", "MIN_NODES", "preview", "dull", "dullness", "variation",
-           "greyscale", "random_population", "distinct_children"]
+__all__ = ["PREVIEW", "SAME", "BLACK", "FLAT", "ONE_COLOUR", "PLAIN", "DARK", "LEVELS", "MIN_NODES", "preview", "dull",
+           "dullness", "variation", "dark", "greyscale", "random_population", "distinct_children"]
 
 PREVIEW = 32  # pixels of a preview's side
 SAME = 2.0 / 255.0  # mean absolute difference under which two pictures look the same (on contact sheets of near pairs)
@@ -42,6 +42,7 @@ BLACK = 1.0 / 255.0  # a picture with no value above this is black
 FLAT = 0.02  # a picture whose every channel has a standard deviation below this is flat
 ONE_COLOUR = 0.9  # a picture with one colour on this share of its pixels is that colour, a speck or a line aside
 PLAIN = 0.7  # a picture whose colours change by less than this across it (variation) is a wash or a faint gradient
+DARK = (0.2, 0.4)  # a picture with 95 % of its pixels under this luminance and this brightest channel is dark
 LEVELS = 16  # levels per channel at which two colours count as one
 MIN_NODES = 5  # coding chromosomes a random genome of a first generation has at least
 
@@ -54,22 +55,33 @@ def preview(genomes: Sequence[Genome], size: int = PREVIEW) -> np.ndarray:
 def dull(images: np.ndarray, flat: float = FLAT, one_colour: float = ONE_COLOUR, plain: float = PLAIN) -> np.ndarray:
     """Per picture of ``images`` ``(N, H, W, 3)``: flat (every channel's standard deviation
     below ``flat``), black (no value above :data:`BLACK`), one colour (:data:`LEVELS` levels per
-    channel) on at least the share ``one_colour`` of its pixels -- a black field with a few
-    specks or one thin line has a high standard deviation and is still not worth a click -- or
-    plain: its colours change by less than ``plain`` across it (:func:`variation`), a pale wash
-    or a faint gradient."""
+    channel) on at least the share ``one_colour`` of its pixels (a black field with a few
+    specks or one thin line has a high standard deviation and is still not worth a click),
+    plain (its colours change by less than ``plain`` across it, :func:`variation`: a pale wash
+    or a faint gradient) or dark (:func:`dark`: a dim shape on black, a murky field)."""
     return dullness(images, flat, one_colour, plain) > 0
 
 
 def dullness(images: np.ndarray, flat: float = FLAT, one_colour: float = ONE_COLOUR, plain: float = PLAIN) -> np.ndarray:
     """Per picture of ``images``, how dull (:func:`dull`) it is: 2 when flat, black or one colour,
-    1 when only plain, 0 when worth a look."""
+    1 when only plain or dark, 0 when worth a look."""
     n = len(images)
     pixels = images.reshape(n, -1, 3)
     empty = ((pixels.std(axis=1).max(axis=1) < flat)
              | (pixels.reshape(n, -1).max(axis=1) <= BLACK)
              | (_commonest_share(pixels) >= one_colour))
-    return np.where(empty, 2, (variation(images) < plain).astype(np.int64))
+    return np.where(empty, 2, ((variation(images) < plain) | dark(images)).astype(np.int64))
+
+
+def dark(images: np.ndarray, luminance: float = DARK[0], brightest: float = DARK[1]) -> np.ndarray:
+    """Per picture of ``images`` ``(N, H, W, 3)``: dark, a dim shape on black or a murky field.
+    Its 95th percentiles of luminance (Rec. 601) and of the brightest channel are below
+    ``luminance`` and ``brightest``: a deep blue at full strength is dim by luminance only, and
+    vivid (thresholds chosen on contact sheets of random pictures: ``benchmarks/NOTES.md``)."""
+    im = np.nan_to_num(np.asarray(images, dtype=np.float32)).reshape(len(images), -1, 3)
+    lum = im @ np.array([0.299, 0.587, 0.114], dtype=np.float32)
+    return ((np.percentile(lum, 95, axis=1) < luminance)
+            & (np.percentile(im.max(axis=2), 95, axis=1) < brightest)) if len(im) else np.zeros(0, bool)
 
 
 def variation(images: np.ndarray) -> np.ndarray:
