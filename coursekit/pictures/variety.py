@@ -178,7 +178,8 @@ def random_population(rng: np.random.Generator, n: int, *, tries: int = 8, size:
 
 
 def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
-                      again: Callable[[], Iterator[Genome]] | None = None, tries: int = 8, draws: int = 4,
+                      again: Callable[[Genome, list], Genome] | None = None,
+                      mutate: Callable[[Genome], Genome] | None = None, tries: int = 8, draws: int = 4,
                       size: int = PREVIEW) -> list:
     """``n`` children from the iterator ``children`` that look different from ``parents`` and
     from each other.
@@ -188,35 +189,60 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     parent's or another child's. The ``n`` children are then previewed at ``size``; slot by
     slot, one within :data:`SAME` (mean absolute difference) of a parent or of an already
     accepted child, or one duller than its liveliest parent (:func:`dullness`: flat, black or one
-    colour, then plain), is drawn again the same way, at most ``tries`` rounds (what is left then is the
-    slot's best draw: a lively one before a flat one, then the most different); each
-    distinct expression is previewed once (a picture depends on nothing else). From round ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is
-    replaced by ``again(c, accepted)`` instead (``accepted``: the children kept so far): the
-    operator applied once more to it, for when the parents have fewer distinct children than
-    there are slots (two relatives, a small coding part). The gallery crosses ``c`` with a
-    parent or an accepted sibling (more of the parents' material, with another split: the
-    paper repeats crossover "with a different head and tail separation"), or mutates it once
-    more. If anything the iterator gives is not a :class:`Genome` (a student's operator gone
-    wrong), the children are returned unchecked for the caller to report.
+    colour, then plain or dark), is drawn again, at most ``tries`` rounds (what is left then is
+    the slot's best draw: a lively one before a flat one, then the most different); each
+    distinct expression is previewed once (a picture depends on nothing else).
+
+    When the parents have fewer distinct children than there are slots (two siblings, a small
+    coding part), drawing from ``children`` again gives only copies. So a slot draws, in turn:
+
+    1. from ``children``;
+    2. ``again(c, accepted)``, when given, from round ``tries // 4`` on (``tries // 2`` without
+       ``mutate``): the operator applied once more to the rejected child ``c``
+       (``accepted``: the children kept so far). The gallery crosses ``c`` with a parent or an
+       accepted sibling (more of the parents' material, with another split: the paper repeats
+       crossover "with a different head and tail separation"), or repeats the mutation;
+    3. ``mutate(c)``, when given, from round ``tries // 2`` on: the rejected child mutated
+       once more, new material when the parents' own is spent. Such a slot draws ``draws``
+       mutants a round and keeps the first that passes (a mutation may well change a part of
+       the tree the picture does not show).
+
+    A slot goes on to the next of these at once when its ``draws`` draws gave only expressions
+    already there. If anything drawn is not a :class:`Genome` (a student's operator gone wrong),
+    the children are returned unchecked for the caller to report.
     """
     if not all(isinstance(p, Genome) for p in parents):
         return [next(children) for _ in range(n)]
     seen = {coding(p) for p in parents}
+    accepted: list[Genome] = []
+    stages = [lambda c: next(children)]
+    if again is not None:
+        stages.append(lambda c: again(c, list(accepted)))
+    if mutate is not None:
+        stages.append(mutate)
+    starts = [0, tries // 4 if mutate is not None else tries // 2, tries // 2][:len(stages)]
+    stage = [0] * n  # each slot's stage: an index into ``stages``
 
-    def fresh(make):
-        for _ in range(max(1, draws)):
-            kid = make()
-            if not isinstance(kid, Genome):
+    def draw(i: int, rejected):
+        """A child for slot ``i``: at most ``draws`` draws of its stage for an expression not
+        there yet, the next stage (on ``rejected``, else the last draw) when they give none."""
+        while True:
+            for _ in range(max(1, draws)):
+                kid = stages[stage[i]](rejected)
+                if not isinstance(kid, Genome):
+                    return kid
+                key = coding(kid)
+                if key not in seen:
+                    seen.add(key)
+                    return kid
+            if stage[i] + 1 == len(stages):
                 return kid
-            key = coding(kid)
-            if key not in seen:
-                break
-        seen.add(key)
-        return kid
+            stage[i] += 1
+            rejected = kid if rejected is None else rejected
 
     kids: list = []
     while len(kids) < n:
-        kids.append(fresh(lambda: next(children)))
+        kids.append(draw(len(kids), None))
         if not isinstance(kids[-1], Genome):
             return kids + [next(children) for _ in range(n - len(kids))]
     if not kids:
@@ -226,21 +252,30 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     # a picture depends on the expression only: each distinct one is previewed once (a child
     # drawn again may repeat a rejected expression, or a parent's)
     previews = {coding(p): pic for p, pic in zip(parents, refs)}
-    accepted: list[Genome] = []
     pending = list(range(n))
+    candidates = {i: [kids[i]] for i in pending}  # each pending slot's draws this round, in order
     best: dict[int, tuple] = {}  # slot -> (lively, distance), child, preview: its best draw so far
     for attempt in range(tries + 1):
-        pics = _previews([kids[i] for i in pending], previews, size)
+        drawn = [c for i in pending for c in candidates[i]]
+        pics = _previews(drawn, previews, size)
         flat = dullness(pics) > level
-        still = []
-        for i, pic, bad in zip(pending, pics, flat):
-            score = (not bad, min(_distance(pic, refs), SAME))
+        still, k = [], 0
+        for i in pending:
+            top = None  # the slot's best draw of this round
+            for kid, pic, bad in zip(candidates[i], pics[k:], flat[k:]):
+                score = (not bad, min(_distance(pic, refs), SAME))
+                if top is None or score > top[0]:
+                    top = score, kid, pic
+                if score[0] and score[1] >= SAME:
+                    break
+            k += len(candidates[i])
+            score, kids[i], pic = top
             if score[0] and score[1] >= SAME:
                 refs.append(pic)
                 accepted.append(kids[i])
             elif attempt < tries:
                 if i not in best or score > best[i][0]:
-                    best[i] = score, kids[i], pic
+                    best[i] = top
                 still.append(i)
             else:  # out of tries: the slot's best draw (a lively near-copy rather than a flat one)
                 if i in best:
@@ -252,12 +287,11 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
         if not still:
             break
         for i in still:
-            if again is not None and attempt + 1 >= tries // 2:
-                rejected = kids[i]
-                kids[i] = fresh(lambda: again(rejected, list(accepted)))
-            else:
-                kids[i] = fresh(lambda: next(children))
-            if not isinstance(kids[i], Genome):
+            stage[i] = max(stage[i], sum(attempt + 1 >= s for s in starts) - 1)
+            mutating = mutate is not None and stage[i] == len(stages) - 1
+            candidates[i] = [draw(i, kids[i]) for _ in range(max(1, draws) if mutating else 1)]
+            if not all(isinstance(c, Genome) for c in candidates[i]):
+                kids[i] = next(c for c in candidates[i] if not isinstance(c, Genome))
                 return kids
         pending = still
     return kids
