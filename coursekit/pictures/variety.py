@@ -202,10 +202,10 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
        (``accepted``: the children kept so far). The gallery crosses ``c`` with a parent or an
        accepted sibling (more of the parents' material, with another split: the paper repeats
        crossover "with a different head and tail separation"), or repeats the mutation;
-    3. ``mutate(c)``, when given, from round ``tries // 2`` on: the rejected child mutated
-       once more, new material when the parents' own is spent. Such a slot draws ``draws``
-       mutants a round and keeps the first that passes (a mutation may well change a part of
-       the tree the picture does not show).
+    3. ``mutate(c)``, when given, from round ``tries // 2`` on: the slot's child as it was
+       then, mutated once more, new material when the parents' own is spent. Such a slot draws
+       ``draws`` mutants of that child a round and keeps the first that passes (a mutation may
+       well change a part of the tree the picture does not show).
 
     A slot goes on to the next of these at once when its ``draws`` draws gave only expressions
     already there. If anything drawn is not a :class:`Genome` (a student's operator gone wrong),
@@ -223,10 +223,14 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     starts = [0, tries // 4 if mutate is not None else tries // 2, tries // 2][:len(stages)]
     stage = [0] * n  # each slot's stage: an index into ``stages``
 
+    base: dict[int, Genome] = {}  # slot -> the child its mutants are made from
+
     def draw(i: int, rejected):
         """A child for slot ``i``: at most ``draws`` draws of its stage for an expression not
         there yet, the next stage (on ``rejected``, else the last draw) when they give none."""
         while True:
+            if mutate is not None and stage[i] == len(stages) - 1:
+                rejected = base.setdefault(i, rejected)  # mutated once, not once more each round
             for _ in range(max(1, draws)):
                 kid = stages[stage[i]](rejected)
                 if not isinstance(kid, Genome):
