@@ -2,25 +2,27 @@
 
 With the user as the fitness function (paper section 3.4) every picture on the screen costs a
 judgement, so a slot that shows a flat, black, one-colour, plain (a pale wash, a faint gradient)
-or dark picture, or a copy of its parent or of a sibling, is a wasted click. Two cheap previews prevent
-that; both render low-resolution thumbnails (:data:`PREVIEW`, 32 x 32) and never change what the
-genomes are:
+or dark picture, or a copy of its parent or of a sibling, is a wasted click. Two cheap previews
+prevent that; both render low-resolution thumbnails (:data:`PREVIEW`, 32 x 32) and never change
+what the genomes are:
 
 - :func:`random_population` draws random genomes (:meth:`Genome.random`, whose draw weights
   already favour colour and structure) and redraws those with a tiny coding part, those whose
-  preview is *dull* (flat, black, one colour almost everywhere, plain or dark, :func:`dull`) or repeats
-  another picture of the population, and a greyscale one once (grey pictures stay, as a minority).
+  preview is *dull* (flat, black, one colour almost everywhere, plain or dark, :func:`dull`) or
+  repeats another picture of the population, and a greyscale one once (grey pictures stay, as a
+  minority).
 - :func:`distinct_children` takes children from an operator and redraws those whose preview
   is within :data:`SAME` (mean absolute difference, 2/255) of a parent's or of another child's,
   and those duller than their liveliest parent (a grey noise bred on by ``round``,
   ``mod`` or a bit operation easily gives flat children: ``benchmarks/picture_variety.py``
-  measures them along chains of evolve clicks).
+  measures them along chains of evolve clicks). When the parents have too few distinct
+  children to give (two siblings, a tiny coding part), it mutates the rest once more.
 
 The operators themselves (:mod:`.operators`) already aim at the coding part, and count swapped
 arguments of a commutative primitive (``plus``, ``times`` ...) as no change, so most children
 pass at once; the preview catches what the genome cannot tell, such as a changed constant under
-a ``round``. Both redraw a bounded number of times, in slot
-order, from the given ``rng``: the same seed gives the same population, bit for bit.
+a ``round``. Both redraw a bounded number of times, in slot order, from the given ``rng``: the
+same seed gives the same population, bit for bit.
 """
 
 from __future__ import annotations
