@@ -141,3 +141,17 @@ def test_dark_children_of_a_lively_parent_are_drawn_again():
         ev.state.selected.clear()
     assert not variety.dark(preview(ev.state.population)).any()
     assert dark == 0
+
+
+def test_genomes_a_mutation_does_not_fit_still_get_their_slots_filled():
+    # one string with a head of one chromosome: no root transposition fits it (it raises), so
+    # the children are mutated once more by the others
+    rng = np.random.default_rng(2)
+    ev = Evolution(GalleryState(random_population(rng, 20, n_strings=1, head_length=1)), rng)
+    ev.select(0, True)
+    assert ev.mutate("substitution").startswith("generation 1")
+    ev.select(1, True)
+    ev.select(2, True)
+    msg = ev.recombine("crossover")
+    assert msg.startswith("generation 2: crossover of 2 parents; "), msg
+    assert all(o.operator != "crossover+root_transposition" for o in ev.state.origins)

@@ -140,12 +140,19 @@ def breed(action: str, population: list, sel: list, rng: np.random.Generator, mu
     library = {id(op) for op in O.MUTATIONS.values()}
     others = tuple(m for m, op in mutations.items() if m != action and id(op) in library)
 
-    def mutate(child):  # once more, by another mutation
-        name = others[int(rng.integers(len(others)))]
-        running[0] = name
-        out = mutations[name](child, rng)
-        running[0] = action
-        return out, name
+    def mutate(child):  # once more, by another mutation: one that fits the child
+        left = list(others)
+        while True:
+            name = left.pop(int(rng.integers(len(left))))
+            running[0] = name
+            try:
+                out = mutations[name](child, rng)
+            except ValueError:  # a root transposition of heads of one chromosome: another one
+                if not left:
+                    raise
+                continue
+            running[0] = action
+            return out, name
     if action in mutations:  # parents stay; the rest are children by this mutation
         op = mutations[action]
         count = iter(range(10**9))
