@@ -18,7 +18,12 @@ generation (:func:`coursekit.pictures.variety.random_population`, one genome per
 - *photo-dominated*: the picture's luminance correlates (``|Pearson r| > 0.5``) with the
   luminance of one of the scikit-image stock photos (each rendered alone as a ``pixmap``
   chromosome at the same size and window);
-- *photo in tree*: the coding part holds a ``pixmap`` chromosome (an ingredient, seen or not).
+- *photo in tree*: the coding part holds a ``pixmap`` chromosome (an ingredient, seen or not);
+- *dark*: 95 % of the pixels under 0.2 in luminance (Rec. 601) and under 0.4 in their brightest
+  channel;
+- *noisy*: the picture differs from a 4x supersampled render of it (256 x 256, box-averaged to
+  64 x 64) by more than 0.1 (mean absolute difference): detail finer than its pixels, pixel
+  noise at this size (or a fine texture).
 
 **Children identical** (``--sessions`` sessions, default 30): session ``s`` starts a widget-free
 gallery (:class:`~coursekit.pictures.gallery.Evolution`, 20 pictures, first generation as the
@@ -28,6 +33,12 @@ two parents). Each of the 18 children per click is rendered at 64 x 64; it *repe
 mean absolute difference to a parent or to an earlier child of the same click is below 1/255
 (a wasted slot), and it is *identical to a parent or a sibling* when that holds for a parent or
 for any other child of the click (the issue's definition: both children of a duplicate pair count).
+
+**Children of siblings** (the same number of sessions): session ``s`` selects picture ``s mod 20``
+of its first generation, mutates it by substitution, then selects two of those children (drawn
+by ``default_rng(s)``) and recombines them by crossover, then (undo in between) by random
+interpolation: the children *identical* to a parent or any sibling (1/255, as above) and *alike*
+(3/255).
 
 **Flat children** (the same sessions): the fraction of those children that are flat or black,
 and that are one colour, and along a *chain*: session ``s`` evolves (mixed operators) from one
@@ -114,6 +125,19 @@ def with_photo(genomes):
     return float(np.mean([any(n.symbol == "pixmap" for n in g.decode().walk()) for g in genomes]))
 
 
+def dark_pictures(images):
+    """Per picture: 95 % of its pixels under 0.2 in luminance and under 0.4 in their brightest channel."""
+    n = len(images)
+    lum = _luminance(images).reshape(n, -1)
+    return (np.percentile(lum, 95, axis=1) < 0.2) & (np.percentile(images.max(axis=3).reshape(n, -1), 95, axis=1) < 0.4)
+
+
+def noisy_pictures(genomes, images):
+    """Per picture: more than 0.1 (mean absolute difference) from a 4x supersampled render."""
+    fine = render(list(genomes), 4 * SIZE, workers=1).reshape(len(genomes), SIZE, 4, SIZE, 4, 3).mean(axis=(2, 4))
+    return np.abs(images - fine).mean(axis=(1, 2, 3)) > 0.1
+
+
 def first_generation(rng, n):
     """The gallery's first generation, as this version of the library makes it."""
     try:
@@ -156,6 +180,33 @@ def children_figures(sessions, n=20):
             flat / checked, single / checked, alike / checked)
 
 
+def sibling_figures(sessions, n=20):
+    """(children checked, fraction identical to a parent or a sibling, fraction alike), per
+    recombination, when the parents are two children of one substitution click."""
+    out = {}
+    for s in range(sessions):
+        rng = np.random.default_rng(s)
+        ev = Evolution(GalleryState(first_generation(rng, n)), rng)
+        ev.select(s % n, True)
+        assert ev.mutate("substitution").startswith("generation")
+        a, b = (int(v) for v in np.random.default_rng(s).choice(np.arange(1, n), 2, replace=False))
+        for name in ("crossover", "random_interpolation"):
+            ev.select(a, True)
+            ev.select(b, True)
+            assert ev.recombine(name).startswith("generation")
+            pics = _render(ev.state.population)
+            d = np.abs(pics[:, None] - pics[None]).mean(axis=(2, 3, 4))
+            np.fill_diagonal(d, np.inf)
+            near = d.min(axis=1)[2:]
+            c = out.setdefault(name, [0, 0, 0])
+            c[0] += len(near)
+            c[1] += int((near < SAME).sum())
+            c[2] += int((near < ALIKE).sum())
+            ev.undo()
+            ev.state.selected.clear()
+    return {k: (c[0], c[1] / c[0], c[2] / c[0]) for k, c in out.items()}
+
+
 def chain_figures(sessions, n=20, depth=4):
     """Flat or black children, one-colour children and plain children, over chains of ``depth``
     evolve clicks, each from one random picture of the generation before (children checked, the
@@ -184,7 +235,9 @@ def main(argv=None):
     rows = []
     t0 = time.perf_counter()
     plain = [Genome.random(np.random.default_rng(i)) for i in range(args.genomes)]
-    rows.append(("Genome.random (defaults)", picture_figures(_render(plain), photos) + [with_photo(plain)]))
+    pics = _render(plain)
+    rows.append(("Genome.random (defaults)", picture_figures(pics, photos) + [with_photo(plain)]
+                 + [float(dark_pictures(pics).mean()), float(noisy_pictures(plain, pics).mean())]))
     t1 = time.perf_counter()
     try:
         from coursekit.pictures.variety import random_population
@@ -192,21 +245,31 @@ def main(argv=None):
         random_population = None
     if random_population is not None:
         first = [random_population(np.random.default_rng(i), 1)[0] for i in range(args.genomes)]
+        t_first = time.perf_counter() - t1
+        pics = _render(first)
         rows.append(("first generation (random_population)",
-                     picture_figures(_render(first), photos) + [with_photo(first)]))
+                     picture_figures(pics, photos) + [with_photo(first)]
+                     + [float(dark_pictures(pics).mean()), float(noisy_pictures(first, pics).mean())]))
     t2 = time.perf_counter()
     children = children_figures(args.sessions) if args.sessions > 0 else None
     chain = chain_figures(args.sessions) if args.sessions > 0 else None
+    sib = sibling_figures(args.sessions) if args.sessions > 0 else None
     t3 = time.perf_counter()
     print(f"random pictures: {args.genomes} genomes (seeds 0..{args.genomes - 1}) at {SIZE}^2")
-    print(f"{'':38s} {'flat':>6s} {'black':>6s} {'1 col.':>6s} {'grey':>6s} {'plain':>6s} {'photo':>6s} {'photo in tree':>14s}")
-    for name, (flat, black, single, grey, plain_, photo, tree) in rows:
-        print(f"{name:38s} {flat:6.1%} {black:6.1%} {single:6.1%} {grey:6.1%} {plain_:6.1%} {photo:6.1%} {tree:14.1%}")
+    print(f"{'':38s} {'flat':>6s} {'black':>6s} {'1 col.':>6s} {'grey':>6s} {'plain':>6s} {'photo':>6s} {'photo in tree':>14s}"
+          f" {'dark':>6s} {'noisy':>6s}")
+    for name, (flat, black, single, grey, plain_, photo, tree, dark, noisy) in rows:
+        print(f"{name:38s} {flat:6.1%} {black:6.1%} {single:6.1%} {grey:6.1%} {plain_:6.1%} {photo:6.1%} {tree:14.1%}"
+              f" {dark:6.1%} {noisy:6.1%}")
     if children is not None:
         _print_children(args.sessions, *children[:4], children[6])
         print(f"  flat or black: {children[4]:.1%}, one colour: {children[5]:.1%}; over chains of 4 evolve clicks "
               f"({chain[0]} children): {chain[1]:.1%} and {chain[2]:.1%}; plain over the chains: {chain[3]:.1%}")
-    print(f"(seconds: Genome.random {t1 - t0:.1f}, random_population {t2 - t1:.1f}, sessions {t3 - t2:.1f})")
+        print("children of two siblings: " + ", ".join(f"{k} ({c} children) identical {same:.1%}, alike {alike:.1%}"
+                                                       for k, (c, same, alike) in sib.items()))
+    first_s = f"{t_first:.1f}" if random_population is not None else "-"
+    print(f"(seconds: Genome.random and its figures {t1 - t0:.1f}, random_population {first_s} (its figures "
+          f"{t2 - t1 - (t_first if random_population is not None else 0):.1f}), sessions {t3 - t2:.1f})")
 
 
 def _print_children(sessions, checked, repeats, identical, per_op, alike):

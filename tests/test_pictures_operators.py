@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from coursekit.pictures import operators as O
+from coursekit.pictures import operators as O, primitives as P, render
+from coursekit.pictures.reference import render_reference
 from coursekit.pictures.genome import Chromosome, ChromosomeString, Genome
 from tests.test_pictures_genome import assert_valid
 
@@ -246,3 +247,62 @@ def test_an_operator_drawn_again_gives_equal_children_as_new_genomes(name):
     if name not in ("substitution", "random_interpolation"):  # these make new chromosomes
         for x, y in zip(first, again):  # the same edit of the same string: one string
             assert all(s is t for s, t in zip(x.strings, y.strings))
+
+
+# ---- swapped arguments of a commutative primitive are no change -----------------------------
+
+def _string(tree):
+    """A string coding ``tree`` (nested ``(symbol, params, children...)``), read breadth-first."""
+    order, level = [], [tree]
+    while level:
+        order += level
+        level = [c for t in level for c in t[2:]]
+    h = 1 + max(i for i, t in enumerate(order) if t[2:])
+    chroms = [Chromosome(t[0], t[1]) for t in order]
+    return ChromosomeString(h, tuple(chroms + [Chromosome("x")] * (2 * h + 1 - len(chroms))))
+
+
+def _swapped_pairs(op, rng, n):
+    """``n`` pairs ``atan(op(a, b))``, ``atan(op(b, a))`` of random subtrees a, b (string roots
+    linked by a PreHeader: the strings swap places), an infinite and a NaN one among them."""
+    zero = ("const", (0.0,))
+    big = ("expt", (), zero, ("log", (), zero))                    # exp(30) in float32
+    inf = ("times", (), ("times", (), big, big), big)               # beyond float32: inf
+    special = [_string(inf), _string(("minus", (), inf, inf))]     # and inf - inf: NaN
+    strings = special + [Genome.random(rng, n_strings=1, head_length=int(rng.integers(1, 6))).strings[0]
+                         for _ in range(n)]
+    out = []
+    for k in range(n):
+        a, b = strings[k], strings[k + 1]
+        node = Chromosome(op, tuple(float(rng.uniform(p.low, p.high)) for p in P.get(op).params))
+        pre = (Chromosome("atan"), node)  # atan(op(a, b)): below a function that is not even
+        out.append((Genome((a, b, strings[-1]), pre), Genome((b, a, strings[-1]), pre)))
+    return out
+
+
+@pytest.mark.parametrize("op", [n for n in P.names() if P.arity(n) == 2])
+def test_swapped_arguments_are_one_expression_exactly_when_they_are_one_picture(op):
+    pairs = _swapped_pairs(op, np.random.default_rng(3), 24)
+    pics = render([g for pair in pairs for g in pair], 16, workers=1).reshape(len(pairs), 2, 16, 16, 3)
+    same_picture = [np.array_equal(p[0], p[1]) for p in pics]
+    same_coding = [O.coding(a) == O.coding(b) for a, b in pairs]
+    if P.get(op).commutative:
+        assert all(same_picture) and all(same_coding), op
+    else:
+        assert not all(same_picture), f"{op}: swapped arguments look the same: declare it commutative"
+        assert not any(same_coding), op
+
+
+def test_commutative_primitives_agree_with_the_reference_when_swapped():
+    for op in [n for n in P.names() if P.get(n).commutative]:
+        for a, b in _swapped_pairs(op, np.random.default_rng(4), 3):
+            assert np.array_equal(render_reference(a, 5), render_reference(b, 5)), op
+
+
+def test_a_transposition_that_only_swaps_the_arguments_of_plus_is_drawn_again():
+    # plus x y: the only region is the tail (x, y); interchanging it swaps plus's arguments,
+    # which the picture cannot show, so every transposition must clone instead
+    g = Genome((ChromosomeString(1, (Chromosome("plus"), Chromosome("x"), Chromosome("y"))),))
+    for seed in range(40):
+        child = O.transposition(g, np.random.default_rng(seed))
+        assert child.expression() in ("(plus x x)", "(plus y y)"), (seed, child.expression())

@@ -167,6 +167,26 @@ def test_render_validates_its_arguments():
     assert render([], 4).shape == (0, 4, 4, 3)
 
 
+def test_grad_dir_of_a_flat_field_is_flat_at_every_size_not_its_rounding_noise():
+    # grad-mag of a ramp is the constant gain * slope away from the ramp's one jump; in float32 its
+    # differences are rounding error, whose direction was noise at every size (a student's walk)
+    flat = one(C("grad-dir"), C("grad-mag", (0.01538,)), C("ramp", (0.6445, 0.9036)), h=2)
+    for size in (32, 128, 512):
+        pic = render(flat, size)[0]
+        # black but for the jump's line and the borders (measured: 74 % black at 32^2, 98 % at 512^2;
+        # the noise was 12-18 % black, its neighbours 0.24-0.31 apart)
+        assert np.mean(pic == 0.0) >= 0.6, size
+        assert np.abs(np.diff(pic, axis=1)).mean() < 0.1, size
+    turn = np.abs(render(flat, 24)[0] - render_reference(flat, 24))
+    assert np.minimum(turn, 1.0 - turn).max() < 1e-3  # directions agree (a full turn is no change)
+    # a faint slope along y (0.05 per world unit) still has its direction, a quarter turn; one
+    # under the threshold (P.FLAT_GRADIENT) has none
+    for gain, direction in ((0.05, 0.25), (0.5 * P.FLAT_GRADIENT, 0.0)):
+        g = one(C("grad-dir"), C("times"), C("const", (gain,)), C("y"), h=2)
+        for pic in (render(g, 16)[0], render_reference(g, 16)):
+            assert np.allclose(pic, direction, atol=1e-5), (gain, pic.min(), pic.max())
+
+
 def test_shared_subtrees_are_evaluated_once_with_the_same_result():
     # a clone made by transposition: the same subtree twice, under plain and warped coordinates
     noise = C("turbulence", (3.0, 3.0, 5.0, 6.0))

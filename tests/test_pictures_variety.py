@@ -12,8 +12,8 @@ from hypothesis import given, settings, strategies as st
 
 from coursekit.pictures import Genome, operators as O, primitives, random_population, render
 from coursekit.pictures.gallery import Evolution, GalleryState
-from coursekit.pictures.variety import (BLACK, LEVELS, ONE_COLOUR, PLAIN, SAME, distinct_children, dull, greyscale, preview,
-                                        variation)
+from coursekit.pictures.variety import (BLACK, DARK, FLAT as FLAT_STD, LEVELS, ONE_COLOUR, PLAIN, SAME, dark, distinct_children, dull, greyscale,
+                                        preview, variation)
 
 
 @pytest.fixture(scope="module")
@@ -79,9 +79,12 @@ def test_coding_ignores_non_coding_chromosomes():
 
     a = Genome((ChromosomeString(2, (C("plus"), C("x"), C("y"), C("radius"), C("angle"))),))
     b = Genome((ChromosomeString(2, (C("plus"), C("x"), C("y"), C("time"), C("angle"))),))
-    c = Genome((ChromosomeString(2, (C("plus"), C("y"), C("x"), C("radius"), C("angle"))),))
+    c = Genome((ChromosomeString(2, (C("minus"), C("y"), C("x"), C("radius"), C("angle"))),))
+    d = Genome((ChromosomeString(2, (C("minus"), C("x"), C("y"), C("radius"), C("angle"))),))
+    swapped = Genome((ChromosomeString(2, (C("plus"), C("y"), C("x"), C("radius"), C("angle"))),))
     assert a != b and O.coding(a) == O.coding(b)
-    assert O.coding(a) != O.coding(c)
+    assert O.coding(c) != O.coding(d) and O.coding(a) != O.coding(d)
+    assert O.coding(swapped) == O.coding(a)  # plus is commutative: one picture
 
 
 # ---- the gallery: no wasted slots ----------------------------------------------------------
@@ -213,7 +216,7 @@ def test_dull_flags_a_picture_exactly_when_its_commonest_colour_reaches_the_shar
     q = np.rint(pic.reshape(-1, 3) * (LEVELS - 1)).astype(int)
     commonest = np.unique(q, axis=0, return_counts=True)[1].max() / len(q)
     assert dull(pic)[0] == (commonest >= ONE_COLOUR or pic.reshape(-1, 3).std(axis=0).max() < 0.02
-                            or variation(pic)[0] < PLAIN)
+                            or variation(pic)[0] < PLAIN or dark(pic)[0])
 
 
 def test_a_pale_wash_or_a_faint_gradient_is_plain_and_a_full_ramp_an_edge_or_a_pattern_is_not():
@@ -228,6 +231,28 @@ def test_a_pale_wash_or_a_faint_gradient_is_plain_and_a_full_ramp_an_edge_or_a_p
     # smooth pictures measure the same at any resolution
     big = np.stack([np.mgrid[0:128, 0:128][1] / 127.0] * 3, axis=-1)[None]
     assert variation(big)[0] == pytest.approx(variation(ramp)[0])
+
+
+def test_a_dim_shape_on_black_is_dark_and_a_deep_blue_or_a_grey_texture_is_not():
+    y, x = np.mgrid[0:32, 0:32] / 31.0
+    disc = (np.hypot(x - 0.5, y - 0.5) < 0.3)[..., None]
+    stripes = disc & (np.sin(40 * x) > 0)[..., None]
+    dim = np.where(stripes, (0.1, 0.15, 0.35), (0.0, 0.0, 0.0))[None]  # navy stripes in a disc on black
+    blue = np.stack([0 * x, 0.1 * y, 0.5 + 0.5 * np.sin(9 * x) ** 2], axis=-1)[None]   # luminance under 0.2, vivid
+    grey = np.stack([0.15 + 0.1 * np.sin(12 * x) * np.cos(7 * y)] * 3, axis=-1)[None]  # dim grey, but its 95 % at 0.24
+    assert variation(dim)[0] >= PLAIN and dim.reshape(-1, 3).std(axis=0).max() > FLAT_STD  # only its darkness is dull
+    assert dark(dim)[0] and dull(dim)[0]
+    assert not dark(blue)[0] and not dark(grey)[0]
+    assert not dark(dim * 2.5)[0]                             # the same stripes, lit: 0.88 in blue
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), k=st.floats(0.0, 1.0))
+def test_a_dark_picture_stays_dark_dimmer_and_a_picture_is_dark_dim_enough(seed, k):
+    pic = np.random.default_rng(seed).random((1, 16, 16, 3)) ** 3
+    if dark(pic)[0]:
+        assert dark(pic * k)[0]
+    assert dark(pic * min(DARK) * 0.99)[0]  # nothing above the smaller threshold anywhere
 
 
 def test_random_population_names_a_bad_min_nodes():

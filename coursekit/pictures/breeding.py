@@ -3,7 +3,9 @@
 :func:`breed` is one click of the gallery without the session: from a population, the
 selection (the parents, in click order), the random generator and the operators, it makes the
 next generation, the parents kept first, the rest children none of which looks like a parent or
-a sibling (:func:`~.variety.distinct_children`), each with its :class:`Origin`.
+a sibling (:func:`~.variety.distinct_children`), each with its :class:`Origin`. Parents with
+fewer distinct children than there are slots (two siblings that differ at one chromosome cross
+into little more than themselves) get the rest mutated once more, and the message says how many.
 :class:`~.session.Evolution` prepares an action with it (:class:`Prepared`: what it read and
 what it made) and commits it; the gallery prepares the next one in a thread while the student
 chooses.
@@ -16,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import operators as O
 from .genome import Genome
 from .variety import distinct_children
 
@@ -72,11 +75,14 @@ def _same(a, b) -> bool:
     return type(a) is type(b) and a == b
 
 
-def _children(name: str, make: Callable, again: Callable | None, population: list, sel: list) -> tuple | str:
+def _children(name: str, make: Callable, again: Callable | None, mutate: Callable | None, population: list,
+              sel: list) -> tuple | str:
     """Children from ``make()`` -> (genome, Origin) through :func:`distinct_children`;
-    the parents (the selection) open the new generation as ``kept``."""
+    the parents (the selection) open the new generation as ``kept``. Returns the generation,
+    the origins and how many children were mutated once more (``mutate``)."""
     parents = [population[i] for i in sel]
     made: dict[int, tuple] = {}  # id(child) -> (child, Origin): the origin of every draw
+    rescued: set[int] = set()  # ids of the children mutate() made
 
     def children() -> Iterator:
         while True:
@@ -92,14 +98,28 @@ def _children(name: str, make: Callable, again: Callable | None, population: lis
         parents_ = tuple(sorted(set(old.parents) | set(extra)))
         made[id(new)] = (new, Origin(old.operator if label is None else f"{old.operator}+{label}", parents_))
         return new
+
+    def rescue(child):
+        new, label = mutate(child)
+        old = made.get(id(child), (None, Origin(name)))[1]
+        made[id(new)] = (new, Origin(f"{old.operator}+{label}", old.parents))
+        rescued.add(id(new))
+        return new
     try:
         kids = distinct_children(parents, children(), len(population) - len(parents),
-                                 again=redo if again is not None else None)
+                                 again=redo if again is not None else None,
+                                 mutate=rescue if mutate is not None else None)
     except Exception as e:  # a student's operator: report, keep the gallery alive
         return f"{name} failed: {type(e).__name__}: {e}"
     origins = [Origin("kept", (i,)) for i in sel]
     origins += [made.get(id(k), (k, Origin(name)))[1] for k in kids]
-    return list(parents) + list(kids), origins
+    return list(parents) + list(kids), origins, sum(id(k) in rescued for k in kids)
+
+
+#: What the library's operators make, for the status line ("too few distinct crossings").
+_NOUNS = {"crossover": "crossings", "random_copy": "random copies", "random_interpolation": "interpolations",
+          "transposition": "transpositions", "root_transposition": "root transpositions",
+          "substitution": "substitutions", "head_tail_rotation": "head/tail rotations"}
 
 
 def breed(action: str, population: list, sel: list, rng: np.random.Generator, mutations: Mapping[str, Callable],
@@ -108,8 +128,31 @@ def breed(action: str, population: list, sel: list, rng: np.random.Generator, mu
     recombination's name in ``mutations`` / ``recombinations``, or ``"evolve"``: a random
     operator per child, recombination too when two or more are selected) breeds from
     ``population`` with the pictures ``sel`` selected, drawing from ``rng``; or a message
-    saying what failed (a student's operator raised)."""
+    saying what failed (a student's operator raised).
+
+    When the parents have too few distinct children by ``action`` for the slots (two siblings
+    differing at one chromosome, a tiny coding part), the remaining children are mutated once
+    more by a random one of the library's mutations among ``mutations`` (not ``action``; a
+    student's operator runs only when its own button is pressed, or evolve), their
+    :class:`Origin` says so (``"crossover+substitution"``) and so does the message."""
     parents = [population[i] for i in sel]
+    running = [action]  # the operator running now, named if it fails
+    library = {id(op) for op in O.MUTATIONS.values()}
+    others = tuple(m for m, op in mutations.items() if m != action and id(op) in library)
+
+    def mutate(child):  # once more, by another mutation: one that fits the child
+        left = list(others)
+        while True:
+            name = left.pop(int(rng.integers(len(left))))
+            running[0] = name
+            try:
+                out = mutations[name](child, rng)
+            except ValueError:  # a root transposition of heads of one chromosome: another one
+                if not left:
+                    raise
+                continue
+            running[0] = action
+            return out, name
     if action in mutations:  # parents stay; the rest are children by this mutation
         op = mutations[action]
         count = iter(range(10**9))
@@ -121,6 +164,7 @@ def breed(action: str, population: list, sel: list, rng: np.random.Generator, mu
         def again(c, kept):
             return op(c, rng), (), None
         message = f"{action} of {len(sel)} parent(s)"
+        why = f"the parent{'s have' if len(sel) > 1 else ' has'} too few distinct {{noun}} for {{n}} children"
     elif action in recombinations:  # parents stay; children of random parent pairs
         op = recombinations[action]
         pending: list = []
@@ -137,15 +181,15 @@ def breed(action: str, population: list, sel: list, rng: np.random.Generator, mu
             mate, extra = mates[int(rng.integers(len(mates)))]
             return op(child, mate, rng)[0], extra, None
         message = f"{action} of {len(sel)} parents"
+        why = "the parents differ too little for {n} distinct {noun}"
     elif action == "evolve":
         ops = [(name, op, False) for name, op in mutations.items()]
         if len(sel) > 1:
             ops += [(name, op, True) for name, op in recombinations.items()]
-        last = [ops[0][0]]
 
         def make():
             name, op, pair = ops[int(rng.integers(len(ops)))]
-            last[0] = name
+            running[0] = name
             if pair:
                 i, j = rng.choice(len(sel), size=2, replace=False)
                 kids = op(population[sel[i]], population[sel[j]], rng)
@@ -155,12 +199,20 @@ def breed(action: str, population: list, sel: list, rng: np.random.Generator, mu
 
         def again(child, kept):  # one more mutation
             name = list(mutations)[int(rng.integers(len(mutations)))]
+            running[0] = name
             return mutations[name](child, rng), (), name
         message = "mixed operators"
+        running[0] = ops[0][0]
     else:
         raise ValueError(f"action: {action!r} is not one of the operators {[*mutations, *recombinations]} or 'evolve'")
     redraw = None if action == "evolve" and not mutations else again
-    out = _children(action, make, redraw, population, sel)
+    rescue = mutate if action != "evolve" and others else None
+    out = _children(action, make, redraw, rescue, population, sel)
     if isinstance(out, str):
-        return out.replace("evolve failed", f"{last[0]} failed") if action == "evolve" else out
-    return (*out, message)
+        return out.replace(f"{action} failed", f"{running[0]} failed", 1)
+    population, origins, rescued = out
+    if rescued:
+        n = len(population) - len(sel)
+        noun = _NOUNS.get(action, f"children by {action.replace('_', ' ')}")
+        message += f"; {rescued} of {n} children mutated once more: " + why.format(n=n, noun=noun)
+    return population, origins, message

@@ -22,8 +22,9 @@ string pair that differs where a parent codes ...), and repeats its draw, at mos
 recombination: until both children differ from both parents and from each other, else the
 draw that came closest). The operation itself is the paper's, and non-coding chromosomes are
 kept (they may code after a later mutation). Repeats use the same ``rng``, so a seed still
-gives one result. Changes the genome cannot see (a constant under ``round``, swapped arguments
-of ``plus``) are left to the gallery's preview (:mod:`.variety`).
+gives one result. Swapped arguments of a commutative primitive (``plus``, ``times`` ...) are no
+change (:func:`coding`); changes the genome cannot see (a constant under ``round``) are left
+to the gallery's preview (:mod:`.variety`).
 
 Choices where the paper is silent (documented so students can reproduce them):
 
@@ -143,14 +144,29 @@ def _expressed(node, strings=None):
         value = _expressed(node)
         object.__setattr__(s, "_expressed", (node, value))
         return value
-    return (node.chromosome, tuple(_expressed(c, strings) for c in node.children))
+    kids = tuple(_expressed(c, strings) for c in node.children)
+    if len(kids) == 2 and P.get(node.symbol).commutative:
+        kids = _in_order(*kids)
+    return (node.chromosome, kids)
+
+
+def _in_order(a: tuple, b: tuple) -> tuple:
+    """The two arguments of a commutative node in an order that does not depend on which came
+    first: by hash, then (two different values of one hash) by their text."""
+    ha, hb = hash(a), hash(b)
+    if ha < hb or (ha == hb and (a == b or repr(a) < repr(b))):
+        return a, b
+    return b, a
 
 
 @functools.lru_cache(maxsize=4096)
 def coding(genome: Genome) -> tuple:
     """The coding part of ``genome`` as a comparable value: equal for two genomes exactly when
     their expression trees are equal (same primitives, parameters and shape), whatever their
-    non-coding chromosomes. (Kept for the last few thousand genomes: the gallery asks again
+    non-coding chromosomes and the order of a commutative primitive's two arguments
+    (:attr:`~.primitives.Primitive.commutative`: ``(plus x y)`` is ``(plus y x)``). It is
+    hashable and compared within one process (the order of swapped arguments follows their
+    hashes). (Kept for the last few thousand genomes: the gallery asks again
     and again about the same parents, and an operator repeating its draw makes the same
     children again.)"""
     return _expressed(genome.decode(), genome.strings)

@@ -38,6 +38,13 @@ Conventions shared by both evaluators:
   [0, 1], so primitives need not clip.
 - Parameters are floats stored in the chromosome (so random interpolation can blend them);
   integer-like parameters (octaves, picture index) are floored where used.
+- ``plus``, ``times``, ``min``, ``max``, ``and``, ``or`` and ``xor`` are commutative: their
+  arguments swapped give the same picture bit for bit (checked on random arguments, NaN and
+  infinite ones included, in both evaluators). ``minus`` is not, though at the root it looks
+  so: the final mapping folds ``-v`` like ``v``.
+- ``grad-dir`` is 0 where its argument is flat, its gradient under :data:`FLAT_GRADIENT` per
+  world unit: there the direction is only the rounding error of a constant field (which would
+  show as noise at every size).
 
 **Draw weights** (for random genomes, not part of the paper, which is silent on them): a random
 chromosome picks a primitive of the wanted kind with probability proportional to its
@@ -60,10 +67,16 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 __all__ = ["Param", "Primitive", "PRIMITIVES", "FORMS", "IMAGE_KERNELS", "PIXEL_KERNELS", "names", "arity", "get",
-           "terminals", "functions", "max_arity", "register_primitive", "image_kernel", "pixel_kernel", "PIXMAPS"]
+           "terminals", "functions", "max_arity", "register_primitive", "image_kernel", "pixel_kernel", "PIXMAPS",
+           "FLAT_GRADIENT"]
 
 #: How the evaluators feed a primitive (module docstring).
 FORMS = ("terminal", "pointwise", "filter", "neighbourhood", "warp")
+
+#: A gradient (per world unit, the larger of its two components) under which ``grad-dir`` calls
+#: its argument flat and gives 0: a change of 1/100 across the unit square, under three grey
+#: levels, which no picture shows.
+FLAT_GRADIENT = 1e-2
 
 
 @dataclass(frozen=True)
@@ -80,8 +93,11 @@ class Primitive:
     """One primitive: name, arity (0, 1 or 2), parameters, a one-line description, and what the
     evaluators need: its ``form`` (default ``terminal`` for arity 0, else ``pointwise``), its
     ``cost`` (milliseconds per node at 256 x 256 on one CPU core, used only to share a
-    population fairly between worker processes) and whether it ``samples`` coordinates (noise,
-    pictures: about 3x dearer on warped coordinates, whole images instead of rows)."""
+    population fairly between worker processes), whether it ``samples`` coordinates (noise,
+    pictures: about 3x dearer on warped coordinates, whole images instead of rows) and whether
+    it is ``commutative``: its two arguments swapped give the same picture, bit for bit, in both
+    evaluators (the gallery then counts the two expressions as one:
+    :func:`~coursekit.pictures.operators.coding`)."""
 
     name: str
     arity: int
@@ -93,6 +109,7 @@ class Primitive:
     form: str = ""
     cost: float = 0.05
     samples: bool = False
+    commutative: bool = False
 
     def __post_init__(self):
         if not self.form:
@@ -156,19 +173,19 @@ _LIST = [
               "emboss: light a height field (grey of a) from an azimuth", True, root=0.0, form="neighbourhood", cost=0.35),
     Primitive("grad-mag", 1, (Param("gain", 0.01, 0.3),),
               "gain * |gradient of a| (grey of a), world units", True, root=0.0, form="neighbourhood", cost=0.24),
-    Primitive("grad-dir", 1, (), "direction of the gradient of a, 0..1 for a full turn", True, root=0.0, form="neighbourhood", cost=0.23),
+    Primitive("grad-dir", 1, (), "direction of the gradient of a, 0..1 for a full turn; 0 where a is flat", True, root=0.0, form="neighbourhood", cost=0.23),
     # ---- TwoArgChrom --------------------------------------------------------------------
-    Primitive("plus", 2, (), "a + b", True),
+    Primitive("plus", 2, (), "a + b", True, commutative=True),
     Primitive("minus", 2, (), "a - b", True),
-    Primitive("times", 2, (), "a * b", True),
+    Primitive("times", 2, (), "a * b", True, commutative=True),
     Primitive("divide", 2, (), "protected a / b: |b| is kept at least 1e-3", True, cost=0.15),
     Primitive("mod", 2, (), "protected a mod b (sign of b); a where |b| < 1e-3", True, cost=0.37),
     Primitive("expt", 2, (), "protected |a| ** b = exp(clip(b log(|a| + 1e-6), -30, 30))", True, cost=0.23),
-    Primitive("min", 2, (), "smaller of a and b", True),
-    Primitive("max", 2, (), "larger of a and b", True),
-    Primitive("and", 2, (), "bitwise and of a and b quantised to 8 bits (after folding)", True, cost=0.3),
-    Primitive("or", 2, (), "bitwise or of a and b quantised to 8 bits", True, cost=0.3),
-    Primitive("xor", 2, (), "bitwise xor of a and b quantised to 8 bits", True, cost=0.35),
+    Primitive("min", 2, (), "smaller of a and b", True, commutative=True),
+    Primitive("max", 2, (), "larger of a and b", True, commutative=True),
+    Primitive("and", 2, (), "bitwise and of a and b quantised to 8 bits (after folding)", True, commutative=True, cost=0.3),
+    Primitive("or", 2, (), "bitwise or of a and b quantised to 8 bits", True, commutative=True, cost=0.3),
+    Primitive("xor", 2, (), "bitwise xor of a and b quantised to 8 bits", True, commutative=True, cost=0.35),
     Primitive("dissolve", 2, (Param("amount", 0.0, 1.0), Param("rate", 0.0, 1.0)) + _OFF,
               "per-cell random choice of b over a; the fraction frac(amount + rate*time) picks b",
               True, cost=0.6, samples=True),
@@ -231,6 +248,9 @@ def register_primitive(primitive: Primitive, *, image: Callable | None = None, p
                                                                    and primitive.arity != 1):
         raise ValueError(f"primitive.form: {primitive.form!r} does not fit arity {primitive.arity} (terminal: 0; "
                          "filter, neighbourhood: 1; pointwise, warp: 1 or 2)")
+    if primitive.commutative and primitive.arity != 2:
+        raise ValueError(f"primitive.commutative: only a primitive of two arguments can be commutative "
+                         f"({primitive.name!r} has {primitive.arity})")
     for k, prm in enumerate(primitive.params):
         if not isinstance(prm, Param) or not prm.low <= prm.high:
             raise ValueError(f"primitive.params[{k}]: {prm!r} must be a Param with low <= high")

@@ -333,6 +333,8 @@ def _grad_mag(ref, p, grid, i, j):
 
 def _grad_dir(ref, p, grid, i, j):
     gx, gy = grid.gradient(i, j)
+    if max(abs(gx), abs(gy)) < P.FLAT_GRADIENT:  # a flat argument has no direction
+        return (0.0,)
     return ((math.atan2(gy, gx) / TWO_PI) % 1.0,)
 
 

@@ -1,25 +1,28 @@
 """Pictures worth a look: a first generation and children that never waste a slot (sections 3.3, 3.4).
 
 With the user as the fitness function (paper section 3.4) every picture on the screen costs a
-judgement, so a slot that shows a flat, black, one-colour or plain picture (a pale wash, a faint
-gradient), or a copy of its parent or of a sibling, is a wasted click. Two cheap previews prevent
-that; both render low-resolution thumbnails (:data:`PREVIEW`, 32 x 32) and never change what the
-genomes are:
+judgement, so a slot that shows a flat, black, one-colour, plain (a pale wash, a faint gradient)
+or dark picture, or a copy of its parent or of a sibling, is a wasted click. Two cheap previews
+prevent that; both render low-resolution thumbnails (:data:`PREVIEW`, 32 x 32) and never change
+what the genomes are:
 
 - :func:`random_population` draws random genomes (:meth:`Genome.random`, whose draw weights
   already favour colour and structure) and redraws those with a tiny coding part, those whose
-  preview is *dull* (flat, black, one colour almost everywhere, or plain, :func:`dull`) or repeats
-  another picture of the population, and a greyscale one once (grey pictures stay, as a minority).
+  preview is *dull* (flat, black, one colour almost everywhere, plain or dark, :func:`dull`) or
+  repeats another picture of the population, and a greyscale one once (grey pictures stay, as a
+  minority).
 - :func:`distinct_children` takes children from an operator and redraws those whose preview
   is within :data:`SAME` (mean absolute difference, 2/255) of a parent's or of another child's,
   and those duller than their liveliest parent (a grey noise bred on by ``round``,
   ``mod`` or a bit operation easily gives flat children: ``benchmarks/picture_variety.py``
-  measures them along chains of evolve clicks).
+  measures them along chains of evolve clicks). When the parents have too few distinct
+  children to give (two siblings, a tiny coding part), it mutates the rest once more.
 
-The operators themselves (:mod:`.operators`) already aim at the coding part, so most children
+The operators themselves (:mod:`.operators`) already aim at the coding part, and count swapped
+arguments of a commutative primitive (``plus``, ``times`` ...) as no change, so most children
 pass at once; the preview catches what the genome cannot tell, such as a changed constant under
-a ``round`` or two swapped arguments of ``plus``. Both redraw a bounded number of times, in slot
-order, from the given ``rng``: the same seed gives the same population, bit for bit.
+a ``round``. Both redraw a bounded number of times, in slot order, from the given ``rng``: the
+same seed gives the same population, bit for bit.
 """
 
 from __future__ import annotations
@@ -32,8 +35,8 @@ from .evaluate import render
 from .genome import Genome
 from .operators import coding
 
-__all__ = ["PREVIEW", "SAME", "BLACK", "FLAT", "ONE_COLOUR", "PLAIN", "LEVELS", "MIN_NODES", "preview", "dull", "dullness", "variation",
-           "greyscale", "random_population", "distinct_children"]
+__all__ = ["PREVIEW", "SAME", "BLACK", "FLAT", "ONE_COLOUR", "PLAIN", "DARK", "LEVELS", "MIN_NODES", "preview", "dull",
+           "dullness", "variation", "dark", "greyscale", "random_population", "distinct_children"]
 
 PREVIEW = 32  # pixels of a preview's side
 SAME = 2.0 / 255.0  # mean absolute difference under which two pictures look the same (on contact sheets of near pairs)
@@ -41,6 +44,7 @@ BLACK = 1.0 / 255.0  # a picture with no value above this is black
 FLAT = 0.02  # a picture whose every channel has a standard deviation below this is flat
 ONE_COLOUR = 0.9  # a picture with one colour on this share of its pixels is that colour, a speck or a line aside
 PLAIN = 0.7  # a picture whose colours change by less than this across it (variation) is a wash or a faint gradient
+DARK = (0.2, 0.4)  # a picture with 95 % of its pixels under this luminance and this brightest channel is dark
 LEVELS = 16  # levels per channel at which two colours count as one
 MIN_NODES = 5  # coding chromosomes a random genome of a first generation has at least
 
@@ -53,22 +57,33 @@ def preview(genomes: Sequence[Genome], size: int = PREVIEW) -> np.ndarray:
 def dull(images: np.ndarray, flat: float = FLAT, one_colour: float = ONE_COLOUR, plain: float = PLAIN) -> np.ndarray:
     """Per picture of ``images`` ``(N, H, W, 3)``: flat (every channel's standard deviation
     below ``flat``), black (no value above :data:`BLACK`), one colour (:data:`LEVELS` levels per
-    channel) on at least the share ``one_colour`` of its pixels -- a black field with a few
-    specks or one thin line has a high standard deviation and is still not worth a click -- or
-    plain: its colours change by less than ``plain`` across it (:func:`variation`), a pale wash
-    or a faint gradient."""
+    channel) on at least the share ``one_colour`` of its pixels (a black field with a few
+    specks or one thin line has a high standard deviation and is still not worth a click),
+    plain (its colours change by less than ``plain`` across it, :func:`variation`: a pale wash
+    or a faint gradient) or dark (:func:`dark`: a dim shape on black, a murky field)."""
     return dullness(images, flat, one_colour, plain) > 0
 
 
 def dullness(images: np.ndarray, flat: float = FLAT, one_colour: float = ONE_COLOUR, plain: float = PLAIN) -> np.ndarray:
     """Per picture of ``images``, how dull (:func:`dull`) it is: 2 when flat, black or one colour,
-    1 when only plain, 0 when worth a look."""
+    1 when only plain or dark, 0 when worth a look."""
     n = len(images)
     pixels = images.reshape(n, -1, 3)
     empty = ((pixels.std(axis=1).max(axis=1) < flat)
              | (pixels.reshape(n, -1).max(axis=1) <= BLACK)
              | (_commonest_share(pixels) >= one_colour))
-    return np.where(empty, 2, (variation(images) < plain).astype(np.int64))
+    return np.where(empty, 2, ((variation(images) < plain) | dark(images)).astype(np.int64))
+
+
+def dark(images: np.ndarray, luminance: float = DARK[0], brightest: float = DARK[1]) -> np.ndarray:
+    """Per picture of ``images`` ``(N, H, W, 3)``: dark, a dim shape on black or a murky field.
+    Its 95th percentiles of luminance (Rec. 601) and of the brightest channel are below
+    ``luminance`` and ``brightest``: a deep blue at full strength is dim by luminance only, and
+    vivid (thresholds chosen on contact sheets of random pictures: ``benchmarks/NOTES.md``)."""
+    im = np.nan_to_num(np.asarray(images, dtype=np.float32)).reshape(len(images), -1, 3)
+    lum = im @ np.array([0.299, 0.587, 0.114], dtype=np.float32)
+    return ((np.percentile(lum, 95, axis=1) < luminance)
+            & (np.percentile(im.max(axis=2), 95, axis=1) < brightest)) if len(im) else np.zeros(0, bool)
 
 
 def variation(images: np.ndarray) -> np.ndarray:
@@ -165,7 +180,8 @@ def random_population(rng: np.random.Generator, n: int, *, tries: int = 8, size:
 
 
 def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
-                      again: Callable[[], Iterator[Genome]] | None = None, tries: int = 8, draws: int = 4,
+                      again: Callable[[Genome, list], Genome] | None = None,
+                      mutate: Callable[[Genome], Genome] | None = None, tries: int = 8, draws: int = 4,
                       size: int = PREVIEW) -> list:
     """``n`` children from the iterator ``children`` that look different from ``parents`` and
     from each other.
@@ -175,35 +191,64 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     parent's or another child's. The ``n`` children are then previewed at ``size``; slot by
     slot, one within :data:`SAME` (mean absolute difference) of a parent or of an already
     accepted child, or one duller than its liveliest parent (:func:`dullness`: flat, black or one
-    colour, then plain), is drawn again the same way, at most ``tries`` rounds (what is left then is the
-    slot's best draw: a lively one before a flat one, then the most different); each
-    distinct expression is previewed once (a picture depends on nothing else). From round ``tries // 2`` on, when ``again`` is given, a rejected child ``c`` is
-    replaced by ``again(c, accepted)`` instead (``accepted``: the children kept so far): the
-    operator applied once more to it, for when the parents have fewer distinct children than
-    there are slots (two relatives, a small coding part). The gallery crosses ``c`` with a
-    parent or an accepted sibling (more of the parents' material, with another split: the
-    paper repeats crossover "with a different head and tail separation"), or mutates it once
-    more. If anything the iterator gives is not a :class:`Genome` (a student's operator gone
-    wrong), the children are returned unchecked for the caller to report.
+    colour, then plain or dark), is drawn again, at most ``tries`` rounds (what is left then is
+    the slot's best draw: a lively one before a flat one, then the most different); each
+    distinct expression is previewed once (a picture depends on nothing else).
+
+    When the parents have fewer distinct children than there are slots (two siblings, a small
+    coding part), drawing from ``children`` again gives only copies. So a slot draws, in turn:
+
+    1. from ``children``;
+    2. ``again(c, accepted)``, when given, from round ``tries // 4`` on (``tries // 2`` without
+       ``mutate``): the operator applied once more to the rejected child ``c``
+       (``accepted``: the children kept so far). The gallery crosses ``c`` with a parent or an
+       accepted sibling (more of the parents' material, with another split: the paper repeats
+       crossover "with a different head and tail separation"), or repeats the mutation;
+    3. ``mutate(c)``, when given, from round ``tries // 2`` on: the slot's child as it was
+       then, mutated once more, new material when the parents' own is spent. Such a slot draws
+       ``draws`` mutants of that child a round and keeps the first that passes (a mutation may
+       well change a part of the tree the picture does not show).
+
+    A slot goes on to the next of these at once when its ``draws`` draws gave only expressions
+    already there. If anything drawn is not a :class:`Genome` (a student's operator gone wrong),
+    the children are returned unchecked for the caller to report.
     """
     if not all(isinstance(p, Genome) for p in parents):
         return [next(children) for _ in range(n)]
     seen = {coding(p) for p in parents}
+    accepted: list[Genome] = []
+    stages = [lambda c: next(children)]
+    if again is not None:
+        stages.append(lambda c: again(c, list(accepted)))
+    if mutate is not None:
+        stages.append(mutate)
+    starts = [0, tries // 4 if mutate is not None else tries // 2, tries // 2][:len(stages)]
+    stage = [0] * n  # each slot's stage: an index into ``stages``
 
-    def fresh(make):
-        for _ in range(max(1, draws)):
-            kid = make()
-            if not isinstance(kid, Genome):
+    base: dict[int, Genome] = {}  # slot -> the child its mutants are made from
+
+    def draw(i: int, rejected):
+        """A child for slot ``i``: at most ``draws`` draws of its stage for an expression not
+        there yet, the next stage (on ``rejected``, else the last draw) when they give none."""
+        while True:
+            if mutate is not None and stage[i] == len(stages) - 1:
+                rejected = base.setdefault(i, rejected)  # mutated once, not once more each round
+            for _ in range(max(1, draws)):
+                kid = stages[stage[i]](rejected)
+                if not isinstance(kid, Genome):
+                    return kid
+                key = coding(kid)
+                if key not in seen:
+                    seen.add(key)
+                    return kid
+            if stage[i] + 1 == len(stages):
                 return kid
-            key = coding(kid)
-            if key not in seen:
-                break
-        seen.add(key)
-        return kid
+            stage[i] += 1
+            rejected = kid if rejected is None else rejected
 
     kids: list = []
     while len(kids) < n:
-        kids.append(fresh(lambda: next(children)))
+        kids.append(draw(len(kids), None))
         if not isinstance(kids[-1], Genome):
             return kids + [next(children) for _ in range(n - len(kids))]
     if not kids:
@@ -213,21 +258,30 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     # a picture depends on the expression only: each distinct one is previewed once (a child
     # drawn again may repeat a rejected expression, or a parent's)
     previews = {coding(p): pic for p, pic in zip(parents, refs)}
-    accepted: list[Genome] = []
     pending = list(range(n))
+    candidates = {i: [kids[i]] for i in pending}  # each pending slot's draws this round, in order
     best: dict[int, tuple] = {}  # slot -> (lively, distance), child, preview: its best draw so far
     for attempt in range(tries + 1):
-        pics = _previews([kids[i] for i in pending], previews, size)
+        drawn = [c for i in pending for c in candidates[i]]
+        pics = _previews(drawn, previews, size)
         flat = dullness(pics) > level
-        still = []
-        for i, pic, bad in zip(pending, pics, flat):
-            score = (not bad, min(_distance(pic, refs), SAME))
+        still, k = [], 0
+        for i in pending:
+            top = None  # the slot's best draw of this round
+            for kid, pic, bad in zip(candidates[i], pics[k:], flat[k:]):
+                score = (not bad, min(_distance(pic, refs), SAME))
+                if top is None or score > top[0]:
+                    top = score, kid, pic
+                if score[0] and score[1] >= SAME:
+                    break
+            k += len(candidates[i])
+            score, kids[i], pic = top
             if score[0] and score[1] >= SAME:
                 refs.append(pic)
                 accepted.append(kids[i])
             elif attempt < tries:
                 if i not in best or score > best[i][0]:
-                    best[i] = score, kids[i], pic
+                    best[i] = top
                 still.append(i)
             else:  # out of tries: the slot's best draw (a lively near-copy rather than a flat one)
                 if i in best:
@@ -239,12 +293,11 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
         if not still:
             break
         for i in still:
-            if again is not None and attempt + 1 >= tries // 2:
-                rejected = kids[i]
-                kids[i] = fresh(lambda: again(rejected, list(accepted)))
-            else:
-                kids[i] = fresh(lambda: next(children))
-            if not isinstance(kids[i], Genome):
+            stage[i] = max(stage[i], sum(attempt + 1 >= s for s in starts) - 1)
+            mutating = mutate is not None and stage[i] == len(stages) - 1
+            candidates[i] = [draw(i, kids[i]) for _ in range(max(1, draws) if mutating else 1)]
+            if not all(isinstance(c, Genome) for c in candidates[i]):
+                kids[i] = next(c for c in candidates[i] if not isinstance(c, Genome))
                 return kids
         pending = still
     return kids

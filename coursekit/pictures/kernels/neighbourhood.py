@@ -12,7 +12,7 @@ import torch
 
 from .. import textures as T
 from ..context import fmod, host, sane
-from ..primitives import image_kernel
+from ..primitives import FLAT_GRADIENT, image_kernel
 from .fast import TWO_PI, atan2, cos, grey, matmul, sin, sqrt
 
 __all__: list[str] = []  # reached through the registry
@@ -88,7 +88,8 @@ def _grad_mag(v, p, ctx):
 
 def _grad_dir(v, p, ctx):
     gx, gy = _gradients(v, ctx)
-    return fmod(atan2(gy, gx) / TWO_PI, 1.0)
+    flat = torch.maximum(gx.abs(), gy.abs()) < FLAT_GRADIENT  # only rounding error: no direction
+    return fmod(atan2(gy, gx) / TWO_PI, 1.0).masked_fill(flat, 0.0)
 
 
 def _blur(ctx, p, a):
