@@ -155,3 +155,10 @@ def test_genomes_a_mutation_does_not_fit_still_get_their_slots_filled():
     msg = ev.recombine("crossover")
     assert msg.startswith("generation 2: crossover of 2 parents; "), msg
     assert all(o.operator != "crossover+root_transposition" for o in ev.state.origins)
+    for k in range(6):  # evolve draws root transposition a quarter of the time: it gives way too
+        for i in list(ev.state.selected):
+            ev.select(i, False)
+        ev.select(k, True)
+        msg = ev.next_generation()
+        assert msg.startswith(f"generation {3 + k}: "), msg
+        assert all("root_transposition" not in o.operator for o in ev.state.origins)

@@ -140,19 +140,21 @@ def breed(action: str, population: list, sel: list, rng: np.random.Generator, mu
     library = {id(op) for op in O.MUTATIONS.values()}
     others = tuple(m for m, op in mutations.items() if m != action and id(op) in library)
 
-    def mutate(child):  # once more, by another mutation: one that fits the child
-        left = list(others)
-        while True:
-            name = left.pop(int(rng.integers(len(left))))
-            running[0] = name
+    def fitting(names, child, first=None):  # (mutant, name): ``first``, or a random one of ``names``; a library
+        left = [m for m in names if m != first]  # mutation that does not fit the child (a root transposition of
+        while True:                              # heads of one chromosome) gives way to another of them
+            name = first if first is not None else left.pop(int(rng.integers(len(left))))
+            first, running[0] = None, name
             try:
-                out = mutations[name](child, rng)
-            except ValueError:  # a root transposition of heads of one chromosome: another one
-                if not left:
+                return mutations[name](child, rng), name
+            except ValueError:
+                if not left or id(mutations[name]) not in library:
                     raise
-                continue
-            running[0] = action
-            return out, name
+
+    def mutate(child):  # once more, by another mutation: one that fits the child
+        out = fitting(others, child)
+        running[0] = action
+        return out
     if action in mutations:  # parents stay; the rest are children by this mutation
         op = mutations[action]
         count = iter(range(10**9))
@@ -163,7 +165,7 @@ def breed(action: str, population: list, sel: list, rng: np.random.Generator, mu
 
         def again(c, kept):
             return op(c, rng), (), None
-        message = f"{action} of {len(sel)} parent(s)"
+        message = f"{action} of {len(sel)} parent{'s' if len(sel) > 1 else ''}"
         why = f"the parent{'s have' if len(sel) > 1 else ' has'} too few distinct {{noun}} for {{n}} children"
     elif action in recombinations:  # parents stay; children of random parent pairs
         op = recombinations[action]
@@ -195,12 +197,12 @@ def breed(action: str, population: list, sel: list, rng: np.random.Generator, mu
                 kids = op(population[sel[i]], population[sel[j]], rng)
                 return kids[int(rng.integers(2))], Origin(name, (sel[i], sel[j]))
             j = sel[int(rng.integers(len(sel)))]
-            return op(population[j], rng), Origin(name, (j,))
+            kid, name = fitting(mutations, population[j], first=name)
+            return kid, Origin(name, (j,))
 
         def again(child, kept):  # one more mutation
-            name = list(mutations)[int(rng.integers(len(mutations)))]
-            running[0] = name
-            return mutations[name](child, rng), (), name
+            kid, name = fitting(mutations, child)
+            return kid, (), name
         message = "mixed operators"
         running[0] = ops[0][0]
     else:
