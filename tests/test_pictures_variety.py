@@ -207,16 +207,19 @@ def test_a_field_of_one_colour_with_a_band_or_specks_is_dull_and_a_picture_of_tw
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), share=st.floats(0.0, 1.0))
 def test_dull_flags_a_picture_exactly_when_its_commonest_colour_reaches_the_share(seed, share):
-    # a lively noise picture (no colour repeats much) with one colour painted on a share of its pixels
+    # a lively noise picture of 2 x 2 cells (no colour repeats much; not static) with one colour
+    # painted on a share of its pixels
+    from coursekit.pictures.variety import static
+
     rng = np.random.default_rng(seed)
-    pic = rng.random((1, 32, 32, 3))
+    pic = rng.random((1, 16, 16, 3)).repeat(2, axis=1).repeat(2, axis=2)
     painted = rng.permutation(32 * 32)[: int(round(share * 32 * 32))]
     colour = rng.integers(0, LEVELS, 3) / (LEVELS - 1)
     pic.reshape(-1, 3)[painted] = colour
     q = np.rint(pic.reshape(-1, 3) * (LEVELS - 1)).astype(int)
     commonest = np.unique(q, axis=0, return_counts=True)[1].max() / len(q)
     assert dull(pic)[0] == (commonest >= ONE_COLOUR or pic.reshape(-1, 3).std(axis=0).max() < 0.02
-                            or variation(pic)[0] < PLAIN or dark(pic)[0])
+                            or variation(pic)[0] < PLAIN or dark(pic)[0] or static(pic)[0])
 
 
 def test_a_pale_wash_or_a_faint_gradient_is_plain_and_a_full_ramp_an_edge_or_a_pattern_is_not():
@@ -253,6 +256,22 @@ def test_a_dark_picture_stays_dark_dimmer_and_a_picture_is_dark_dim_enough(seed,
     if dark(pic)[0]:
         assert dark(pic * k)[0]
     assert dark(pic * min(DARK) * 0.99)[0]  # nothing above the smaller threshold anywhere
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), cells=st.sampled_from([1, 2]))
+def test_static_is_noise_and_not_a_texture_stripes_or_a_swirl(seed, cells):
+    from coursekit.pictures.variety import static
+
+    rng = np.random.default_rng(seed)
+    noise = rng.random((1, 64 // cells, 64 // cells, 3)).repeat(cells, axis=1).repeat(cells, axis=2)
+    y, x = np.mgrid[0:32, 0:32] / 31.0
+    stripes = np.stack([0.5 + 0.5 * np.sin(2 * np.pi * rng.uniform(2, 6) * (x + rng.uniform(0.2, 1) * y))] * 3, axis=-1)[None]  # 5 pixels a stripe or more
+    swirl = np.stack([0.5 + 0.5 * np.sin(rng.uniform(5, 20) * np.hypot(x - 0.5, y - 0.5) + 3 * np.arctan2(y - 0.5, x - 0.5))] * 3, axis=-1)[None]
+    texture = np.stack([0.5 + 0.5 * np.sin(17 * x) * np.cos(11 * y + rng.uniform(0, 3))] * 3, axis=-1)[None]
+    assert static(noise)[0] == (cells == 1)  # single-pixel static; two-pixel cells correlate with their neighbours
+    assert not static(stripes)[0] and not static(swirl)[0] and not static(texture)[0]
+    assert dull(noise)[0] == (cells == 1)
 
 
 def test_random_population_names_a_bad_min_nodes():

@@ -1,14 +1,14 @@
 """Pictures worth a look: a first generation and children that never waste a slot (sections 3.3, 3.4).
 
 With the user as the fitness function (paper section 3.4) every picture on the screen costs a
-judgement, so a slot that shows a flat, black, one-colour, plain (a pale wash, a faint gradient)
-or dark picture, or a copy of its parent or of a sibling, is a wasted click. Two cheap previews
+judgement, so a slot that shows a flat, black, one-colour, plain (a pale wash, a faint gradient),
+dark or static picture, or a copy of its parent or of a sibling, is a wasted click. Two cheap previews
 prevent that; both render low-resolution thumbnails (:data:`PREVIEW`, 32 x 32) and never change
 what the genomes are:
 
 - :func:`random_population` draws random genomes (:meth:`Genome.random`, whose draw weights
   already favour colour and structure) and redraws those with a tiny coding part, those whose
-  preview is *dull* (flat, black, one colour almost everywhere, plain or dark, :func:`dull`) or
+  preview is *dull* (flat, black, one colour almost everywhere, plain, dark or static, :func:`dull`) or
   repeats another picture of the population, and a greyscale one once (grey pictures stay, as a
   minority).
 - :func:`distinct_children` takes children from an operator and redraws those whose preview
@@ -35,8 +35,8 @@ from .evaluate import render
 from .genome import Genome
 from .operators import coding
 
-__all__ = ["PREVIEW", "SAME", "BLACK", "FLAT", "ONE_COLOUR", "PLAIN", "DARK", "LEVELS", "MIN_NODES", "preview", "dull",
-           "dullness", "variation", "dark", "greyscale", "random_population", "distinct_children"]
+__all__ = ["PREVIEW", "SAME", "BLACK", "FLAT", "ONE_COLOUR", "PLAIN", "STATIC", "DARK", "LEVELS", "MIN_NODES", "preview", "dull",
+           "dullness", "variation", "dark", "static", "greyscale", "random_population", "distinct_children"]
 
 PREVIEW = 32  # pixels of a preview's side
 SAME = 2.0 / 255.0  # mean absolute difference under which two pictures look the same (on contact sheets of near pairs)
@@ -45,6 +45,7 @@ FLAT = 0.02  # a picture whose every channel has a standard deviation below this
 ONE_COLOUR = 0.9  # a picture with one colour on this share of its pixels is that colour, a speck or a line aside
 PLAIN = 0.7  # a picture whose colours change by less than this across it (variation) is a wash or a faint gradient
 DARK = (0.2, 0.4)  # a picture with 95 % of its pixels under this luminance and this brightest channel is dark
+STATIC = 0.05  # a picture whose neighbouring pixels correlate less than this (across or down) is static
 LEVELS = 16  # levels per channel at which two colours count as one
 MIN_NODES = 5  # coding chromosomes a random genome of a first generation has at least
 
@@ -60,19 +61,37 @@ def dull(images: np.ndarray, flat: float = FLAT, one_colour: float = ONE_COLOUR,
     channel) on at least the share ``one_colour`` of its pixels (a black field with a few
     specks or one thin line has a high standard deviation and is still not worth a click),
     plain (its colours change by less than ``plain`` across it, :func:`variation`: a pale wash
-    or a faint gradient) or dark (:func:`dark`: a dim shape on black, a murky field)."""
+    or a faint gradient), dark (:func:`dark`: a dim shape on black, a murky field) or static
+    (:func:`static`: pixels uncorrelated with their neighbours)."""
     return dullness(images, flat, one_colour, plain) > 0
 
 
 def dullness(images: np.ndarray, flat: float = FLAT, one_colour: float = ONE_COLOUR, plain: float = PLAIN) -> np.ndarray:
     """Per picture of ``images``, how dull (:func:`dull`) it is: 2 when flat, black or one colour,
-    1 when only plain or dark, 0 when worth a look."""
+    1 when only plain, dark or static, 0 when worth a look."""
     n = len(images)
     pixels = images.reshape(n, -1, 3)
     empty = ((pixels.std(axis=1).max(axis=1) < flat)
              | (pixels.reshape(n, -1).max(axis=1) <= BLACK)
              | (_commonest_share(pixels) >= one_colour))
-    return np.where(empty, 2, ((variation(images) < plain) | dark(images)).astype(np.int64))
+    return np.where(empty, 2, ((variation(images) < plain) | dark(images) | static(images)).astype(np.int64))
+
+
+def static(images: np.ndarray, below: float = STATIC) -> np.ndarray:
+    """Per picture of ``images`` ``(N, H, W, 3)``: static, pixels that owe nothing to their
+    neighbours (a ``dissolve`` of single cells, a ``round`` of noise). The correlation of
+    neighbouring pixels, the better of across and down, weighted over the channels by their
+    variance, is below ``below``; a texture, stripes or a swirl correlate along one direction at
+    least (threshold chosen on a contact sheet of the 40 least correlated of 240 random pictures:
+    ``benchmarks/NOTES.md``; independent noise at 32 x 32 scores about 0.02)."""
+    im = np.nan_to_num(np.asarray(images, dtype=np.float64))
+    if im.shape[1] < 2 or im.shape[2] < 2:
+        return np.zeros(len(im), bool)
+    x = im - im.mean(axis=(1, 2), keepdims=True)
+    var = (x * x).mean(axis=(1, 2)) + 1e-12
+    across = (x[:, :, 1:] * x[:, :, :-1]).mean(axis=(1, 2)) / var
+    down = (x[:, 1:] * x[:, :-1]).mean(axis=(1, 2)) / var
+    return (np.maximum(across, down) * var).sum(axis=1) / var.sum(axis=1) < below
 
 
 def dark(images: np.ndarray, luminance: float = DARK[0], brightest: float = DARK[1]) -> np.ndarray:
