@@ -24,7 +24,7 @@ HINTS = {
     "pictures.random_copy": (("children hold material of both parents", _MIXES),),
     "pictures.random_interpolation": (
         ("blends a pair", (
-            "Interpolation mixes the parameters of one aligned pair of chromosomes: u * p_a + (1 - u) * p_b.",
+            "Interpolation mixes the parameters of one aligned pair of chromosomes: (1 - u) * p_a + u * p_b.",
             "Draw u with the rng for the pair, and give child 2 the complementary blend.")),
     ),
 }
