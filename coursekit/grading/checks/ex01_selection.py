@@ -11,7 +11,11 @@ rate below 1e-8), determinism for a given seed, and that inputs are left unmodif
 Each check's second property is its *job*, a gate: selection prefers fitter individuals (mean
 fitness rank of the picks above 0.6, where chance gives 0.5 and the operators give 0.78-0.89),
 a crossover's children hold genes of both parents, a mutation changes the genome. Until it holds
-nothing else is judged, so copies and random picks score 0.
+nothing else is judged, so copies and random picks score 0. One later property is the operator's
+*point*, its definition (:func:`~coursekit.grading.checks.properties.point`): uniform among
+exactly the survivors, the fittest of ``size`` contestants, proportional to fitness, a uniform
+cut, independent flips at ``rate``. It weighs half the points: a tournament that ignores
+``size`` or a roulette that is not proportional kept 71-86 % before, and keeps half now.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ import numpy as np
 
 from coursekit.grading import stats
 from coursekit.grading.checks import Check, exercise, register
-from coursekit.grading.checks.properties import COPY_ARRAY, RNG, array, deterministic, seeds, unmodified
+from coursekit.grading.checks.properties import COPY_ARRAY, RNG, all_of, array, deterministic, point, repeated, seeds, unmodified
 
 
 #: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
@@ -34,13 +38,19 @@ HINTS = {
             "Sort the indices by fitness (np.argsort sorts ascending: the best are at the end) and keep the top ones.",
             "Then draw k parents uniformly from those survivors with the rng (rng.integers or rng.choice).")),
         ("rounds the survivor count up", ("With 7 individuals and survival 0.2, 1.4 individuals survive: round up (math.ceil).",)),
+        ("uniform among survivors", (
+            "Every survivor is drawn equally often: the first, the last and those in between.",
+            "Print your survivors and the indices you draw for a small example: does the last survivor ever come up?",
+            "Check the bounds of the random draw: which values can it return, and are they all the survivors?")),
     ),
     "ga.tournament": (
         ("prefers fitter individuals", (
             "A tournament picks `size` individuals at random and keeps the fittest of them; repeat k times.",
             "rng.integers(0, n, size=(k, size)) draws all tournaments at once; then find each row's fittest.",
             "np.argmax(fitness[contestants], axis=1) tells which contestant of each row won.")),
-        ("honours the size parameter (size=2)", ("Use the size argument, not a fixed 3.",)),
+        ("the fittest of size contestants wins", (
+            "Each tournament draws `size` contestants, uniformly and with replacement (an individual may be drawn twice).",
+            "Use the size argument, not a fixed number of contestants.")),
     ),
     "ga.roulette": (
         ("prefers fitter individuals", (
@@ -60,6 +70,9 @@ HINTS = {
             "rng.random(len(genome)) < rate says, bit by bit, which ones flip.",
             "1 - genome is the flipped genome; np.where picks flipped or kept bit by bit.")),
         ("default rate is 1/len", ("When rate is None, use 1 / len(genome): about one flip per call.",)),
+        ("each bit flips independently with probability rate", (
+            "Each bit flips on its own coin, with probability rate: sometimes no bit flips, sometimes several.",
+            "Use the rate argument when it is given (0 flips nothing, 1 flips every bit).")),
     ),
 }
 
@@ -141,21 +154,26 @@ def _truncation_survivors(ctx):
     return True, "picks only from the best ceil(survival*n) individuals"
 
 
+def _never_picked(ctx):
+    """``(rank among the survivors, index)`` of the survivors of the "uniform" case (where survival * n is
+    a whole number, so rounding plays no part) that were never picked in its 20000 draws, best first."""
+    wide = ctx.arg("uniform", 0)
+    top = np.argsort(wide)[::-1][:math.ceil(0.25 * len(wide))]
+    seen = set(ctx.out("uniform")[0])
+    return [(r, int(i)) for r, i in enumerate(top) if int(i) not in seen]
+
+
 def _truncation_ceil(ctx):
     fitness = ctx.arg("ceil", 0)
     out = ctx.out("ceil")[0]
     m = math.ceil(0.2 * len(fitness))
     picked = len(set(out))
     if picked < m:
-        # An upper bound drawn one short (rng.integers(0, m - 1): its high end is already exclusive) also
-        # leaves the last survivor out; the large "uniform" case tells it from rounding down.
-        wide = ctx.arg("uniform", 0)
-        top = np.argsort(wide)[::-1][:math.ceil(0.25 * len(wide))]
-        seen = set(ctx.out("uniform")[0])
-        if int(top[-1]) not in seen and all(int(i) in seen for i in top[:-1]):
-            return False, (f"with {len(wide)} individuals and survival=0.25 the {len(top)} survivors were drawn {len(ctx.out('uniform')[0])} "
-                           f"times, and the last of them (index {int(top[-1])}) never: rng.integers(0, m) already leaves m out "
-                           f"(its upper end is exclusive), so the indices 0 .. m-1 need integers(0, m)")
+        if _never_picked(ctx):
+            # e.g. an upper bound one short: the last survivor is never drawn, whatever the count -- the same
+            # observation here as rounding down, so this case cannot tell them apart
+            return False, ("not checked: it never picks some of the survivors even where survival * n is a whole "
+                           "number (see 'uniform among survivors'), so whether it rounds the count up cannot be seen")
         return False, (f"with {len(fitness)} individuals and survival=0.2, only {picked} distinct individual(s) were "
                        f"picked in {len(out)} draws; all of the best ceil(0.2*{len(fitness)}) = {m} should be (round up, not down)")
     return True, "keeps ceil(survival*n) survivors (rounds up)"
@@ -170,12 +188,25 @@ def _truncation_uniform(ctx):
     obs = [counts.get(int(i), 0) for i in best]
     if sum(obs) != len(out):
         return False, "not checked: picks outside the survivors"
+    never = _never_picked(ctx)
+    if never:
+        if [r for r, _ in never] == [m - 1]:
+            which = f"the last of them, the {_ordinal(m)} best (index {never[0][1]}), was"
+        else:
+            which = ", ".join(f"the {_ordinal(r + 1)} best (index {i})" for r, i in never)
+            which += " was" if len(never) == 1 else " were"
+        return False, (f"with {len(fitness)} individuals and survival=0.25 there are {m} survivors, and over {len(out)} "
+                       f"draws {which} never picked; every survivor should be picked about {_pct(1 / m)} of the time")
     ok, _, _ = stats.chi_square(obs, [1 / m] * m)
     if ok:
         return True, f"draws uniformly among the survivors ({len(out)} draws)"
     shares = ", ".join(_pct(o / len(out)) for o in obs)
     return False, (f"over {len(out)} draws the {m} survivors (best first) were picked {shares} of the time; "
                    f"each should be picked about {_pct(1 / m)} (uniformly, with replacement)")
+
+
+def _ordinal(n):
+    return f"{n}{'th' if 10 <= n % 100 < 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(n % 10, 'th')}"
 
 
 #: Selection schemes of the library that do a graded scheme's work under another name: Sims' scheme
@@ -186,6 +217,16 @@ SIBLINGS = ('coursekit.ga.selection:sims_select', 'coursekit.ga.selection:sims_o
 NEEDED = ('coursekit.ga.variation:largest_remainder',)
 
 
+_TRUNCATION = (
+    ("returns k valid indices", _indices_valid(["basic", "survival", "ceil", "uniform"])),
+    ("prefers fitter individuals", _prefers_fit("uniform")),
+    ("only the best survive", _truncation_survivors),
+    ("rounds the survivor count up", _truncation_ceil),
+    ("uniform among survivors", _truncation_uniform),
+    ("deterministic for a seed", deterministic("basic")),
+    ("inputs unchanged", unmodified({0: "fitness"}, COPY_ARRAY)),
+)
+
 register(Check(
     hints=HINTS.get("ga.truncation", ()),
     name="ga.truncation", function="truncation", params=("fitness", "k", "rng"), points=2.0,
@@ -195,15 +236,8 @@ register(Check(
     reference=('coursekit.ga.selection:truncation', *SIBLINGS, 'coursekit.ga.selection:ranking',
                'coursekit.ga.selection:n_survivors'),
     library_uses=(*NEEDED, 'coursekit.ga.selection:ranking', 'coursekit.ga.selection:n_survivors'),
-    props=(
-        ("returns k valid indices", _indices_valid(["basic", "survival", "ceil", "uniform"])),
-        ("prefers fitter individuals", _prefers_fit("uniform")),
-        ("only the best survive", _truncation_survivors),
-        ("rounds the survivor count up", _truncation_ceil),
-        ("uniform among survivors", _truncation_uniform),
-        ("deterministic for a seed", deterministic("basic")),
-        ("inputs unchanged", unmodified({0: "fitness"}, COPY_ARRAY)),
-    ),
+    props=_TRUNCATION,
+    weights=point("uniform among survivors", _TRUNCATION),  # exactly the survivors, each alike: truncation's point
 ))
 
 
@@ -222,25 +256,33 @@ def _tournament_cases(rng):
     ]
 
 
-def _tournament_rates(cid):
-    def prop(ctx):
-        fitness = ctx.arg(cid, 0)
-        size = ctx.kwarg(cid, "size", 3)
-        n = len(fitness)
-        out = ctx.out(cid)[0]
-        rank = _ranks(fitness)
-        counts = np.bincount(rank[np.asarray(out)], minlength=n)
-        j = np.arange(n)
-        probs = ((j + 1) / n) ** size - (j / n) ** size  # P(winner has rank j): best of `size` uniform draws
-        ok, _, _ = stats.chi_square(counts, probs)
-        p_best = 1 - (1 - 1 / n) ** size
-        if ok:
-            return True, f"with size={size}, the best of {n} won {_pct(counts[-1] / len(out))} of {len(out)} tournaments (expected about {_pct(p_best)})"
-        return False, (f"with size={size}, the best of {n} individuals won {_pct(counts[-1] / len(out))} of {len(out)} tournaments "
-                       f"and the worst {_pct(counts[0] / len(out))}; a tournament of {size} contestants drawn uniformly with "
-                       f"replacement is won by the best {_pct(p_best)} of the time (1-(1-1/n)^size) and by the worst {_pct(probs[0])}")
+def _tournament_rate(ctx, cid):
+    fitness = ctx.arg(cid, 0)
+    size = ctx.kwarg(cid, "size", 3)
+    n = len(fitness)
+    out = ctx.out(cid)[0]
+    rank = _ranks(fitness)
+    counts = np.bincount(rank[np.asarray(out)], minlength=n)
+    j = np.arange(n)
+    probs = ((j + 1) / n) ** size - (j / n) ** size  # P(winner has rank j): best of `size` uniform draws
+    ok, _, _ = stats.chi_square(counts, probs)
+    p_best = 1 - (1 - 1 / n) ** size
+    if ok:
+        return True, f"with size={size}, the best of {n} won {_pct(counts[-1] / len(out))} of {len(out)} tournaments (expected about {_pct(p_best)})"
+    return False, (f"with size={size}, the best of {n} individuals won {_pct(counts[-1] / len(out))} of {len(out)} tournaments "
+                   f"and the worst {_pct(counts[0] / len(out))}; a tournament of {size} contestants drawn uniformly with "
+                   f"replacement is won by the best {_pct(p_best)} of the time (1-(1-1/n)^size) and by the worst {_pct(probs[0])}")
 
-    return prop
+
+_TOURNAMENT = (
+    ("returns k valid indices", _indices_valid(["basic", "size3", "size2"])),
+    ("prefers fitter individuals", _prefers_fit("size3")),
+    # the winners' ranks follow the best-of-size law, for the default size 3 and for size=2
+    ("the fittest of size contestants wins", all_of(lambda ctx: _tournament_rate(ctx, "size3"),
+                                                    lambda ctx: _tournament_rate(ctx, "size2"))),
+    ("deterministic for a seed", deterministic("basic")),
+    ("inputs unchanged", unmodified({0: "fitness"}, COPY_ARRAY)),
+)
 
 
 register(Check(
@@ -248,14 +290,8 @@ register(Check(
     name="ga.tournament", function="tournament", params=("fitness", "k", "rng"), points=2.0,
     title="tournament selection", output="indices", cases=_tournament_cases, gates=2,
     reference=('coursekit.ga.selection:tournament',),
-    props=(
-        ("returns k valid indices", _indices_valid(["basic", "size3", "size2"])),
-        ("prefers fitter individuals", _prefers_fit("size3")),
-        ("fitter individuals win at the expected rate (size=3)", _tournament_rates("size3")),
-        ("honours the size parameter (size=2)", _tournament_rates("size2")),
-        ("deterministic for a seed", deterministic("basic")),
-        ("inputs unchanged", unmodified({0: "fitness"}, COPY_ARRAY)),
-    ),
+    props=_TOURNAMENT,
+    weights=point("the fittest of size contestants wins", _TOURNAMENT),  # a fixed size, no replacement: 71 % before
 ))
 
 
@@ -298,20 +334,23 @@ def _roulette_proportional(ctx):
                    f"fitness / total fitness = {_pct(probs[i])}")
 
 
+_ROULETTE = (
+    ("returns k valid indices", _indices_valid(["basic", "dist"])),
+    ("prefers fitter individuals", _prefers_fit("dist")),
+    ("never picks zero fitness", _roulette_zero),
+    ("proportional to fitness", _roulette_proportional),
+    ("deterministic for a seed", deterministic("basic")),
+    ("inputs unchanged", unmodified({0: "fitness"}, COPY_ARRAY)),
+)
+
 register(Check(
     hints=HINTS.get("ga.roulette", ()),
     name="ga.roulette", function="roulette", params=("fitness", "k", "rng"), points=2.0,
     title="roulette-wheel selection", output="indices", cases=_roulette_cases, gates=2,
     reference=('coursekit.ga.selection:roulette', *SIBLINGS),  # sims_select(survival=1) is proportional too
     library_uses=NEEDED,
-    props=(
-        ("returns k valid indices", _indices_valid(["basic", "dist"])),
-        ("prefers fitter individuals", _prefers_fit("dist")),
-        ("never picks zero fitness", _roulette_zero),
-        ("proportional to fitness", _roulette_proportional),
-        ("deterministic for a seed", deterministic("basic")),
-        ("inputs unchanged", unmodified({0: "fitness"}, COPY_ARRAY)),
-    ),
+    props=_ROULETTE,
+    weights=point("proportional to fitness", _ROULETTE),  # fitter picked more, not in proportion: 86 % before
 ))
 
 
@@ -319,16 +358,18 @@ register(Check(
 
 
 def _crossover_cases(rng):
-    s = seeds(rng, 600)
+    s = seeds(rng, 602)
 
     def bits(n):
         return rng.integers(0, 2, n)
 
     a10, a5 = bits(10), bits(5)
     return [  # b = 1 - a differs everywhere, so the cut can be read off the children; "mixed" parents share genes
-        {"id": "basic", "args": [array(a10, "int8"), array(1 - a10, "int8"), RNG], "seeds": [s[0]] * 4, "max_len": 1000},
-        {"id": "mixed", "args": [array(bits(16), "int8"), array(bits(16), "int8"), RNG], "seeds": s[1:4], "max_len": 1000},
-        {"id": "cuts", "args": [array(a5, "int8"), array(1 - a5, "int8"), RNG], "seeds": s[4:600], "max_len": 500},
+        # 3 seeds 4 times each: a cut from a global generator (9 possible) repeats with probability 9^-9
+        {"id": "basic", "args": [array(a10, "int8"), array(1 - a10, "int8"), RNG], "seeds": repeated(s[:3], 4),
+         "max_len": 1000},
+        {"id": "mixed", "args": [array(bits(16), "int8"), array(bits(16), "int8"), RNG], "seeds": s[3:6], "max_len": 1000},
+        {"id": "cuts", "args": [array(a5, "int8"), array(1 - a5, "int8"), RNG], "seeds": s[6:602], "max_len": 500},
     ]
 
 
@@ -389,20 +430,23 @@ def _crossover_uniform(ctx):
     return False, f"over {len(cuts)} crossovers of length-{L} parents the cut fell at {shares}; each of 1..{L - 1} should have about {_pct(1 / (L - 1))}"
 
 
+_CROSSOVER = (
+    ("returns two children of the right length", _crossover_valid),
+    ("children hold genes of both parents", _crossover_mixes),
+    ("children are one-point crossovers", _crossover_one_point),
+    ("cut point uniform", _crossover_uniform),
+    ("deterministic for a seed", deterministic("basic")),
+    ("inputs unchanged", unmodified({0: "a", 1: "b"}, COPY_ARRAY)),
+)
+
 register(Check(
     hints=HINTS.get("ga.one_point_crossover", ()),
     name="ga.one_point_crossover", function="one_point_crossover", params=("a", "b", "rng"), points=2.0,
     title="one-point crossover", output="array_pair", cases=_crossover_cases, gates=2,
     reference=('coursekit.ga.operators:one_point_crossover',),
-    props=(
-        ("returns two children of the right length", _crossover_valid),
-        ("children hold genes of both parents", _crossover_mixes),
-        ("children are one-point crossovers", _crossover_one_point),
-        ("cut point uniform", _crossover_uniform),
-        ("deterministic for a seed", deterministic("basic")),
-        ("inputs unchanged", unmodified({0: "a", 1: "b"}, COPY_ARRAY)),
-    ),
-    weights=(("cut point uniform", 3),),  # a fixed cut is no GA operator, as in exercise 03
+    props=_CROSSOVER,
+    # one-point crossovers at a uniform cut (it judges nothing else): a fixed cut is no GA operator, as in exercise 03
+    weights=point("cut point uniform", _CROSSOVER),
 ))
 
 
@@ -410,17 +454,19 @@ register(Check(
 
 
 def _mutation_cases(rng):
-    s = seeds(rng, 1506)
+    s = seeds(rng, 1508)
 
     def genome(n):
         return array(rng.integers(0, 2, n), "int8")
 
     return [
-        {"id": "basic", "args": [genome(30), RNG], "seeds": [s[0], s[0]], "max_len": 1000},
-        {"id": "default", "args": [genome(40), RNG], "seeds": s[1:1001], "max_len": 1000},
-        {"id": "rate", "args": [genome(20), RNG], "kwargs": {"rate": 0.25}, "seeds": s[1001:1501], "max_len": 1000},
-        {"id": "rate0", "args": [genome(16), RNG], "kwargs": {"rate": 0.0}, "seeds": s[1501:1503], "max_len": 1000},
-        {"id": "rate1", "args": [genome(16), RNG], "kwargs": {"rate": 1.0}, "seeds": s[1503:1506],
+        # 3 seeds 4 times each, at rate 0.5: flips from a global generator repeat with probability 2^-270 (at the
+        # default rate one call in three flips nothing, and so would two calls of a function that ignores its rng)
+        {"id": "basic", "args": [genome(30), RNG], "kwargs": {"rate": 0.5}, "seeds": repeated(s[:3], 4), "max_len": 1000},
+        {"id": "default", "args": [genome(40), RNG], "seeds": s[3:1003], "max_len": 1000},
+        {"id": "rate", "args": [genome(20), RNG], "kwargs": {"rate": 0.25}, "seeds": s[1003:1503], "max_len": 1000},
+        {"id": "rate0", "args": [genome(16), RNG], "kwargs": {"rate": 0.0}, "seeds": s[1503:1505], "max_len": 1000},
+        {"id": "rate1", "args": [genome(16), RNG], "kwargs": {"rate": 1.0}, "seeds": s[1505:1508],
          "max_len": 1000},
     ]
 
@@ -496,20 +542,24 @@ def _mutation_rate(ctx):
     return True, "honours the rate argument (0, 0.25 and 1)"
 
 
+_MUTATION = (
+    ("returns a 0/1 genome of the same length", _mutation_valid),
+    ("changes the genome", _mutation_changes),
+    ("default rate is 1/len", _mutation_default_rate),
+    # each bit flips on its own, with probability rate: the default rate's spread, then rates 0.25, 0 and 1
+    ("each bit flips independently with probability rate", all_of(_mutation_independent, _mutation_rate)),
+    ("deterministic for a seed", deterministic("basic")),
+    ("input unchanged", unmodified({0: "genome"}, COPY_ARRAY)),
+)
+
+
 register(Check(
     hints=HINTS.get("ga.point_mutation", ()),
     name="ga.point_mutation", function="point_mutation", params=("genome", "rng"), points=2.0,
     title="point mutation", output="array", cases=_mutation_cases, gates=2,
     reference=('coursekit.ga.operators:point_mutation',),
-    props=(
-        ("returns a 0/1 genome of the same length", _mutation_valid),
-        ("changes the genome", _mutation_changes),
-        ("default rate is 1/len", _mutation_default_rate),
-        ("bits flip independently", _mutation_independent),
-        ("honours rate", _mutation_rate),
-        ("deterministic for a seed", deterministic("basic")),
-        ("input unchanged", unmodified({0: "genome"}, COPY_ARRAY)),
-    ),
+    props=_MUTATION,
+    weights=point("each bit flips independently with probability rate", _MUTATION),  # one flip always, rate ignored
 ))
 
 

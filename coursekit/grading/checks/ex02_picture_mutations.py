@@ -11,9 +11,10 @@ import json
 
 from coursekit.grading.checks import Check, exercise, register
 from coursekit.grading.checks.picture_genomes import (
-    MAX_JSON, N_STAT, REPEATS, Bad, both_occur, changes, diff, distinct_pair, each, lib, obj, one_string, reaching_tail,
-    region, results, row_name, rows, valid)
-from coursekit.grading.checks.properties import NEW_GENOME, RNG, deterministic, seeds, unmodified
+    MAX_JSON, N_STAT, REPEAT_SEEDS, REPEATS, Bad, both_occur, changes, diff, distinct_pair, each, lib, obj, one_string,
+    reaching_tail, region, repeat_genomes, results, row_name, rows, valid)
+from coursekit.grading.checks.properties import (
+    NEW_GENOME, RNG, all_of, deterministic, point, repeated, seeds, unmodified)
 
 
 #: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
@@ -156,17 +157,35 @@ def _bare(tree):
     return tree
 
 
+def _decode_bare(ctx):
+    for cid in ctx.cases:
+        tree = _tree(ctx, cid)
+        if _bare(tree) != tree:
+            return False, (f"decode({ctx.case(cid)['symbols']}) gave {json.dumps(tree)}: a terminal is its bare name "
+                           "(\"x\"), not a list of one name ([\"x\"])")
+    return True, "every terminal is its bare name"
+
+
 def _decode_karva(ctx):
+    """The reading order, judged on the tree with terminals as bare names (how they are written is
+    :func:`_decode_bare`'s business)."""
     for cid in ctx.cases:
         syms = ctx.case(cid)["symbols"]
-        if _tree(ctx, cid) != karva(syms):
-            if _bare(_tree(ctx, cid)) == karva(syms):
-                return False, (f"decode({syms}) gave {json.dumps(_tree(ctx, cid))}: the reading order is right, but a "
-                               "terminal is its bare name (\"x\"), not a list of one name ([\"x\"])")
+        if _bare(_tree(ctx, cid)) != karva(syms):
             return False, (f"decode({syms}) gave {json.dumps(_tree(ctx, cid))}, which is not the breadth-first "
                            f"reading: the children of one level are the next chromosomes of the string, "
                            f"left to right, level after level")
     return True, f"reads breadth-first (Karva) on {len(ctx.cases)} strings, non-coding tails ignored"
+
+
+_DECODE = (
+    ("returns a nested-list tree", _decode_form),
+    ("builds a tree below the root", _decode_builds),
+    ("every node has its arity's children", _decode_arity),
+    ("the root is the first chromosome", _decode_root),
+    ("a terminal is its bare name", _decode_bare),
+    ("reads breadth-first (Karva)", _decode_karva),
+)
 
 
 register(Check(
@@ -175,13 +194,8 @@ register(Check(
     title="Karva decoding of a chromosome string", output="json", cases=_decode_cases, gates=2,
     reference=('coursekit.pictures.genome:karva', 'coursekit.grading.checks.ex02_picture_mutations:karva'),
     library_uses=('coursekit.pictures.genome:karva',),
-    props=(
-        ("returns a nested-list tree", _decode_form),
-        ("builds a tree below the root", _decode_builds),
-        ("every node has its arity's children", _decode_arity),
-        ("the root is the first chromosome", _decode_root),
-        ("reads breadth-first (Karva)", _decode_karva),
-    ),
+    props=_DECODE,
+    weights=point("reads breadth-first (Karva)", _DECODE),  # depth-first kept 83 % before
 ))
 
 
@@ -191,13 +205,14 @@ MUT_CASES = ("basic", "many", "single")
 
 
 def _mutation_cases(rng):
-    s = seeds(rng, 2 + N_STAT + N_STAT // 2)
-    g3, g5 = distinct_pair(rng, 3, 4)[0], distinct_pair(rng, 5, 3)[0]
+    s = seeds(rng, REPEAT_SEEDS + N_STAT + N_STAT // 2)
+    g6, g5 = repeat_genomes(rng)[0], distinct_pair(rng, 5, 3)[0]
     g1 = reaching_tail(lambda *a: distinct_pair(*a)[0], rng, 5)
+    r = REPEAT_SEEDS
     return [
-        {"id": "basic", "args": [obj(g3), RNG], "seeds": [s[0]] * REPEATS, "max_len": MAX_JSON},
-        {"id": "many", "args": [obj(g5), RNG], "seeds": s[2:2 + N_STAT], "max_len": MAX_JSON},
-        {"id": "single", "args": [obj(g1), RNG], "seeds": s[2 + N_STAT:], "max_len": MAX_JSON},
+        {"id": "basic", "args": [obj(g6), RNG], "seeds": repeated(s[:r], REPEATS), "max_len": MAX_JSON},
+        {"id": "many", "args": [obj(g5), RNG], "seeds": s[r:r + N_STAT], "max_len": MAX_JSON},
+        {"id": "single", "args": [obj(g1), RNG], "seeds": s[r + N_STAT:], "max_len": MAX_JSON},
     ]
 
 
@@ -269,26 +284,30 @@ def _same_region(parent, child):
     return None
 
 
+_TRANSPOSITION = (
+    ("returns a valid genome of the same shape", valid(MUT_CASES)),
+    ("changes the genome", changes(MUT_CASES)),
+    ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
+    # the point: what changes (never the root, both chromosomes in one region, an interchange or a clone), and
+    # that both outcomes occur
+    ("interchange or clone in one region, never the root", all_of(
+        each(MUT_CASES, _no_root, "the root of every string stays"),
+        each(MUT_CASES, _same_region, "both chromosomes lie in the head or both in the tail"),
+        each(MUT_CASES, _swap_or_clone(_transposition_kind, "an interchange of two of its chromosomes nor one replaced "
+                                       "by a clone of another"), "each result is an interchange or a clone"),
+        _swaps_and_clones(_transposition_kind, "transposition either interchanges the two chromosomes or replaces the "
+                                               "first by a clone of the second, and both should happen"))),
+    ("deterministic for a seed", deterministic("basic")),
+    ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
+)
+
 register(Check(
     hints=HINTS.get("pictures.transposition", ()),
     name="pictures.transposition", function="transposition", params=("genome", "rng"), points=2.0,
     title="transposition", output="json", cases=_mutation_cases, gates=2,
     reference=('coursekit.pictures.operators:transposition',),
-    props=(
-        ("returns a valid genome of the same shape", valid(MUT_CASES)),
-        ("changes the genome", changes(MUT_CASES)),
-        ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
-        ("never moves the root", each(MUT_CASES, _no_root, "the root of every string stays")),
-        ("both chromosomes in the same region", each(MUT_CASES, _same_region, "both chromosomes lie in the head or both in the tail")),
-        ("interchange or clone", each(MUT_CASES, _swap_or_clone(_transposition_kind, "an interchange of two of its "
-                                      "chromosomes nor one replaced by a clone of another"),
-                                      "each result is an interchange or a clone")),
-        ("both interchange and clone occur", _swaps_and_clones(
-            _transposition_kind, "transposition either interchanges the two chromosomes or replaces the first by a "
-                                 "clone of the second, and both should happen")),
-        ("deterministic for a seed", deterministic("basic")),
-        ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
-    ),
+    props=_TRANSPOSITION,
+    weights=point(_TRANSPOSITION[3][0], _TRANSPOSITION),  # the root moved, or never a clone: 80-90 % before
 ))
 
 
@@ -313,25 +332,28 @@ def _root_only(parent, child):
     return None
 
 
+_ROOT_TRANSPOSITION = (
+    ("returns a valid genome of the same shape", valid(MUT_CASES)),
+    ("changes the genome", changes(MUT_CASES)),
+    ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
+    # the point: the root and one head chromosome change, by an interchange or a clone, and both outcomes occur
+    ("the root interchanged with a head chromosome or cloned from one", all_of(
+        each(MUT_CASES, _root_only, "only the root and one head chromosome change"),
+        each(MUT_CASES, _swap_or_clone(_root_kind, "the root interchanged with another head chromosome nor the root "
+                                       "replaced by a clone of one"), "each result is an interchange or a clone"),
+        _swaps_and_clones(_root_kind, "the root is either interchanged with a second head chromosome or replaced by a "
+                                      "clone of it, and both should happen"))),
+    ("deterministic for a seed", deterministic("basic")),
+    ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
+)
+
 register(Check(
     hints=HINTS.get("pictures.root_transposition", ()),
     name="pictures.root_transposition", function="root_transposition", params=("genome", "rng"), points=2.0,
     title="root transposition", output="json", cases=_mutation_cases, gates=2,
     reference=('coursekit.pictures.operators:root_transposition',),
-    props=(
-        ("returns a valid genome of the same shape", valid(MUT_CASES)),
-        ("changes the genome", changes(MUT_CASES)),
-        ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
-        ("changes the root and one head chromosome", each(MUT_CASES, _root_only, "only the root and one head chromosome change")),
-        ("interchange or clone", each(MUT_CASES, _swap_or_clone(_root_kind, "the root interchanged with another head "
-                                      "chromosome nor the root replaced by a clone of one"),
-                                      "each result is an interchange or a clone")),
-        ("both interchange and clone occur", _swaps_and_clones(
-            _root_kind, "the root is either interchanged with a second head chromosome or replaced by a clone of it, "
-                        "and both should happen")),
-        ("deterministic for a seed", deterministic("basic")),
-        ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
-    ),
+    props=_ROOT_TRANSPOSITION,
+    weights=point(_ROOT_TRANSPOSITION[3][0], _ROOT_TRANSPOSITION),  # never a clone: 89 % before
 ))
 
 
@@ -343,20 +365,36 @@ def _at_most_one(parent, child):
     return None
 
 
+#: The substitution's cases: the mutations' and ``"ring"``, whose PreHeader is a fifth of the genome.
+SUB_CASES = MUT_CASES + ("ring",)
+
+
+def _substitution_cases(rng):
+    """The mutations' cases, and 4 strings of head 1 (tail 2) joined by a PreHeader of 3 (15 chromosomes),
+    called with :data:`N_STAT` seeds, so that a correct substitution reaches the PreHeader
+    (:func:`_substitution_anywhere`)."""
+    cases = _mutation_cases(rng)
+    cases.append({"id": "ring", "args": [obj(distinct_pair(rng, 4, 1)[0]), RNG], "seeds": seeds(rng, N_STAT),
+                  "max_len": MAX_JSON})
+    return cases
+
+
 def _substituted(ctx):
-    """``[(seed, key, position, head_length, new chromosome)]`` of every call that changed one chromosome."""
+    """``[(seed, key, position, head_length, the string's chromosomes before, new chromosome)]`` of every
+    call that changed one chromosome."""
     out = []
-    for cid in MUT_CASES:
+    for cid in SUB_CASES:
         for seed, parent, child in results(ctx, cid):
             d = diff(parent, child)
             if len(d) == 1 and len(d[0][1]) == 1:
                 k, [i] = d[0]
-                out.append((seed, k, i, rows(parent)[k][1], rows(child)[k][0][i]))
+                old, h = rows(parent)[k]
+                out.append((seed, k, i, h, old, rows(child)[k][0][i]))
     return out
 
 
 def _substitution_changes(ctx):
-    n = sum(len(ctx.out(cid)) for cid in MUT_CASES)
+    n = sum(len(ctx.out(cid)) for cid in SUB_CASES)
     changed = len(_substituted(ctx))
     if changed < n / 2:
         return False, (f"only {changed} of {n} calls changed a chromosome; substitution replaces one by a new "
@@ -367,7 +405,7 @@ def _substitution_changes(ctx):
 def _substitution_random(ctx):
     _, P = lib()
     subs = _substituted(ctx)
-    for seed, k, i, h, c in subs:
+    for seed, k, i, h, _, c in subs:
         for spec, v in zip(P.get(c.symbol).params, c.params):
             if not spec.low <= v <= spec.high:
                 return False, (f"with rng seed {seed} the new chromosome {c.label()} has {spec.name} = {v:g}, outside "
@@ -379,30 +417,78 @@ def _substitution_random(ctx):
     return True, f"new chromosomes are random ({len(symbols)} primitives, parameters in range)"
 
 
-def _substitution_anywhere(ctx):
+def _substitution_fresh(ctx):
+    """Not a copy strategy: a new chromosome equal to another one of its string in fewer than half the
+    ~160 substitutions. The case strings hold no chromosome twice, and a random chromosome with
+    parameters never equals one of them; a parameterless one (x, plus, sin ...) does when its
+    primitive is drawn again: in 6.5 % of the calls on average, at most 14 % in one grading (the
+    library's and the solution's substitution, 100 gradings each), and never with probability above
+    1/3 in one call (a tail holding all five parameterless terminals). Half or more is then below
+    exp(-2 * 160 * 0.35^2) < 1e-16 (Hoeffding, at a mean of 15 %). Copying another chromosome of the
+    string (a transposition's clone) does it every time."""
     subs = _substituted(ctx)
-    regions = {region(k, i, h) for _, k, i, h, _ in subs}
+    copies = [(seed, k, i, c) for seed, k, i, _, old, c in subs if any(c == x for j, x in enumerate(old) if j != i)]
+    if len(copies) >= len(subs) / 2:
+        seed, k, i, c = copies[0]
+        return False, (f"in {len(copies)} of {len(subs)} substitutions the new chromosome equals another chromosome of "
+                       f"the same string (with rng seed {seed}: {c.label()} at position {i} of {row_name(k)}); the new "
+                       f"chromosome is randomly generated, and a random one repeats one already in the string only "
+                       f"now and then")
+    return True, f"{len(subs) - len(copies)} of {len(subs)} new chromosomes differ from every chromosome of their string"
+
+
+def _substitution_functions(ctx):
+    """A head position may receive a function: a correct substitution draws one at 75 % (library) or ~69 %
+    (uniform over the primitives) of the head positions it replaces, about 70 of them per grading, so
+    none in 15 or more happens with probability below 0.31^15 < 3e-8."""
+    _, P = lib()
+    heads = [c for _, k, i, h, _, c in _substituted(ctx) if region(k, i, h) == "head"]
+    if len(heads) >= 15 and not any(P.arity(c.symbol) for c in heads):
+        return False, (f"over {len(heads)} substitutions at head positions the new chromosome was a terminal every "
+                       f"time; a head position may receive any primitive, a function as well as a terminal")
+    functions = sum(P.arity(c.symbol) > 0 for c in heads)
+    return True, f"head positions received functions ({functions} of {len(heads)}) and terminals"
+
+
+def _substitution_anywhere(ctx):
+    """Head and tail positions of several strings, and the PreHeader (a string, all head, in the
+    exercise's text). Picking the string uniformly (as coursekit's own does, among those that code), a
+    correct substitution misses the PreHeader in every call with probability (6/7)^3 (basic: 3 seeds,
+    7 strings) x (5/6)^60 (many) x (4/5)^60 (ring) = 1.7e-11; picking a chromosome uniformly over the
+    genome, (66/71)^3 x (35/39)^60 x (12/15)^60 = 1.9e-9 (60 calls of "many" alone: 1.5e-3, one
+    grading in ~650)."""
+    subs = _substituted(ctx)
+    regions = {region(k, i, h) for _, k, i, h, *_ in subs}
     strings = {k for _, k, *_ in subs}
     if regions != {"head", "tail"} or len(strings) < 2:
         return False, (f"over {len(subs)} substitutions the replaced chromosomes were in {' and '.join(sorted(regions)) or 'no region'} "
                        f"of {len(strings)} string(s); any chromosome of a randomly chosen string may be replaced")
-    return True, f"replaces chromosomes in head and tail of {len(strings)} different strings"
+    if "pre" not in strings:
+        return False, (f"over {len(subs)} substitutions none replaced a chromosome of the PreHeader; the PreHeader "
+                       f"counts as a string (all head), and any chromosome of a randomly chosen string may be replaced")
+    return True, f"replaces chromosomes in head and tail of {len(strings)} different strings, the PreHeader too"
 
+
+_SUBSTITUTION = (
+    ("returns a valid genome of the same shape", valid(SUB_CASES)),
+    ("changes a chromosome", _substitution_changes),
+    ("changes at most one chromosome", each(SUB_CASES, _at_most_one, "at most one chromosome changes")),
+    # the point: a random new chromosome (not one of the string's), valid for its place (functions at head
+    # positions too), at any position of any string
+    ("any chromosome replaced by a random one for its place", all_of(
+        _substitution_random, _substitution_fresh, _substitution_functions, _substitution_anywhere)),
+    ("deterministic for a seed", deterministic("basic")),
+    ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
+)
 
 register(Check(
     hints=HINTS.get("pictures.substitution", ()),
     name="pictures.substitution", function="substitution", params=("genome", "rng"), points=2.0,
-    title="substitution", output="json", cases=_mutation_cases, gates=2,
+    title="substitution", output="json", cases=_substitution_cases, gates=2,
     reference=('coursekit.pictures.operators:substitution',),
-    props=(
-        ("returns a valid genome of the same shape", valid(MUT_CASES)),
-        ("changes a chromosome", _substitution_changes),
-        ("changes at most one chromosome", each(MUT_CASES, _at_most_one, "at most one chromosome changes")),
-        ("the new chromosome is random", _substitution_random),
-        ("any position can be replaced", _substitution_anywhere),
-        ("deterministic for a seed", deterministic("basic")),
-        ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
-    ),
+    props=_SUBSTITUTION,
+    # a copy of the string's chromosomes, terminals only, never the PreHeader: 100 % before
+    weights=point(_SUBSTITUTION[3][0], _SUBSTITUTION),
 ))
 
 
@@ -443,20 +529,25 @@ def _rotation_varies(ctx):
     return True, f"rotates heads and tails by {len(steps)} different step counts"
 
 
+_ROTATION = (
+    ("returns a valid genome of the same shape", valid(MUT_CASES)),
+    ("changes the genome", changes(MUT_CASES)),
+    ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
+    # the point: each result shifts one region cyclically, and heads and tails are rotated by several step counts
+    ("the head or the tail shifted cyclically, several steps", all_of(
+        each(MUT_CASES, _rotation_shift, "each result rotates the head or the tail of one string"),
+        _rotation_varies)),
+    ("deterministic for a seed", deterministic("basic")),
+    ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
+)
+
 register(Check(
     hints=HINTS.get("pictures.head_tail_rotation", ()),
     name="pictures.head_tail_rotation", function="head_tail_rotation", params=("genome", "rng"), points=2.0,
     title="head/tail rotation", output="json", cases=_mutation_cases, gates=2,
     reference=('coursekit.pictures.operators:head_tail_rotation',),
-    props=(
-        ("returns a valid genome of the same shape", valid(MUT_CASES)),
-        ("changes the genome", changes(MUT_CASES)),
-        ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
-        ("a cyclic shift of exactly one region", each(MUT_CASES, _rotation_shift, "each result rotates the head or the tail of one string")),
-        ("head and tail, several steps", _rotation_varies),
-        ("deterministic for a seed", deterministic("basic")),
-        ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
-    ),
+    props=_ROTATION,
+    weights=point(_ROTATION[3][0], _ROTATION),  # both regions rotated, or the head only: 75-88 % before
 ))
 
 exercise("02_picture_mutations", ["pictures.decode", "pictures.transposition", "pictures.root_transposition",

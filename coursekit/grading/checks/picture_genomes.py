@@ -8,17 +8,23 @@ section 3.3.2 (crossover, random copy, random interpolation), with the exact sig
 
 Statistical properties and their false-failure rates for a correct operator (every case
 genome and seed comes from the grader's generator): "both outcomes occur" (interchange and
-clone, head and tail) over 60-92 calls misses an outcome of probability >= 0.3 with
-probability below 1e-8; "changes a chromosome" / "blends a pair" need half of the calls to
-change something where a correct operator changes more than 90 %; "random" properties ask for
-variety (8 of the 42 primitives over ~90 substitutions, 3 cut positions, u on both sides of
-1/2) that a uniform random choice misses with probability far below 1e-8.
+clone, head and tail) over 90-100 calls with different seeds misses an outcome of probability
+>= 0.3 with probability below 1e-8; "changes a chromosome" / "blends a pair" need half of the
+calls to change something where a correct operator changes more than 90 %; "random" properties
+ask for variety (8 of the 42 primitives over ~160 substitutions, 3 cut positions, u on both
+sides of 1/2) that a uniform random choice misses with probability far below 1e-8; a
+substitution must reach the PreHeader, functions at head positions and mostly new chromosomes
+(the rates are worked out where they are judged, :mod:`.ex02_picture_mutations`).
 
 Each check's second property is its *job*, a gate (see :class:`~coursekit.grading.checks.Check`):
 decoding builds a tree below a function root, a mutation changes the genome in at least half of
 the calls, a recombination's children hold material of both parents in at least half of the
 calls (correct operators: every call), interpolation blends a pair. Until it holds nothing else
-is judged, so identity mutations, ``return a, b`` and deep copies score 0.
+is judged, so identity mutations, ``return a, b`` and deep copies score 0. One later property is
+its *point* (:func:`~coursekit.grading.checks.properties.point`): the operator's definition with
+the random choices it names (Karva's reading order; an interchange or a clone, both occurring;
+complementary children of one random cut; one random u for both children ...). It weighs half
+the points, so an answer that gets the definition wrong keeps at most half of them.
 
 Genomes travel as JSON text (``Genome.to_json``) and come back as JSON text; every property
 parses them with the grader's own import of the library and judges plain data. Properties are
@@ -194,10 +200,22 @@ def valid(cids, pair=False):
     return prop
 
 
-#: Calls with one seed for the determinism property: an operator that ignores its rng (global
-#: random state) repeats a result by chance with probability p per pair; with a few dozen
-#: possible outcomes p ~ 1/60, so 4 equal results pass it with probability ~ p^3 < 1e-5.
+#: The determinism case (``"basic"``): :data:`REPEAT_SEEDS` seeds, each :data:`REPEATS` times in
+#: a row, on a genome from :func:`repeat_genomes`. An operator that draws a choice from a global
+#: generator (``np.random``) repeats its result for one seed by chance only where that choice has
+#: few outcomes: a cut of a 2-long PreHeader or a rotation of 2 chromosomes has one, so an
+#: operator that picked the string with ``rng`` and the cut with ``np.random`` passed whenever
+#: ``rng`` chose that string (honest-student study, seeds 11 and 13). On the repeat genome every
+#: head, tail and PreHeader has 5 or more positions, so every such choice has at least 4 outcomes
+#: (a shift, a cut, a second head chromosome ...), and 3 seeds x 4 calls pass with probability at
+#: most 4^-9 < 4e-6 (a global coin alone, 2 outcomes: 2^-9).
 REPEATS = 4
+REPEAT_SEEDS = 3
+
+
+def repeat_genomes(rng):
+    """Two genomes of 6 strings of head 5 (tail 6) and a PreHeader of 5 (:func:`distinct_pair`)."""
+    return distinct_pair(rng, 6, 5)
 
 
 def each(cids, judge_one, ok_message):

@@ -7,6 +7,10 @@ the calls it sent (outputs, and every argument as it was after the call): determ
 the outputs of separate calls that got the same seed, and "inputs unchanged" looks at *every*
 call of *every* case that ran, so a function cannot keep its side effects to the cases it
 guesses are not looked at.
+
+:func:`point` gives a check's weights so that the property that is the operator's definition
+weighs half its points, and :func:`all_of` judges a definition of several parts as that one
+property (exercises 01-03).
 """
 
 from __future__ import annotations
@@ -58,16 +62,65 @@ def array(values, dtype: str = "float64") -> dict:
     return {"ndarray": np.asarray(values, dtype=dtype).tolist(), "dtype": dtype}
 
 
+def repeated(seeds_: list, times: int) -> list:
+    """Each of ``seeds_`` ``times`` times in a row: the seeds of a case that judges determinism."""
+    return [s for s in seeds_ for _ in range(times)]
+
+
 def deterministic(cid: str, parse=None):
-    """The calls of case ``cid`` (all with one seed) gave equal results; ``parse`` reads JSON outputs."""
+    """The calls of case ``cid`` that got the same seed gave equal results; ``parse`` reads JSON outputs.
+
+    A case that judges it repeats several seeds (:func:`repeated`): a function that draws part of
+    its choices from a global generator and part from ``rng`` can land, for one seed, on a choice
+    with a single possible outcome (a cut of a 2-long string, a rotation of 2 chromosomes), and
+    several seeds make that unlikely; its inputs should leave every random choice several outcomes.
+    """
     def prop(ctx):
         outs = [parse(o) if parse else o for o in ctx.out(cid)]
-        if all(o == outs[0] for o in outs[1:]):
-            return True, "same seed, same result"
-        return False, ("two calls with the same seed gave different results; draw every random number from the rng "
-                       "argument (no np.random.* or random.*)")
+        first = {}
+        for seed, out in zip(ctx.case(cid)["seeds"], outs):
+            if first.setdefault(seed, out) != out:
+                return False, ("two calls with the same seed gave different results; draw every random number from "
+                               "the rng argument (no np.random.* or random.*)")
+        return True, "same seed, same result"
 
     return prop
+
+
+def all_of(*props):
+    """A property that holds when every one of ``props`` holds, judged in order; it fails with the first
+    failure's message (the parts of an operator's definition, judged as its one point)."""
+    def prop(ctx):
+        found = []
+        for part in props:
+            ok, message = part(ctx)
+            if not ok:
+                return False, message
+            found.append(message)
+        return True, "; ".join(found)
+
+    return prop
+
+
+def point(prop: str, props, weights=()) -> tuple:
+    """The ``weights`` of a check whose property ``prop`` is the operator's *point*: its definition.
+
+    The point weighs as much as all the other verdicts together ("runs" included), so an answer
+    that gets the definition wrong keeps at most half the points however many details it gets
+    right, and one that gets it right keeps at least half. Where the definition has several
+    parts (interchange *or* clone, both drawn at random; one shared u for both children), the
+    point judges them all and names the first that fails. Used by every check of exercises 01-03.
+
+    Args:
+        prop: the point's name, one of ``props``.
+        props: the check's ``(name, fn)`` properties.
+        weights: the other properties' weights where they count more than 1.
+    """
+    names = [p for p, _ in props]
+    if prop not in names:
+        raise ValueError(f"point: {prop!r} is not one of the properties {names}")
+    w = dict(weights)
+    return tuple(weights) + ((prop, 1 + sum(w.get(p, 1) for p in names if p != prop)),)
 
 
 def unmodified(names: dict, advice: str, what: str = "the {name} argument", cids=None):
