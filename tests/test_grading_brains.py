@@ -112,6 +112,69 @@ def test_segments_in_step_or_no_wiring_score_zero(wire, says):
     assert says in next(x.message for x in j.verdicts if x.prop == "the snake swims")
 
 
+def _chain(step, legs="brain"):
+    """The exercise's wiring with phase step ``step``; legs on the brain's oscillator or the parent segment's."""
+    def wire_snake(snake):
+        wired = SOL["wire_snake"](snake)
+        wired.nodes[0].neurons[0].inputs[1].weight = step
+        if legs == "parent":
+            wired.brain = []
+            wired.nodes[1].effectors = [Input(-1, N_SENSORS + 1, 1.0)]
+        return wired
+    return wire_snake
+
+
+def _drives(wirings):
+    """The 4-segment snake of each wiring swum in one batch: its spine's drive (what the grader judges)."""
+    from coursekit.grading.checks import ex06_wire_a_brain as ex
+
+    texts = tuple(w(ex.unwired_snake(4)).to_json() for w in wirings)
+    return [m["drive"] for m in ex.swim(texts)]
+
+
+SWEEP = [round(s, 2) for s in np.r_[np.arange(-3.1, -0.29, 0.2), np.arange(0.3, 3.11, 0.2), [-3.0, -0.5]]]
+
+
+def test_every_phase_step_of_the_sweep_is_a_wave_and_in_step_or_opposition_is_not():
+    """s25 false failure: the wave was judged on the joints' motion, which the water shifts (a step
+    of -3.0 rad, the fastest swimmer, measured [-3.07, 2.9]; -0.5 measured [-3.12, 1.3], no steady step
+    at all; in phase measured [-3.04, 2.84]). Judged on what the wiring sends the muscles, every step
+    from -3.1 to -0.3 and from +0.3 to +3.1 is a wave, both ways; in step, exact opposition and
+    alternating steps are not."""
+    from coursekit.grading.checks.ex06_wire_a_brain import _wave_fault
+
+    alternate = _wire(alternate=True)
+    wirings = [_chain(s) for s in SWEEP] + [_chain(-0.5, legs="parent"), _chain(0.0), _chain(0.1), _chain(np.pi),
+                                            _chain(-np.pi), alternate]
+    faults = [_wave_fault(d)[0] for d in _drives(wirings)]
+    assert faults[:len(SWEEP) + 1] == [None] * (len(SWEEP) + 1), list(zip(SWEEP, faults))
+    assert faults[len(SWEEP) + 1:] == ["neighbours beat in step"] * 2 + ["neighbours beat in exact opposition, a standing wave"] * 2 \
+        + ["the phase differences of neighbours are not one steady step"], faults
+
+
+def test_random_phases_are_no_wave():
+    """Drives of 3 joints at one rhythm with random phases: a steady step only by chance (two lags within
+    0.5 rad of each other, about one draw in seven), while a steady step of any size is one."""
+    from coursekit.grading.checks.ex06_wire_a_brain import SECONDS, _wave_fault
+
+    rng = np.random.default_rng(0)
+    t = np.arange(int(SECONDS * 60)) / 60
+    waves = 0
+    for _ in range(400):
+        phases = rng.uniform(-np.pi, np.pi, 3)
+        waves += _wave_fault(np.sin(2 * np.pi * 3.0 * t[:, None] + phases[None, :]))[0] is None
+    assert waves < 400 * 0.2, waves
+    steady = np.sin(2 * np.pi * 3.0 * t[:, None] - 1.2 * np.arange(3)[None, :])
+    assert _wave_fault(steady)[0] is None and _wave_fault(np.zeros((len(t), 3)))[0] == "some spine joints get no oscillating signal"
+
+
+@pytest.mark.parametrize("wire", [_chain(-3.0), _chain(-0.5, legs="parent"), _chain(1.5)],
+                         ids=["step -3.0", "step -0.5, legs on the parent", "step +1.5"])
+def test_the_sweeps_swimmers_get_full_marks(wire):
+    j, v = verdicts("brains.wire_snake", wire)
+    assert j.passed and j.score == get("brains.wire_snake").points, [(x.prop, x.message) for x in j.verdicts if not x.passed]
+
+
 def test_a_changed_body_scores_zero():
     def bigger(snake):
         w = SOL["wire_snake"](snake)
