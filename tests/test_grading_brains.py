@@ -58,21 +58,49 @@ def _resolve_wrong(kind):
     return resolve
 
 
+def _resolve_index_error(morph, part, parent, children):
+    """No guard for a missing child: children[part][morph - 1] raises IndexError (a student's walk)."""
+    if morph >= 1:
+        return children[part][morph - 1]
+    return SOL["resolve"](morph, part, parent, children)
+
+
 @pytest.mark.parametrize("kind, prop", [
     ("self_as_none", "0 names the part's own network"),
     ("brain_as_root", "-2 names the brain"),
     ("missing_child_clamped", "a missing child reads nothing"),
+    ("root_parent_minus_one", "the root's parent reads nothing"),
+    ("zero_based", "m >= 1 names child m"),
 ])
 def test_one_wrong_rule_fails_exactly_its_property(kind, prop):
+    """One wrong rule of the table costs its share, not the check (s25: a root answering -1 and an
+    off-by-one child scored 0/3 through a gate)."""
     j, v = verdicts("brains.resolve", _resolve_wrong(kind))
     assert [p for p, ok in v.items() if not ok] == [prop] and 0 < j.score < get("brains.resolve").points
 
 
-def test_an_index_outside_the_tree_fails_validity_and_a_zero_based_child_fails_the_job():
-    j, v = verdicts("brains.resolve", _resolve_wrong("root_parent_minus_one"))
+def test_a_wrong_rule_of_the_core_costs_more_than_an_edge_case():
+    edge = verdicts("brains.resolve", _resolve_wrong("root_parent_minus_one"))[0].score
+    core = verdicts("brains.resolve", _resolve_wrong("zero_based"))[0].score
+    assert 0.6 * get("brains.resolve").points < core < edge < get("brains.resolve").points
+
+
+def test_an_index_error_on_a_missing_child_keeps_the_rules_that_ran():
+    j, v = verdicts("brains.resolve", _resolve_index_error)
+    assert [p for p, ok in v.items() if not ok] == ["runs", "a missing child reads nothing"], v
+    assert 0.6 * get("brains.resolve").points < j.score < get("brains.resolve").points
+
+
+@pytest.mark.parametrize("answer", [lambda m, p, parent, children: None, lambda m, p, parent, children: p])
+def test_an_answer_that_names_no_relative_scores_zero(answer):
+    """The job gate: neither the parent nor the children named (a constant, the part itself)."""
+    j, v = verdicts("brains.resolve", answer)
+    assert not v["ids name relatives in the tree"] and j.score == 0
+
+
+def test_an_answer_that_is_not_an_index_fails_validity():
+    j, v = verdicts("brains.resolve", lambda m, p, parent, children: float(p))
     assert not v["returns a part index, 'brain' or None"] and j.score == 0
-    j, v = verdicts("brains.resolve", _resolve_wrong("zero_based"))
-    assert v["returns a part index, 'brain' or None"] and not v["parent and child ids follow the tree"] and j.score == 0
 
 
 def _wire(phase=-1.5, legs=True, only_segments=None, in_place=False, alternate=False):

@@ -10,7 +10,10 @@ has students resolve relative ids themselves and then wire the Figure 1 snake so
   the part index, ``"brain"`` for ``-2``, or ``None`` where the instance has no such relative (it
   reads 0). The trees are expansions of the library's random creatures and of the snake; the
   expected answers follow the four rules of the lesson's table, computed here. The job, a gate:
-  parent and child ids name the parent and the children (a constant answer scores 0).
+  -1 names the parent or m >= 1 names the children (a constant answer scores 0). Then each rule
+  of the table is a property of its own (parent and children count double), so one wrong rule --
+  the root's parent as -1, an off-by-one child, an IndexError on a missing child -- costs its
+  share, not the check.
 - ``brains.wire_snake(snake)``: the snake's body without networks in, the same body with
   neurons and effectors out. The grader swims the result in its own process
   (:func:`~coursekit.creatures.simulate.simulate`, :data:`SECONDS` s) for 3, 4 and 5
@@ -35,7 +38,7 @@ import json
 
 import numpy as np
 
-from coursekit.grading.checks import Check, exercise, register
+from coursekit.grading.checks import Check, NotRun, exercise, register
 
 CREATURE = "coursekit.creatures.genotype:Creature"
 SECONDS = 4.0  #: swim time of the wired snakes (after the simulator's settling)
@@ -121,17 +124,23 @@ def _describe(value):
     return "None" if value is None else repr(value)
 
 
+def _ran(ctx):
+    return [c for c in ctx.cases if (ctx.records.get(c) or {}).get("status") == "ok"]
+
+
 def _resolve_valid(ctx):
-    for cid in ctx.cases:
-        got, n = _answer(ctx, cid), len(ctx.arg(cid, 2))
-        ok = got is None or got == "brain" or (type(got) is int and 0 <= got < n)
-        if not ok:
-            return False, (f"{_where(ctx, cid)} returned {got!r}; expected a part index 0..{n - 1}, the string "
-                           "'brain', or None")
+    ran = _ran(ctx)
+    if not ran:
+        return False, "not checked: no test input ran"
+    for cid in ran:
+        got = _answer(ctx, cid)
+        if not (got is None or got == "brain" or type(got) is int):
+            return False, (f"{_where(ctx, cid)} returned {got!r}; expected a part index (an int), the string 'brain', "
+                           "or None")
     return True, "every answer is a part index, 'brain' or None"
 
 
-def _resolve_group(prefixes, title, meaning, gate=False):
+def _resolve_group(prefixes, title, meaning):
     def prop(ctx):
         cids = [c for c in ctx.cases if c.startswith(prefixes)]
         for cid in cids:
@@ -141,17 +150,30 @@ def _resolve_group(prefixes, title, meaning, gate=False):
             got = _answer(ctx, cid)
             if got != want:
                 return False, (f"{_where(ctx, cid)} on a tree where part {part} has parent {parent[part]} and children "
-                               f"{children[part]} returned {_describe(got)}; {meaning(morph)}"
-                               + (". Nothing else is judged until it does" if gate else ""))
+                               f"{children[part]} returned {_describe(got)}; {meaning(morph)}")
         return True, f"{title} on {len(cids)} test inputs"
 
     return prop
 
 
-def _job_meaning(morph):
-    if morph == -1:
-        return "-1 names the parent part's network"
-    return f"{morph} names child number {morph} of this part (1 is the first child in the list)"
+_PARENT = _resolve_group(("parent",), "-1 names the parent", lambda m: "-1 names the parent part's network")
+_CHILD = _resolve_group(("child",), "m >= 1 names child m",
+                        lambda m: f"{m} names child number {m} of this part (1 is the first child in the list)")
+
+
+def _resolve_job(ctx):
+    """The gate: the answers follow the tree at all (the parent or the children are named); a constant answer
+    (None, the part itself) names neither."""
+    results = []
+    for rule in (_PARENT, _CHILD):
+        try:
+            results.append(rule(ctx))
+        except NotRun:
+            results.append((False, ""))
+    if any(ok for ok, _ in results):
+        return True, "relative ids name relatives in the tree"
+    return False, (f"{results[0][1] or results[1][1] or 'the parent and child ids did not run'}. Neither -1 (the parent) "
+                   "nor m >= 1 (the children) names the right part, so nothing else is judged until one of them does")
 
 
 register(Check(
@@ -163,8 +185,9 @@ register(Check(
     library_uses=("coursekit.creatures.brain:build_brain",),
     props=(
         ("returns a part index, 'brain' or None", _resolve_valid),
-        ("parent and child ids follow the tree", _resolve_group(("parent", "child"), "-1 and m >= 1 name the parent and the children",
-                                                                _job_meaning, gate=True)),
+        ("ids name relatives in the tree", _resolve_job),
+        ("-1 names the parent", _PARENT),
+        ("m >= 1 names child m", _CHILD),
         ("0 names the part's own network", _resolve_group(("self",), "0 names the part itself",
                                                           lambda m: "0 names the part's own network")),
         ("-2 names the brain", _resolve_group(("brain",), "-2 names 'brain'", lambda m: "-2 names the brain, 'brain'")),
@@ -173,6 +196,10 @@ register(Check(
         ("a missing child reads nothing", _resolve_group(("missing",), "children a part lacks are None",
                                                           lambda m: f"this part has no child number {m}: the id reads nothing (None)")),
     ),
+    # one wrong rule of the table costs its share, not the whole check; parent and children are the
+    # core of relative ids and count double (honest-student study s25: a root answering -1, an
+    # off-by-one child or an IndexError on a missing child scored 0/3)
+    weights=(("-1 names the parent", 2), ("m >= 1 names child m", 2)),
 ))
 
 
