@@ -96,6 +96,7 @@ def test_an_answer_that_names_no_relative_scores_zero(answer):
     """The job gate: neither the parent nor the children named (a constant, the part itself)."""
     j, v = verdicts("brains.resolve", answer)
     assert not v["ids name relatives in the tree"] and j.score == 0
+    assert "Nothing else is judged" in next(x.message for x in j.verdicts if x.prop == "ids name relatives in the tree")
 
 
 def test_an_answer_that_is_not_an_index_fails_validity():

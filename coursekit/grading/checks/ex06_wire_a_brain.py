@@ -173,7 +173,7 @@ def _resolve_job(ctx):
     if any(ok for ok, _ in results):
         return True, "relative ids name relatives in the tree"
     return False, (f"{results[0][1] or results[1][1] or 'the parent and child ids did not run'}. Neither -1 (the parent) "
-                   "nor m >= 1 (the children) names the right part, so nothing else is judged until one of them does")
+                   "nor m >= 1 (the children) names the right part. Nothing else is judged until one of them does")
 
 
 register(Check(
