@@ -58,21 +58,50 @@ def _resolve_wrong(kind):
     return resolve
 
 
+def _resolve_index_error(morph, part, parent, children):
+    """No guard for a missing child: children[part][morph - 1] raises IndexError (a student's walk)."""
+    if morph >= 1:
+        return children[part][morph - 1]
+    return SOL["resolve"](morph, part, parent, children)
+
+
 @pytest.mark.parametrize("kind, prop", [
     ("self_as_none", "0 names the part's own network"),
     ("brain_as_root", "-2 names the brain"),
     ("missing_child_clamped", "a missing child reads nothing"),
+    ("root_parent_minus_one", "the root's parent reads nothing"),
+    ("zero_based", "m >= 1 names child m"),
 ])
 def test_one_wrong_rule_fails_exactly_its_property(kind, prop):
+    """One wrong rule of the table costs its share, not the check (s25: a root answering -1 and an
+    off-by-one child scored 0/3 through a gate)."""
     j, v = verdicts("brains.resolve", _resolve_wrong(kind))
     assert [p for p, ok in v.items() if not ok] == [prop] and 0 < j.score < get("brains.resolve").points
 
 
-def test_an_index_outside_the_tree_fails_validity_and_a_zero_based_child_fails_the_job():
-    j, v = verdicts("brains.resolve", _resolve_wrong("root_parent_minus_one"))
+def test_a_wrong_rule_of_the_core_costs_more_than_an_edge_case():
+    edge = verdicts("brains.resolve", _resolve_wrong("root_parent_minus_one"))[0].score
+    core = verdicts("brains.resolve", _resolve_wrong("zero_based"))[0].score
+    assert 0.6 * get("brains.resolve").points < core < edge < get("brains.resolve").points
+
+
+def test_an_index_error_on_a_missing_child_keeps_the_rules_that_ran():
+    j, v = verdicts("brains.resolve", _resolve_index_error)
+    assert [p for p, ok in v.items() if not ok] == ["runs", "a missing child reads nothing"], v
+    assert 0.6 * get("brains.resolve").points < j.score < get("brains.resolve").points
+
+
+@pytest.mark.parametrize("answer", [lambda m, p, parent, children: None, lambda m, p, parent, children: p])
+def test_an_answer_that_names_no_relative_scores_zero(answer):
+    """The job gate: neither the parent nor the children named (a constant, the part itself)."""
+    j, v = verdicts("brains.resolve", answer)
+    assert not v["ids name relatives in the tree"] and j.score == 0
+    assert "Nothing else is judged" in next(x.message for x in j.verdicts if x.prop == "ids name relatives in the tree")
+
+
+def test_an_answer_that_is_not_an_index_fails_validity():
+    j, v = verdicts("brains.resolve", lambda m, p, parent, children: float(p))
     assert not v["returns a part index, 'brain' or None"] and j.score == 0
-    j, v = verdicts("brains.resolve", _resolve_wrong("zero_based"))
-    assert v["returns a part index, 'brain' or None"] and not v["parent and child ids follow the tree"] and j.score == 0
 
 
 def _wire(phase=-1.5, legs=True, only_segments=None, in_place=False, alternate=False):
@@ -110,6 +139,69 @@ def test_segments_in_step_or_no_wiring_score_zero(wire, says):
     j, v = verdicts("brains.wire_snake", wire)
     assert j.score == 0.0
     assert says in next(x.message for x in j.verdicts if x.prop == "the snake swims")
+
+
+def _chain(step, legs="brain"):
+    """The exercise's wiring with phase step ``step``; legs on the brain's oscillator or the parent segment's."""
+    def wire_snake(snake):
+        wired = SOL["wire_snake"](snake)
+        wired.nodes[0].neurons[0].inputs[1].weight = step
+        if legs == "parent":
+            wired.brain = []
+            wired.nodes[1].effectors = [Input(-1, N_SENSORS + 1, 1.0)]
+        return wired
+    return wire_snake
+
+
+def _drives(wirings):
+    """The 4-segment snake of each wiring swum in one batch: its spine's drive (what the grader judges)."""
+    from coursekit.grading.checks import ex06_wire_a_brain as ex
+
+    texts = tuple(w(ex.unwired_snake(4)).to_json() for w in wirings)
+    return [m["drive"] for m in ex.swim(texts)]
+
+
+SWEEP = [round(s, 2) for s in np.r_[np.arange(-3.1, -0.29, 0.2), np.arange(0.3, 3.11, 0.2), [-3.0, -0.5]]]
+
+
+def test_every_phase_step_of_the_sweep_is_a_wave_and_in_step_or_opposition_is_not():
+    """s25 false failure: the wave was judged on the joints' motion, which the water shifts (a step
+    of -3.0 rad, the fastest swimmer, measured [-3.07, 2.9]; -0.5 measured [-3.12, 1.3], no steady step
+    at all; in phase measured [-3.04, 2.84]). Judged on what the wiring sends the muscles, every step
+    from -3.1 to -0.3 and from +0.3 to +3.1 is a wave, both ways; in step, exact opposition and
+    alternating steps are not."""
+    from coursekit.grading.checks.ex06_wire_a_brain import _wave_fault
+
+    alternate = _wire(alternate=True)
+    wirings = [_chain(s) for s in SWEEP] + [_chain(-0.5, legs="parent"), _chain(0.0), _chain(0.1), _chain(np.pi),
+                                            _chain(-np.pi), alternate]
+    faults = [_wave_fault(d)[0] for d in _drives(wirings)]
+    assert faults[:len(SWEEP) + 1] == [None] * (len(SWEEP) + 1), list(zip(SWEEP, faults))
+    assert faults[len(SWEEP) + 1:] == ["neighbours beat in step"] * 2 + ["neighbours beat in exact opposition, a standing wave"] * 2 \
+        + ["the phase differences of neighbours are not one steady step"], faults
+
+
+def test_random_phases_are_no_wave():
+    """Drives of 3 joints at one rhythm with random phases: a steady step only by chance (two lags within
+    0.5 rad of each other, about one draw in seven), while a steady step of any size is one."""
+    from coursekit.grading.checks.ex06_wire_a_brain import SECONDS, _wave_fault
+
+    rng = np.random.default_rng(0)
+    t = np.arange(int(SECONDS * 60)) / 60
+    waves = 0
+    for _ in range(400):
+        phases = rng.uniform(-np.pi, np.pi, 3)
+        waves += _wave_fault(np.sin(2 * np.pi * 3.0 * t[:, None] + phases[None, :]))[0] is None
+    assert waves < 400 * 0.2, waves
+    steady = np.sin(2 * np.pi * 3.0 * t[:, None] - 1.2 * np.arange(3)[None, :])
+    assert _wave_fault(steady)[0] is None and _wave_fault(np.zeros((len(t), 3)))[0] == "some spine joints get no oscillating signal"
+
+
+@pytest.mark.parametrize("wire", [_chain(-3.0), _chain(-0.5, legs="parent"), _chain(1.5)],
+                         ids=["step -3.0", "step -0.5, legs on the parent", "step +1.5"])
+def test_the_sweeps_swimmers_get_full_marks(wire):
+    j, v = verdicts("brains.wire_snake", wire)
+    assert j.passed and j.score == get("brains.wire_snake").points, [(x.prop, x.message) for x in j.verdicts if not x.passed]
 
 
 def test_a_changed_body_scores_zero():

@@ -275,6 +275,13 @@ def make_mutate(*, scale_by_size=True, use_rate=True, steps=None, deepcopy=True,
     return mutate
 
 
+def mutate_size_anywhere(node, rng):
+    """Step 2 with a random size from SIZES, not a neighbouring one (a student's walk, s25: not checked)."""
+    size = list(node.size)
+    size[int(rng.integers(3))] = SOL["pick"](rng, SOL["SIZES"])
+    node.size = tuple(size)
+
+
 def link_scale_off_list(c, rng, rate=1.0):
     child = _sol("mutate")(c, rng, rate)
     for node in child.nodes:
@@ -310,6 +317,8 @@ WRONG = [
     ("creatures.mutate", make_mutate(use_rate=False), "honours rate"),
     ("creatures.mutate", make_mutate(steps=(lambda n, r: None,) * 5 + (SOL["mutate_symmetry"],)),
      "deletes, adds and modifies in all six steps"),
+    ("creatures.mutate", make_mutate(steps=tuple(s if s.__name__ != "mutate_size" else mutate_size_anywhere
+                                                  for s in SOL["STEPS"])), "a size moves to a neighbouring value"),
     ("creatures.mutate", make_mutate(global_rng=True), "deterministic for a seed"),
     ("creatures.mutate", make_mutate(deepcopy=False), "input unchanged"),
 ]
@@ -322,6 +331,29 @@ def test_wrong_implementations_fail_the_violated_property(name, fn, prop):
     failed = {v.prop for v in j.verdicts if not v.passed}
     assert prop in failed, j.verdicts
     assert j.score < j.check.points
+
+
+@pytest.mark.parametrize("name, fn, at_most", [
+    ("creatures.expand", make_expand(multiply_scale=False), 0.86),
+    ("creatures.expand", make_expand(inherit_mirror=False), 0.86),
+    ("creatures.expand", make_expand(terminal_only=False), 0.75),
+    ("creatures.crossover", crossover_drops_orphans, 0.88),
+    ("creatures.crossover", crossover_fixed_blocks, 0.77),
+    ("creatures.mutate", make_mutate(use_rate=False), 0.88),
+    ("creatures.mutate", make_mutate(scale_by_size=False), 0.88),
+])
+def test_a_broken_rule_of_the_definition_costs_more_than_a_detail(name, fn, at_most):
+    """s25, an honest-student study: these kept 91-92 % when every rule but the operator's point counted 1
+    (and the operator's point, weighed against more rules, must not lose its share)."""
+    j = evaluate(name, fn, timeout=30)
+    assert j.score <= at_most * j.check.points, (j.score, [v.prop for v in j.verdicts if not v.passed])
+
+
+def test_a_random_size_fails_only_the_neighbouring_size_rule():
+    j = evaluate("creatures.mutate", make_mutate(steps=tuple(s if s.__name__ != "mutate_size" else mutate_size_anywhere
+                                                              for s in SOL["STEPS"])), timeout=30)
+    failed = [v for v in j.verdicts if not v.passed]
+    assert [v.prop for v in failed] == ["a size moves to a neighbouring value"] and "jumped" in failed[0].message
 
 
 def test_a_single_broken_rule_costs_only_its_properties():

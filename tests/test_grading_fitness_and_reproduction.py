@@ -82,8 +82,13 @@ def test_exercise_registers_both_checks():
 # -- known-wrong implementations fail exactly the property they violate --------------------------
 
 
-def fitness_negative(com, times):
-    return fitness(com, times) - 0.05  # not clipped at 0
+def fitness_unclipped(com, times):  # Sims' recipe, not clipped at 0 (s25: 5/5, no test path came back to its start)
+    com, times = np.asarray(com, dtype=float), np.asarray(times, dtype=float)
+    distance = np.linalg.norm(com - com[:, :1], axis=2)
+    edges = np.linspace(times[0], times[-1], 11)
+    speed = np.diff(np.stack([np.interp(edges, times, d) for d in distance]), axis=1) / np.diff(edges)
+    late = (speed * np.arange(1, 11) / 55).sum(axis=1)
+    return 0.5 * distance.max(axis=1) / (times[-1] - times[0]) + 0.5 * late
 
 
 def fitness_path_length(com, times):  # the distance travelled: circling and wobbling pay
@@ -175,7 +180,7 @@ def reproduce_sorts_input(fitness, k, rng, survival=0.2):
 
 
 WRONG = [
-    ("swimmers.fitness", fitness_negative, "one fitness >= 0 per creature"),
+    ("swimmers.fitness", fitness_unclipped, "never negative"),
     ("swimmers.fitness", fitness_doubled, "a steady swimmer scores its speed in m/s"),
     ("swimmers.fitness", fitness_per_sample, "time in seconds: any sample rate, duration and start"),
     ("swimmers.fitness", fitness_along_x, "any direction counts"),
@@ -208,13 +213,56 @@ def test_known_wrong_fails_exactly_its_property(name, fn, prop):
 
 def test_the_exploits_sims_named_each_fail_their_property():
     """The path length pays circling and wobbling; a sampled roulette gets the counts wrong and random."""
-    failed = {v.prop for v in evaluate("swimmers.fitness", fitness_path_length, seed=4).verdicts if not v.passed}
-    assert {"circling scores below a steady swimmer", "wobbling in place scores about 0"} <= failed
+    for seed in range(4, 12):
+        failed = {v.prop for v in evaluate("swimmers.fitness", fitness_path_length, seed=seed).verdicts if not v.passed}
+        assert {"circling scores below a steady swimmer", "wobbling in place scores about 0"} <= failed
+        # the five speeds share one sway: the path length passes the job gate on every seed (s25: 0 / 5 on some)
+        assert "faster steady swimmers score higher" not in failed
+        # its durations are right: the resampled swims are the same swim, sway included (s25: each had its own
+        # sway, and the path length failed "time in seconds" with "measure durations with the times array")
+        assert "time in seconds: any sample rate, duration and start" not in failed
     failed = {v.prop for v in evaluate("swimmers.reproduce", reproduce_roulette_survivors, seed=4).verdicts if not v.passed}
     assert {"offspring in proportion to fitness", "the same counts whatever the seed"} <= failed
     # equal shares for every survivor ignores fitness, the operator's point: about two thirds (it kept 90 %, round 6)
     j = evaluate("swimmers.reproduce", reproduce_uniform_survivors, seed=4)
     assert j.score <= 0.7 * j.check.points, j.score
+
+
+def reproduce_ignores_survival(fitness, k, rng, survival=0.2):  # always the best fifth (s25: 69 %)
+    return reproduce(fitness, k, rng)
+
+
+def reproduce_extras_to_the_best(fitness, k, rng, survival=0.2):  # quotas floored, the rest to the best (s25: 69 %)
+    s = survivors_of(fitness, survival)
+    f = np.asarray(fitness, dtype=float)[s]
+    quota = k * f / f.sum() if f.sum() > 0 else np.full(len(s), k / len(s))
+    counts = np.floor(quota).astype(int)
+    counts[0] += k - counts.sum()
+    return rng.permutation(np.repeat(s, counts))
+
+
+@pytest.mark.parametrize("fn", [reproduce_ignores_survival, reproduce_extras_to_the_best])
+def test_wrong_offspring_counts_keep_at_most_half(fn):
+    """Sims' counts are the scheme's definition and weigh half the check; an ignored survival argument is
+    caught on every seed (s25: 5 / 5 on some)."""
+    for seed in range(4, 12):
+        j = evaluate("swimmers.reproduce", fn, seed=seed)
+        failed = [v for v in j.verdicts if not v.passed]
+        assert "offspring in proportion to fitness" in [v.prop for v in failed] and j.score <= 0.5 * j.check.points, j.score
+        if fn is reproduce_ignores_survival:
+            assert [v.prop for v in failed] == ["offspring in proportion to fitness"]
+            assert "use the survival argument" in failed[0].message
+
+
+def test_a_swimmer_that_comes_back_is_negative_by_sims_recipe_before_clipping():
+    from coursekit.grading.checks.ex08_fitness_and_reproduction import out_and_back
+
+    t = sample_times(10.0)
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        p = np.stack([out_and_back(t, rng.uniform(0.5, 2.0), rng.uniform(0.05, 0.2), rng.uniform(0.05, 0.15))])
+        d = np.linalg.norm(p[0], axis=1)
+        assert d[0] == 0 and d[-1] < 1e-12 and fitness_unclipped(p, t)[0] < 0 and fitness(p, t)[0] == 0
 
 
 def constant(com, times):

@@ -166,7 +166,6 @@ WRONG = [
     ("physics.box_drag", drag_face_centres, "turning drag matches the face integral (k = 1)"),
     ("physics.box_drag", drag_constant, "the water resists sliding, face first most"),
     ("physics.box_drag", drag_ignores_k, "proportional to k"),
-    ("physics.box_drag", drag_force_sign, "never adds energy"),
     ("physics.box_drag", drag_in_place, "inputs unchanged"),
     ("physics.rkn_step", rkn_flat, "returns (y_next, v_next) shaped like y and v"),
     ("physics.rkn_step", rkn_no_time_offsets, "exact for forces that depend only on time"),
@@ -194,6 +193,25 @@ def test_known_wrong_fails_exactly_its_property(name, fn, prop):
     assert "BEGIN SOLUTION" not in msg and "2 * k" not in msg and "h**2/6" not in msg
 
 
+def test_the_force_coefficients_minus_d_fail_the_values_and_the_sign():
+    """-D is the wrench's factor, not the drag matrix: the values are compared signed (s25: by
+    magnitude, -D kept 91 %), and they are the function's definition, half of its weight."""
+    j = evaluate("physics.box_drag", drag_force_sign, seed=3)
+    assert [v.prop for v in j.verdicts if not v.passed] == ["sliding drag matches the face integral (k = 1)",
+                                                             "turning drag matches the face integral (k = 1)",
+                                                             "never adds energy"]
+    assert j.score <= 0.5 * j.check.points, j.score
+    assert "opposite sign" in next(v.message for v in j.verdicts if not v.passed)
+
+
+@pytest.mark.parametrize("fn", [rkn_stage_position_without_a1, rkn_stage3_uses_a1])
+def test_a_wrong_tableau_entry_keeps_less_than_half(fn):
+    """A wrong coefficient gives a method of lower order that is not Nystrom's: less than half the
+    points (s25: a typo h^2/2 for h^2/8, or a3 copy-pasted from a2, kept 54 %)."""
+    j = evaluate("physics.rkn_step", fn, seed=3)
+    assert j.score < 0.5 * j.check.points, j.score
+
+
 @pytest.mark.parametrize("seed", [0, 3])
 def test_classic_rk4_is_fourth_order_but_not_nystroms_method(seed):
     """RK4 on (y, v) passes every accuracy property (the same order) and fails only Nystrom's own:
@@ -203,6 +221,7 @@ def test_classic_rk4_is_fourth_order_but_not_nystroms_method(seed):
                                                              "combines the stages with Nystrom's weights"]
     msg = next(v.message for v in j.verdicts if not v.passed)
     assert "evaluation 2" in msg and "h^2/8 a1" in msg
+    assert j.score <= 0.5 * j.check.points, j.score  # Nystrom's stages and weights are half the check (s25: 61 %)
 
 
 def rkn_faked_order(f, t, y, v, h):

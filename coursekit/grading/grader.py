@@ -219,10 +219,11 @@ def grade_notebook(path: str | os.PathLike[str], *, timeout: float = 60.0, cell_
     ids = supervisor.grading_user(user)
     if sandboxed and ids and sandbox.available(ids, show=[PKG_ROOT / "coursekit"]) is not None:
         ids = None  # the sandbox works for this user only: run it as this user, capabilities dropped
-    notes = [] if ids or os.geteuid() != 0 else [f"ran as root: user {user!r} could not run this Python, so privileges were not dropped"
-                                                  + (" (inside the sandbox, every capability dropped)" if sandboxed else "")]
+    notes = []
+    grader_notes = [] if ids or os.geteuid() != 0 else [f"ran as root: user {user!r} could not run this Python, so privileges were not dropped"
+                                                         + (" (inside the sandbox, every capability dropped)" if sandboxed else "")]
     if not sandboxed:
-        notes.append("graded without a sandbox (--unsafe): the notebook could read solutions/ and other submissions")
+        grader_notes.append("graded without a sandbox (--unsafe): the notebook could read solutions/ and other submissions")
     problems, judgements, start = [], {}, time.monotonic()
     groups = withheld.runs(checks) if sandboxed else [(checks, withheld.of(checks))]  # --unsafe: refused by name only
     for k, (group, held) in enumerate(groups):
@@ -238,14 +239,14 @@ def grade_notebook(path: str | os.PathLike[str], *, timeout: float = 60.0, cell_
                                                 left=left, notebook_timeout=notebook_timeout, max_processes=max_processes, disk_mb=disk_mb)
         if k:  # the second run: its own cells' notes only where they differ from the first's
             what = ", ".join(c.function for c in group)
-            run_notes = [f"{what} graded in a second run, the library's equivalents withheld: {n}" for n in run_notes if n not in notes]
+            run_notes = [f"while {what} was graded (a second run of the notebook): {n}" for n in run_notes if n not in notes]
             run_problems = [f"{what} (second run): {p}" for p in run_problems]
         notes += run_notes
         problems += run_problems
         for c in group:
             judgements[c.name] = _judge(c, cases[c.name], results[c.name], problems)
     return NotebookResult(str(path), [judgements.get(c.name) or _zero([c], f"not run: {c.function} was to be graded in a second run")[0]
-                                      for c in checks], notes, problems, seed=seed)
+                                      for c in checks], notes, problems, seed=seed, grader_notes=grader_notes)
 
 
 def _judge(check, cases, records, problems) -> Judgement:
@@ -440,7 +441,7 @@ def main(args: argparse.Namespace) -> int:
                     f"its file name names exercise {named[0]}, but its metadata field coursekit.exercise says {exercise}: "
                     f"graded as {exercise}; pass --exercise to say which exercise it answers")
             if results[-1].seed is not None:
-                results[-1].notes.append(f"graded in {results[-1].seconds:.1f} s (cases drawn with --seed {results[-1].seed})")
+                results[-1].grader_notes.append(f"graded in {results[-1].seconds:.1f} s (cases drawn with --seed {results[-1].seed})")
     except supervisor.Terminated as exc:  # the notebook's processes and private folder are gone already
         print(f"coursekit grade: {exc}; no results written", file=sys.stderr)
         return 128 + exc.signum

@@ -5,7 +5,9 @@ Part of the summative grader (seed paper section 4, exercises graded; see
 ``coursekit grade`` prints (:func:`summary`), the Gradescope ``results.json``
 (:func:`gradescope`, written atomically after :func:`check_results_path` said, before any
 grading, that it can be). Every message passes through :func:`clean`: it may quote a student's
-exception text.
+exception text. Notes on the grader itself (it ran as root, without a sandbox, how long it took,
+the seed) go to the instructor -- the printed summary, which Gradescope keeps from students, and
+``extra_data`` -- and never into the ``output`` students read.
 """
 
 from __future__ import annotations
@@ -35,6 +37,9 @@ class NotebookResult:
     seed: int | None = None  # the seed of the grading cases (``--seed`` repeats them)
     seconds: float | None = None  # wall time of its grading, kernel start and sandbox included
     exercise: str | None = None  # the exercise it was graded as
+    #: notes on how the grader ran (privileges, sandbox, timing, seed): for the instructor, in the printed
+    #: summary (Gradescope keeps stdout from students) and ``extra_data``, never in the output students read
+    grader_notes: list = field(default_factory=list)
 
     @property
     def graded(self) -> bool:
@@ -122,21 +127,27 @@ def gradescope(results: list) -> dict:
         "extra_data": {"format": RESULTS_FORMAT,
                        "notebooks": [{"path": clean(r.path), "score": r.score, "max_score": r.max_score, "graded": r.graded,
                                       "exercise": r.exercise, "not_graded": [clean(n) for n in r.not_graded], "seed": r.seed,
-                                      "seconds": r.seconds} for r in results]},
+                                      "seconds": r.seconds, "grader_notes": [clean(n) for n in r.grader_notes]}
+                                     for r in results]},
     }
 
 
 def summary(results: list) -> str:
-    """The readable summary printed by ``coursekit grade``."""
+    """The readable summary printed by ``coursekit grade``: one line per check, its name, score and
+    first failing property in columns as wide as the longest name and score need."""
     lines = []
+    judgements = [j for r in results for j in r.judgements]
+    name_w = max([24] + [len(j.check.name) for j in judgements])
+    points_w = max([1] + [len(f"{j.check.points:g}") for j in judgements])
     for r in results:
         lines.append(f"{clean(r.path)}: {_headline(r)}")
         for j in r.judgements:
             first = next((v for v in j.verdicts if not v.passed), None)
-            lines.append(f"  {j.check.name:<24} {j.score:>6.2f} / {j.check.points:g}   "
+            lines.append(f"  {j.check.name:<{name_w}} {j.score:>6.2f} / {j.check.points:<{points_w}g}   "
                          + ("all properties hold" if first is None else _said(j, first)))
         lines += [f"  not graded: {clean(n)}" for n in r.not_graded]
         lines += [f"  note: {clean(n)}" for n in r.notes]
+        lines += [f"  grader: {clean(n)}" for n in r.grader_notes]
     bad = [r for r in results if not r.graded]
     if bad:
         lines.append(f"{len(bad)} of {len(results)} notebook(s) NOT GRADED: their scores do not stand; see the reasons above")

@@ -199,3 +199,43 @@ def all_kinds(ctx):
         return False, (f"in {n} mutations at rate=1 these kinds of change never happened: {', '.join(missing)}; "
                        "each node may be deleted, get a new child, or be modified in the six steps")
     return True, f"all {len(_ALL_KINDS)} kinds of change seen in {n} mutations"
+
+
+def _size_steps(old, new):
+    """``(position, old size, new size)`` of the nodes whose size alone changed, at equal LR positions
+    (the node count unchanged; every other attribute group and the links the same)."""
+    if len(new.nodes) != len(old.nodes):
+        return []
+    out = []
+    for i, (a, b) in enumerate(zip(old.nodes, new.nodes)):
+        diff = {name for name, f in _PROJECTIONS.items() if f(a) != f(b)}
+        if diff == {"body size"} and [lk.child for lk in a.children] == [lk.child for lk in b.children]:
+            out.append((i, tuple(a.size), tuple(b.size)))
+    return out
+
+
+def _size_index(v, sizes):
+    return min(range(len(sizes)), key=lambda k: abs(sizes[k] - v))
+
+
+def neighbouring_size(ctx):
+    """Step 2 moves one half extent to a neighbouring value in SIZES (the exercise's mutate_size)."""
+    sizes = tuple(_value_lists().SIZES)
+    seen = 0
+    for cid in _RATE1 + _RATE01:
+        parent = ctx.arg(cid, 0)
+        for k, text in enumerate(ctx.out(cid)):
+            for i, a, b in _size_steps(parent, parse(text)):
+                seen += 1
+                moved = [(axis, x, y) for axis, (x, y) in enumerate(zip(a, b)) if abs(x - y) > 1e-12]
+                jumps = [abs(_size_index(x, sizes) - _size_index(y, sizes)) for _, x, y in moved]
+                if len(moved) != 1 or jumps[0] != 1:
+                    axis, x, y = moved[0]
+                    return False, (f"on test input {cid!r} (call {k + 1}) node {i}'s size went from {list(a)} to {list(b)}"
+                                   + (f": half extent {axis} jumped from {x:g} to {y:g}" if len(moved) == 1 else "")
+                                   + "; step 2 moves one of the three half extents to a neighbouring value in SIZES "
+                                   "(the next smaller or the next larger)")
+    if not seen:
+        return True, "no node's size alone changed in these mutations (nothing to check)"
+    return True, f"every size change moved one half extent to a neighbouring value ({seen} changes)"
+

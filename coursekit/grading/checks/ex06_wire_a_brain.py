@@ -10,16 +10,25 @@ has students resolve relative ids themselves and then wire the Figure 1 snake so
   the part index, ``"brain"`` for ``-2``, or ``None`` where the instance has no such relative (it
   reads 0). The trees are expansions of the library's random creatures and of the snake; the
   expected answers follow the four rules of the lesson's table, computed here. The job, a gate:
-  parent and child ids name the parent and the children (a constant answer scores 0).
+  -1 names the parent or m >= 1 names the children (a constant answer scores 0). Then each rule
+  of the table is a property of its own (parent and children count double), so one wrong rule --
+  the root's parent as -1, an off-by-one child, an IndexError on a missing child -- costs its
+  share, not the check.
 - ``brains.wire_snake(snake)``: the snake's body without networks in, the same body with
   neurons and effectors out. The grader swims the result in its own process
   (:func:`~coursekit.creatures.simulate.simulate`, :data:`SECONDS` s) for 3, 4 and 5
   segments. Gates: a valid creature, the body kept, and the job -- the 4-segment snake swims at
   least :data:`SWIM_MIN` body lengths per second (the unwired body, or one beating every
   segment in phase, scores 0: measured 0.00 and 0.01, the paper's travelling wave 0.26). Then: a
-  wave travels along the spine (each joint's phase differs from the next one's by more than
-  :data:`WAVE_LAG` rad, all the same way), the one genotype swims at every length (relative ids,
-  not per-part wiring), the legs swing, the input is left alone.
+  wave travels along the spine, the one genotype swims at every length (relative ids, not
+  per-part wiring), the legs swing, the input is left alone. The wave is judged on what the
+  wiring sends the spine's muscles (recorded as the simulator runs the creature's brain), not on
+  the joints' motion: the water bends the joints with phase shifts of its own (a snake driven in
+  phase moves its neighbouring joints nearly in opposition, one driven with steps of -0.5 rad
+  shows no steady step), so the motion cannot tell the student's wave from none. Each joint's
+  drive must lag its neighbour's by one steady step modulo 2 pi, at least :data:`WAVE_LAG` rad
+  either way and short of a half turn: every step the exercise's sweep tries (-3 .. -0.5, and
+  +0.3 .. +3.1 the other way) is a wave; in-phase, exact opposition and uneven steps are not.
 """
 
 from __future__ import annotations
@@ -29,12 +38,15 @@ import json
 
 import numpy as np
 
-from coursekit.grading.checks import Check, exercise, register
+from coursekit.grading.checks import Check, NotRun, exercise, register
 
 CREATURE = "coursekit.creatures.genotype:Creature"
 SECONDS = 4.0  #: swim time of the wired snakes (after the simulator's settling)
 SWIM_MIN = 0.05  #: body lengths per second that count as swimming
-WAVE_LAG = 0.3  #: rad: smallest phase difference between neighbouring spine joints that counts as a wave
+WAVE_LAG = 0.25  #: rad: smallest phase step between neighbouring spine joints' drives that counts as a wave
+WAVE_SPREAD = 0.25  #: rad: how far a phase step along the spine may stray from their mean and still be one steady step
+STANDING_GAP = 0.02  #: rad: a step this close to a half turn is a standing wave (neighbours in opposition)
+SETTLE_OUT = 0.25  #: s: the start of the swim left out when measuring phases (the phase chain starts up)
 LEG_SWING = 0.2  #: rad: smallest range of motion of a leg joint that counts as a swing
 SEGMENTS = (4, 3, 5)
 
@@ -112,17 +124,23 @@ def _describe(value):
     return "None" if value is None else repr(value)
 
 
+def _ran(ctx):
+    return [c for c in ctx.cases if (ctx.records.get(c) or {}).get("status") == "ok"]
+
+
 def _resolve_valid(ctx):
-    for cid in ctx.cases:
-        got, n = _answer(ctx, cid), len(ctx.arg(cid, 2))
-        ok = got is None or got == "brain" or (type(got) is int and 0 <= got < n)
-        if not ok:
-            return False, (f"{_where(ctx, cid)} returned {got!r}; expected a part index 0..{n - 1}, the string "
-                           "'brain', or None")
+    ran = _ran(ctx)
+    if not ran:
+        return False, "not checked: no test input ran"
+    for cid in ran:
+        got = _answer(ctx, cid)
+        if not (got is None or got == "brain" or type(got) is int):
+            return False, (f"{_where(ctx, cid)} returned {got!r}; expected a part index (an int), the string 'brain', "
+                           "or None")
     return True, "every answer is a part index, 'brain' or None"
 
 
-def _resolve_group(prefixes, title, meaning, gate=False):
+def _resolve_group(prefixes, title, meaning):
     def prop(ctx):
         cids = [c for c in ctx.cases if c.startswith(prefixes)]
         for cid in cids:
@@ -132,17 +150,30 @@ def _resolve_group(prefixes, title, meaning, gate=False):
             got = _answer(ctx, cid)
             if got != want:
                 return False, (f"{_where(ctx, cid)} on a tree where part {part} has parent {parent[part]} and children "
-                               f"{children[part]} returned {_describe(got)}; {meaning(morph)}"
-                               + (". Nothing else is judged until it does" if gate else ""))
+                               f"{children[part]} returned {_describe(got)}; {meaning(morph)}")
         return True, f"{title} on {len(cids)} test inputs"
 
     return prop
 
 
-def _job_meaning(morph):
-    if morph == -1:
-        return "-1 names the parent part's network"
-    return f"{morph} names child number {morph} of this part (1 is the first child in the list)"
+_PARENT = _resolve_group(("parent",), "-1 names the parent", lambda m: "-1 names the parent part's network")
+_CHILD = _resolve_group(("child",), "m >= 1 names child m",
+                        lambda m: f"{m} names child number {m} of this part (1 is the first child in the list)")
+
+
+def _resolve_job(ctx):
+    """The gate: the answers follow the tree at all (the parent or the children are named); a constant answer
+    (None, the part itself) names neither."""
+    results = []
+    for rule in (_PARENT, _CHILD):
+        try:
+            results.append(rule(ctx))
+        except NotRun:
+            results.append((False, ""))
+    if any(ok for ok, _ in results):
+        return True, "relative ids name relatives in the tree"
+    return False, (f"{results[0][1] or results[1][1] or 'the parent and child ids did not run'}. Neither -1 (the parent) "
+                   "nor m >= 1 (the children) names the right part. Nothing else is judged until one of them does")
 
 
 register(Check(
@@ -154,8 +185,9 @@ register(Check(
     library_uses=("coursekit.creatures.brain:build_brain",),
     props=(
         ("returns a part index, 'brain' or None", _resolve_valid),
-        ("parent and child ids follow the tree", _resolve_group(("parent", "child"), "-1 and m >= 1 name the parent and the children",
-                                                                _job_meaning, gate=True)),
+        ("ids name relatives in the tree", _resolve_job),
+        ("-1 names the parent", _PARENT),
+        ("m >= 1 names child m", _CHILD),
         ("0 names the part's own network", _resolve_group(("self",), "0 names the part itself",
                                                           lambda m: "0 names the part's own network")),
         ("-2 names the brain", _resolve_group(("brain",), "-2 names 'brain'", lambda m: "-2 names the brain, 'brain'")),
@@ -164,6 +196,10 @@ register(Check(
         ("a missing child reads nothing", _resolve_group(("missing",), "children a part lacks are None",
                                                           lambda m: f"this part has no child number {m}: the id reads nothing (None)")),
     ),
+    # one wrong rule of the table costs its share, not the whole check; parent and children are the
+    # core of relative ids and count double (honest-student study s25: a root answering -1, an
+    # off-by-one child or an IndexError on a missing child scored 0/3)
+    weights=(("-1 names the parent", 2), ("m >= 1 names child m", 2)),
 ))
 
 
@@ -213,21 +249,51 @@ def _wire_body(ctx):
     return True, "the body is the one given"
 
 
+class _Recorder:
+    """The creatures' own brains as the simulator's controller, keeping each physics step's effector outputs."""
+
+    def __init__(self, brains):
+        from coursekit.creatures.brain import BrainBatch
+
+        self.batch, self.outputs, self._ticks = BrainBatch(brains), [], 0
+
+    def reset(self):
+        self.batch.reset()
+        self.outputs, self._ticks = [], 0
+
+    def step(self, joint_angle, joint_velocity, contact, dt):
+        e = self.batch.step(joint_angle, joint_velocity, contact, dt)
+        self._ticks += 1
+        if self._ticks % 2 == 0:  # the second of the two ticks per physics step drives the joints
+            self.outputs.append(np.array(e, dtype=np.float64))
+        return e
+
+
 @functools.lru_cache(maxsize=8)
 def swim(texts):
-    """Simulate the creatures (JSON texts) for :data:`SECONDS`; per creature a dict of measurements."""
+    """Simulate the creatures (JSON texts) for :data:`SECONDS`; per creature a dict of measurements.
+
+    ``spine``/``legs``: the joint angles over time; ``drive``: what the wiring sends each spine
+    joint's muscle, ``clip(gain * e, -1, 1)`` of its effector output ``e`` (the simulator's own
+    brains, recorded as they run)."""
     from coursekit.creatures.audit import body_length
     from coursekit.creatures.simulate import simulate
 
     creatures = [_parse(t) for t in texts]
-    result = simulate(creatures, SECONDS, record_every=1)
+    phenotypes = [c.expand() for c in creatures]
+    recorder = _Recorder([p.brain for p in phenotypes])
+    result = simulate(creatures, SECONDS, record_every=1, controller=recorder)
+    effectors = np.asarray(recorder.outputs)
+    first = np.concatenate([[0], np.cumsum([p.body.n_bodies - 1 for p in phenotypes])])
     out = []
-    for c, speed, traj in zip(creatures, result.fitness, result.trajectory):
-        body = c.expand().body
+    for i, (p, speed, traj) in enumerate(zip(phenotypes, result.fitness, result.trajectory)):
+        body = p.body
         q = np.asarray(traj)[:, 7:]
         node = np.asarray(body.node_id)[1:]
+        drive = np.clip(np.asarray(body.gain)[1:] * effectors[:, first[i]:first[i + 1]], -1.0, 1.0)
         out.append({"speed": float(speed), "bl": float(speed) / body_length(body),
-                    "spine": q[:, node == 0], "legs": q[:, node == 1], "dt": float(result.dt)})
+                    "spine": q[:, node == 0], "legs": q[:, node == 1], "drive": drive[:, node == 0],
+                    "dt": float(result.dt)})
     return out
 
 
@@ -239,41 +305,79 @@ def _swim_text(m):
     return f"{m['speed']:.3f} m/s = {m['bl']:.3f} body lengths/s"
 
 
+def _wave_fault(drive):
+    """Why the spine's drive (steps x joints) is no travelling wave, or None when it is one.
+
+    A wave: every joint's muscle beats with the first one's rhythm, and each lags its neighbour
+    by the same phase step (within :data:`WAVE_SPREAD`, modulo 2 pi), a step of at least
+    :data:`WAVE_LAG` rad either way and not a half turn (neighbours in exact opposition are a
+    standing wave; a step of 3.1 rad is still a wave)."""
+    lags, amplitude = phase_lags(drive)
+    if amplitude.size < 2 or not np.all(amplitude >= 0.1 * max(amplitude.max(), 1e-9)):
+        return "some spine joints get no oscillating signal", lags
+    step = float(np.angle(np.mean(np.exp(1j * lags))))
+    spread = np.abs(np.angle(np.exp(1j * (lags - step))))
+    if np.any(spread > WAVE_SPREAD):
+        return "the phase differences of neighbours are not one steady step", lags
+    if abs(step) < WAVE_LAG:
+        return "neighbours beat in step", lags
+    if abs(step) > np.pi - STANDING_GAP:
+        return "neighbours beat in exact opposition, a standing wave", lags
+    return None, lags
+
+
+def _rounded(lags):
+    return np.round(lags, 2).tolist()
+
+
 def _wire_swims(ctx):
     m = _swims(ctx)[0]
     if m["bl"] < SWIM_MIN:
-        lags, amplitude = phase_lags(m["spine"])
-        moving = amplitude.size and np.all(amplitude >= 1e-6 * max(1.0, amplitude.max()))
-        standing = np.any(np.abs(lags) < WAVE_LAG) or np.any(np.abs(lags) > np.pi - WAVE_LAG) or not (
-            np.all(lags > 0) or np.all(lags < 0))
-        why = (f"Its joints move, but no wave travels along the body: neighbours move in step or in opposition (phase "
-               f"differences {np.round(lags, 2).tolist()} rad), and a body that bends in place gets nowhere. Let each "
-               "segment's oscillator lag its parent's by a phase step." if moving and standing else
-               "Does every segment's joint get a signal that oscillates?")
+        fault, lags = _wave_fault(m["drive"])
+        if fault is None:
+            why = (f"Its spine's muscles beat as a travelling wave (phase steps {_rounded(lags)} rad), but too slowly or "
+                   "in an unlucky rhythm for this body: try another phase step or frequency (-1.5 rad at 3 Hz swims).")
+        elif fault.startswith("some"):
+            why = "Does every segment's joint get a signal that oscillates?"
+        else:
+            why = (f"Its joints move, but no wave travels along the body: {fault} (phase differences {_rounded(lags)} "
+                   "rad), and a body that bends in place gets nowhere. Let each segment's oscillator lag its parent's by a "
+                   "phase step.")
         return False, (f"the snake of {SEGMENTS[0]} segments swims {_swim_text(m)} in {SECONDS:g} s; it must reach "
                        f"{SWIM_MIN} body lengths/s. {why} Nothing else is judged until it swims")
     return True, f"the snake of {SEGMENTS[0]} segments swims {_swim_text(m)}"
 
 
-def phase_lags(spine):
-    """Phase of each spine joint's motion relative to the previous one (rad), at the first joint's main frequency."""
-    q = spine - spine.mean(axis=0)
-    spectrum = np.fft.rfft(q, axis=0)
-    k = int(np.argmax(np.abs(spectrum[1:, 0]))) + 1
-    a = spectrum[k]
-    return np.angle(a[1:] / np.where(np.abs(a[:-1]) > 0, a[:-1], 1.0)), np.abs(a)
+def phase_lags(signals):
+    """Phase of each column's oscillation relative to the previous column's (rad, in (-pi, pi]) and the amplitudes.
+
+    Both at the first column's main frequency (a Hann-windowed, zero-padded spectrum), by a least-squares fit of
+    a sinusoid to each column over all but the first :data:`SETTLE_OUT` s (the phase chain's start-up)."""
+    x = np.asarray(signals, dtype=np.float64)
+    x = x[int(len(x) * SETTLE_OUT / SECONDS):]
+    if x.ndim != 2 or x.shape[1] == 0 or len(x) < 8:
+        return np.zeros(0), np.zeros(0)
+    x = x - x.mean(axis=0)
+    pad = 16 * len(x)
+    spectrum = np.abs(np.fft.rfft(x[:, 0] * np.hanning(len(x)), n=pad))
+    k = int(np.argmax(spectrum[1:])) + 1  # cycles per pad samples
+    t = np.arange(len(x)) * 2 * np.pi * k / pad
+    basis = np.stack([np.ones_like(t), np.cos(t), np.sin(t)], axis=1)
+    coef = np.linalg.lstsq(basis, x, rcond=None)[0]
+    a = coef[1] - 1j * coef[2]  # x = Re(a exp(i t))
+    lags = np.angle(a[1:] * np.conj(a[:-1]))
+    return lags, np.abs(a)
 
 
 def _wire_wave(ctx):
     m = _swims(ctx)[0]
-    lags, amplitude = phase_lags(m["spine"])
-    if np.any(amplitude < 1e-6 * max(1.0, amplitude.max())):
-        return False, "some spine joints do not move at all"
-    if np.any(np.abs(lags) < WAVE_LAG) or not (np.all(lags > 0) or np.all(lags < 0)):
-        return False, (f"neighbouring spine joints move with phase differences {np.round(lags, 2).tolist()} rad: no wave "
-                       f"travels along the body (each should lag the previous one by more than {WAVE_LAG} rad, all the "
-                       "same way). Let each segment's oscillator read a phase from its parent's network")
-    return True, f"a wave travels along the spine (phase steps {np.round(lags, 2).tolist()} rad)"
+    fault, lags = _wave_fault(m["drive"])
+    if fault is not None:
+        return False, (f"the muscles of neighbouring spine joints beat with phase differences {_rounded(lags)} rad: "
+                       f"{fault}, so no wave travels along the body (each should lag the previous one by the same step, "
+                       f"at least {WAVE_LAG} rad either way). Let each segment's oscillator read a phase from its parent's "
+                       "network")
+    return True, f"a wave travels along the spine (phase steps {_rounded(lags)} rad)"
 
 
 def _wire_any_length(ctx):

@@ -7,9 +7,10 @@ checks derive every expected value independently, in the grader's own process:
 
 - ``box_drag(half_extents, k)``: the drag matrix is computed by Gauss-Legendre quadrature of
   ``-k (n . v(x)) n`` over the six faces for each unit body velocity (exact for the quadratic
-  integrands, so it equals the closed form to round-off without using it); magnitudes, the sign
-  (dissipation), linearity in ``k`` and unmodified inputs are separate properties, so one
-  mistake costs one property. The job comes first, as a gate: the sliding entries are not zero (a
+  integrands, so it equals the closed form to round-off without using it); the values (signed:
+  ``-D``, the wrench's factor, is not ``D``; together half the weight), the sign (dissipation),
+  linearity in ``k`` and unmodified inputs are separate properties, so one mistake costs one
+  property. The job comes first, as a gate: the sliding entries are not zero (a
   zero drag, no water at all, scores 0); that the force *opposes* the motion is the sign property.
 - ``rkn_step(f, t, y, v, h)``: the one-step error against the exact solutions of
   :mod:`coursekit.creatures.physics.odes` -- zero when ``y''`` depends on ``t`` only (``y`` quartic
@@ -155,6 +156,8 @@ def _how_far(got, want):
     if want == 0:
         return "is not 0, but is 0 in", ""
     ratio = got / want
+    if ratio < 0:
+        return "has the opposite sign of", " -- D is the resistance, >= 0; the wrench -D (omega, v) carries the minus"
     side = "is larger than" if ratio > 1 else "is smaller than"
     if abs(ratio - 1) < 0.05:
         side = "is close to, but not exactly,"
@@ -171,7 +174,7 @@ def _drag_values(part):
         for cid in UNIT:
             h = ctx.arg(cid, 0)
             want = np.diag(face_integral_drag(h, 1.0))
-            got = np.abs(np.asarray(ctx.out(cid)[0], dtype=np.float64))
+            got = np.asarray(ctx.out(cid)[0], dtype=np.float64)  # signed: -D (the wrench's factor) is not D
             for i in idx:
                 if not math.isclose(got[i], want[i], rel_tol=1e-9, abs_tol=1e-15):
                     side, extra = _how_far(got[i], want[i])
@@ -225,7 +228,9 @@ register(Check(
         ("never adds energy", _drag_dissipative),
         ("inputs unchanged", unmodified({0: "half_extents"}, NEW_ARRAYS)),
     ),
-    weights=(("turning drag matches the face integral (k = 1)", 4),),  # no turning drag at all kept 88 % (round 3)
+    # no turning drag at all kept 88 % (round 3); the values are the function's definition and carry half the
+    # weight: -D (compared by magnitude until s25) kept 91 %
+    weights=(("sliding drag matches the face integral (k = 1)", 2), ("turning drag matches the face integral (k = 1)", 4)),
 ))
 
 
@@ -415,8 +420,11 @@ register(Check(
         ("inputs unchanged", unmodified({2: "y", 3: "v"}, NEW_ARRAYS)),
     ),
     # the method asked for: classic RK4 kept 89 % (red team, round 3), another integrator with a made-up
-    # error of order h^5 73 % (round 5)
-    weights=(("evaluates f at Nystrom's stages", 3), ("combines the stages with Nystrom's weights", 2)),
+    # error of order h^5 73 % (round 5); Nystrom's stages and weights are the step's definition and carry half
+    # the weight, fourth order on each kind of force 2 (s25: classic RK4 kept 61 %, a wrong tableau entry of
+    # lower order 54 %; now 50 % and 40 %)
+    weights=(("fourth order for position-dependent forces", 2), ("fourth order for velocity-dependent forces", 2),
+             ("evaluates f at Nystrom's stages", 5), ("combines the stages with Nystrom's weights", 5)),
 ))
 
 exercise("07_swimming_physics", ["physics.box_drag", "physics.rkn_step"])

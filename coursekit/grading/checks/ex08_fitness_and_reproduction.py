@@ -9,7 +9,10 @@ which then drive the evolution of swimmers. The checks never compare with a refe
   exercise shows its students): a steady straight swimmer scores its speed in m/s, whatever the
   direction, the sample rate, the duration, the start time or the start position; one push and
   coasting, circling and wobbling in place score below a steady swimmer (Sims' two exploits, and
-  noise); each creature is scored on its own. The job comes first, as a gate: faster steady swimmers score
+  noise); each creature is scored on its own; no fitness is negative (:func:`out_and_back`, a
+  swimmer that comes back to its start, is below 0 by Sims' recipe before clipping). The resampled
+  swims (30 and 120 Hz, 4 s, a late start) are the reference swim itself, sway included, so that
+  only a duration measured wrongly tells them apart. The job comes first, as a gate: faster steady swimmers score
   higher, so a constant, a zero or a random fitness scores 0. The paths travel to the student's
   function as :class:`Paths`, a numpy array that the grader can compare before and after a call.
 - ``reproduce(fitness, k, rng, survival=0.2)`` is judged on the parent indices it returns: only
@@ -33,11 +36,15 @@ import numpy as np
 from coursekit.grading.checks import Check, exercise, register
 from coursekit.grading.checks.properties import COPY_ARRAY, NEW_ARRAYS, RNG, array, deterministic, seeds, unmodified
 
-__all__ = ["Paths", "circling", "in_place", "one_push", "sample_times", "steady_swimmer"]
+__all__ = ["Paths", "circling", "in_place", "one_push", "out_and_back", "sample_times", "steady_swimmer"]
 
 #: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
 HINTS = {
     "swimmers.fitness": (
+        ("never negative", (
+            "A creature that swims out and comes back towards its start has negative late window speeds.",
+            "Sims' offspring counts are proportional to fitness: a negative fitness has no meaning there.",
+            "Clip the result at 0: np.maximum(fitness, 0.0).")),
         ("faster steady swimmers score higher", (
             "Fitness measures how far the centre of mass gets, per unit of time.",
             "com[c, t] is creature c's centre of mass at times[t]: its distance from com[c, 0] says how far it got.",
@@ -131,6 +138,16 @@ def circling(times, radius, speed, phase=0.0) -> np.ndarray:
     return np.stack([radius * (np.cos(a) - np.cos(phase)), radius * (np.sin(a) - np.sin(phase)), 0 * t], axis=1)
 
 
+def out_and_back(times, distance, out=0.1, back=0.1, direction=(1.0, 0.0, 0.0)) -> np.ndarray:
+    """(T, 3) path of a creature that swims ``distance`` metres out in the first ``out`` share of the
+    time, stays there, and comes straight back to its start in the last ``back`` share: its late
+    window speeds are negative, and Sims' recipe before clipping is below 0."""
+    t = np.asarray(times, dtype=np.float64) - times[0]
+    s = t / t[-1]
+    x = distance * np.clip(np.minimum(s / out, (1 - s) / back), 0.0, 1.0)
+    return x[:, None] * _unit(direction)
+
+
 def in_place(times, amplitude=0.02, frequency=1.0, phase=0.0) -> np.ndarray:
     """(T, 3) path of a creature that flaps without getting anywhere: its centre of mass swings by
     ``amplitude`` metres (a figure of eight)."""
@@ -217,14 +234,19 @@ def _fitness_cases(rng):
                         phase=float(rng.uniform(0, 2 * np.pi)))
     speeds = np.sort(rng.uniform(0.02, 0.6, 5))
     ref = float(rng.uniform(0.15, 0.3))
-    ref_path = steady_swimmer(t, ref, **sway())
-    cases = [_paths_case("speeds", [steady_swimmer(t, v, **sway()) for v in speeds], t), _paths_case("ref", [ref_path], t)]
+    ref_sway = sway()
+    ref_path = steady_swimmer(t, ref, **ref_sway)
+    # one sway for all five speeds (drawn five times, as before): with a sway each, the path length ranked a slow
+    # swimmer that swayed more above a faster one on some seeds and not on others (0 or 2.9 / 5 by the seed)
+    speeds_sway = [sway() for _ in speeds][0]
+    cases = [_paths_case("speeds", [steady_swimmer(t, v, **speeds_sway) for v in speeds], t), _paths_case("ref", [ref_path], t)]
     dirs = [(-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, -1.0)] + [_random_direction(rng) for _ in range(2)]
     cases.append(_paths_case("directions", [steady_swimmer(t, ref, d, **sway()) for d in dirs], t))
     for cid, (seconds, rate, start) in {"rate30": (10.0, 30.0, 0.0), "rate120": (10.0, 120.0, 0.0),
                                         "short": (4.0, 60.0, 0.0), "late_start": (10.0, 60.0, 2.5)}.items():
         ts = sample_times(seconds, rate, start)
-        cases.append(_paths_case(cid, [steady_swimmer(ts, ref, **sway())], ts))
+        sway()  # drawn as before, so that the other cases of a seed stay what they were; the swim is the reference's
+        cases.append(_paths_case(cid, [steady_swimmer(ts, ref, **ref_sway)], ts))
     pushes = []
     for _ in range(3):  # a steady swimmer and a one-push creature that end up equally far away
         v, tau = float(rng.uniform(0.05, 0.4)), float(rng.uniform(0.2, 1.0))
@@ -247,6 +269,11 @@ def _fitness_cases(rng):
     # that the distance from the origin grows at another rate than the distance from the start
     side = rng.uniform(4, 8, size=2) * rng.choice((-1, 1), size=2)
     cases.append(_paths_case("moved", [ref_path + np.array([0.0, side[0], side[1]])], t))
+    # drawn after those: swimmers that come back to their start in the last window or two (Sims' recipe
+    # before clipping: -0.2 to -0.3 times distance / duration)
+    cases.append(_paths_case("back", [out_and_back(t, float(rng.uniform(0.5, 2.0)), float(rng.uniform(0.05, 0.2)),
+                                                   float(rng.uniform(0.05, 0.15)), _random_direction(rng))
+                                      for _ in range(2)], t))
     return cases
 
 
@@ -264,10 +291,20 @@ def _fitness_valid(ctx):
         out = ctx.out(cid)[0]
         if len(out) != n:
             return False, f"for {n} creatures it returned {len(out)} values; expected one fitness per creature (shape ({n},))"
+        if not all(math.isfinite(f) for f in out):
+            return False, f"returned {[f for f in out if not math.isfinite(f)][0]!r}; every fitness must be a finite number"
+    return True, "one finite fitness per creature"
+
+
+def _never_negative(ctx):
+    for cid in ctx.cases:
+        out = ctx.out(cid)[0]
         if min(out) < 0:
-            return False, (f"returned a fitness of {min(out):.4g}; fitness must be >= 0 (Sims' offspring counts are "
-                           "proportional to it): clip it with np.maximum(f, 0)")
-    return True, "one finite fitness >= 0 per creature"
+            what = ("a creature that swam out and came back to its start" if cid == "back" else
+                    f"on test input {cid!r} a creature")
+            return False, (f"{what} scored {min(out):.4g}; fitness must be >= 0 (Sims' offspring counts are "
+                           "proportional to it): clip it at 0")
+    return True, "every fitness >= 0, a creature that comes back to its start included"
 
 
 def _faster_higher(ctx):
@@ -373,8 +410,9 @@ register(Check(
     title="Sims' swimming fitness", output="array", cases=_fitness_cases, gates=2,
     reference=("coursekit.creatures.fitness:swimming_fitness",),
     props=(
-        ("one fitness >= 0 per creature", _fitness_valid),
+        ("one fitness per creature", _fitness_valid),
         ("faster steady swimmers score higher", _faster_higher),
+        ("never negative", _never_negative),
         ("a steady swimmer scores its speed in m/s", _scores_speed),
         ("time in seconds: any sample rate, duration and start", _time_in_seconds),
         ("any direction counts", _any_direction),
@@ -426,11 +464,14 @@ def _reproduce_cases(rng):
              case("half", fitness(16), survival=0.5), case("zeros", np.zeros(25)),
              # half survive, two of them with fitness 0: they get no offspring
              case("some_zero", rng.permutation(np.r_[rng.uniform(0.1, 0.5, 3), np.zeros(7)]), survival=0.5),
-             case("seven", fitness(7) + 0.05), case("same", fitness(40), same=True)]
+             case("seven", fitness(7) + 0.05), case("same", fitness(40), same=True),
+             # drawn last: half survive and all of them earn about one offspring, so that the best fifth alone (the
+             # survival argument ignored) gets twice its share or more (s25: 'half' let it pass on some seeds)
+             case("half_even", rng.uniform(0.3, 0.5, 20), survival=0.5)]
     return cases
 
 
-PROPORTIONAL = ("n20", "n30", "n50", "half", "some_zero", "same")
+PROPORTIONAL = ("n20", "n30", "n50", "half", "some_zero", "same", "half_even")
 
 
 def _indices_valid(ctx):
@@ -474,9 +515,12 @@ def _proportional(ctx):
             counts = Counter(out)
             for i, quota in q.items():
                 if abs(counts.get(i, 0) - quota) >= 1:
+                    survival = _survival(ctx, cid)
+                    who = "" if survival == 0.2 else (f" With survival={survival:g} the best {len(q)} of {len(f)} "
+                                                      "survive: use the survival argument.")
                     return False, (f"a survivor with fitness {f[i]:.4g} (the survivors' total is "
                                    f"{sum(f[j] for j in q):.4g}) got {counts.get(i, 0)} of the {k} offspring; its share "
-                                   f"is {quota:.2f}, so it should get {math.floor(quota)} or {math.ceil(quota)}")
+                                   f"is {quota:.2f}, so it should get {math.floor(quota)} or {math.ceil(quota)}.{who}")
     return True, "each survivor's offspring are its share of k, rounded down or up"
 
 
@@ -543,7 +587,9 @@ register(Check(
         ("rounds the survivor count up", _rounds_up),
         ("input unchanged", unmodified({0: "fitness"}, COPY_ARRAY)),
     ),
-    weights=(("offspring in proportion to fitness", 4),),  # equal shares for every survivor kept 90 % (round 6)
+    # equal shares for every survivor kept 90 % (round 6); Sims' counts are the scheme's definition, half the
+    # weight (s25: extra offspring all to the best, or the survival argument ignored, kept 69 %)
+    weights=(("offspring in proportion to fitness", 9),),
 ))
 
 exercise("08_fitness_and_reproduction", ["swimmers.fitness", "swimmers.reproduce"])
