@@ -210,7 +210,8 @@ def test_truncation_says_which_survivor_is_never_picked_without_dictating_code(s
         return {v.prop: v for v in evaluate("ga.truncation", fn, seed=seed).verdicts}
 
     short = verdicts(truncation_one_short)
-    assert not short["uniform among survivors"].passed
+    first = next(v for v in short.values() if not v.passed)  # the one the grader's summary line shows
+    assert first.prop == "uniform among survivors"
     assert "the last of them" in short["uniform among survivors"].message and "never picked" in short["uniform among survivors"].message
     assert short["rounds the survivor count up"].message.startswith("not checked:")
     assert not any("integers" in v.message for v in short.values())

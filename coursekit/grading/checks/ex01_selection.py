@@ -221,8 +221,8 @@ _TRUNCATION = (
     ("returns k valid indices", _indices_valid(["basic", "survival", "ceil", "uniform"])),
     ("prefers fitter individuals", _prefers_fit("uniform")),
     ("only the best survive", _truncation_survivors),
+    ("uniform among survivors", _truncation_uniform),  # before the rounding: the summary names the first failure
     ("rounds the survivor count up", _truncation_ceil),
-    ("uniform among survivors", _truncation_uniform),
     ("deterministic for a seed", deterministic("basic")),
     ("inputs unchanged", unmodified({0: "fitness"}, COPY_ARRAY)),
 )
