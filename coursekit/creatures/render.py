@@ -8,8 +8,7 @@ out stays joined to its parent on screen as in the physics.
 - :func:`render`, :func:`view`: one picture, the camera fitted to the projected body (:func:`frame`);
 - :class:`Clip`, :func:`frames`, :func:`animate`: a recorded swim filmed with a camera that
   follows the smoothed centre of mass and keeps every part in the picture over the whole clip,
-  with the centre of mass's trail, over a grid fixed in the water, on pale water blue
-  (:data:`WATER`; still pictures stay on white); GIF (Pillow) and MP4
+  with the centre of mass's trail, over a grid fixed in the water, on :data:`WATER` blue; GIF (Pillow) and MP4
   (H.264 through imageio-ffmpeg's ffmpeg) from one pass;
 - :func:`keyframes`: the paper's Figure 3, key frames side by side with their times.
 
@@ -367,8 +366,7 @@ def _nice_step(length: float) -> float:
     return float(min((1.0, 2.0, 5.0, 10.0), key=lambda k: abs(np.log(k * e / length))) * e)
 
 
-#: Frames from which :func:`animate` and :func:`keyframes` show a progress bar by default
-#: (``progress=None``): about 3 s of filming at 480 x 360.
+#: Frames from which :func:`animate` and :func:`keyframes` show a bar by default (about 3 s of filming at 480 x 360).
 BAR_FRAMES = 60
 WATER = "#d6e9f5"  # the films' background: pale water blue, under which the grid and the trail still show
 
