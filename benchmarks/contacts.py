@@ -1,0 +1,89 @@
+"""Benchmark: how far do a creature's parts sink into each other while it swims?
+
+Self-collisions are penalty springs (:mod:`coursekit.creatures.physics.contact`). This measures
+what they hold, on the workload evolution runs: ``--creatures`` random creatures
+(``Creature.random(default_rng(seed))``, the first generation of ``evolve_swimmers``) and the
+shipped champions, each swimming ``--seconds`` s with its own brain after the usual 0.5 s settle.
+After every step, every candidate pair (parts of one creature, not joined directly, not fused in
+the rest pose) is tested with the separating-axis test; a pair's *penetration* is its overlap
+divided by the thinner part's thickness (100 %: the thinner part is wholly inside the other).
+
+Per row: the creatures with at least one candidate pair; the worst penetration per creature
+(median, 90th percentile, largest); how many creatures ever exceed 25 %; the mean number of
+steps per creature in which some pair exceeds 10 %; the creatures the step flagged as diverged.
+Champions: the worst penetration in mm and in %, and the steps over 10 %.
+
+Run: ``python benchmarks/contacts.py [--creatures 200] [--seeds 1 2] [--seconds 10]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+
+import numpy as np
+
+from coursekit.creatures import BrainBatch, Creature
+from coursekit.creatures.physics.world import World
+from coursekit.creatures.simulate import DT, _brains
+
+
+def swim(creatures, seconds: float, settle: float = 0.5):
+    """``(worst, worst_m, deep_steps, world)``: each creature's worst penetration (share of the
+    thinner part's thickness, and in metres; 0 without contact), its steps with a pair over 10 %,
+    and the world."""
+    brains, bodies = _brains(creatures)
+    world = World(bodies, dt=DT)
+    m = world.model
+    brain = BrainBatch(brains, backend=m.backend, device=m.device, compiled=world.compiled)
+    world.set_effectors(np.zeros(m.n_joints))
+    for _ in range(int(round(settle / DT))):
+        world.step()
+    brain.reset()
+    thin = 2.0 * m.half_extents_np.min(axis=1)
+    worst, worst_m, deep = np.zeros(m.n_creatures), np.zeros(m.n_creatures), np.zeros(m.n_creatures)
+    for _ in range(int(round(seconds / DT))):
+        for _ in range(2):  # two brain ticks per physics step, as simulate does
+            effector = brain.step(*world.sensors(native=True), DT / 2)
+        world.set_effectors(effector)
+        world.step()
+        _, a, b, _, depth, _ = world.contacts.detect(*world.body_poses())
+        if len(depth):
+            share, owner = depth / np.minimum(thin[a], thin[b]), m.creature[a]
+            np.maximum.at(worst, owner, share)
+            np.maximum.at(worst_m, owner, depth)
+            over = np.zeros(m.n_creatures, dtype=bool)
+            over[owner[share > 0.1]] = True
+            deep += over
+    return worst, worst_m, deep, world
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--creatures", type=int, default=200)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--seconds", type=float, default=10.0)
+    args = parser.parse_args(argv)
+    steps = int(round(args.seconds / DT))
+    print(f"| random creatures (seed) | with pairs | worst p50 / p90 / max | ever > 25 % | steps > 10 % (of {steps}) | diverged |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for seed in args.seeds:
+        rng = np.random.default_rng(seed)
+        worst, _, deep, world = swim([Creature.random(rng) for _ in range(args.creatures)], args.seconds)
+        m = world.model
+        paired = np.zeros(m.n_creatures, dtype=bool)
+        paired[m.creature[np.asarray(world.contacts.a, dtype=np.int64)]] = True
+        ok = paired & ~world.diverged
+        p50, p90, top = (100 * v for v in (np.percentile(worst[ok], 50), np.percentile(worst[ok], 90), worst[ok].max()))
+        print(f"| {args.creatures} ({seed}) | {paired.sum()} | {p50:.0f} / {p90:.0f} / {top:.0f} % | {(worst[ok] > 0.25).sum()} "
+              f"| {deep[ok].mean():.0f} | {world.diverged.sum()} |")
+    print()
+    print(f"| champion | worst (mm) | worst (% of the thinner part) | steps > 10 % (of {steps}) |")
+    print("|---|---:|---:|---:|")
+    for champion in importlib.import_module("coursekit.creatures.champions").hall_of_fame():
+        worst, worst_m, deep, world = swim([champion.creature], args.seconds)
+        print(f"| {champion.name} | {1000 * worst_m[0]:.0f} | {100 * worst[0]:.0f} % | {deep[0]:.0f} |")
+
+
+if __name__ == "__main__":
+    main()
