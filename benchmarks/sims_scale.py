@@ -15,7 +15,7 @@ The creatures swim with the simulator's default step, compiled with numba
 (:mod:`~coursekit.creatures.physics.compiled`); ``--numpy-step`` runs the numpy step instead: the
 same physics up to rounding, so another run (``benchmarks/NOTES.md`` times the two).
 
-    python benchmarks/sims_scale.py [--seeds 0 1 2] [--workers N] [--out DIR] [--numpy-step]
+    python benchmarks/sims_scale.py [--seeds 0 1 2] [--workers N] [--out DIR] [--numpy-step] [--rhythm P]
     python benchmarks/sims_scale.py --quick          # 24 creatures x 3 generations x 2 s (CI)
 """
 
@@ -31,17 +31,19 @@ from pathlib import Path
 import numpy as np
 
 from coursekit.atomic import atomic_write
-from coursekit.cli import number
+from coursekit.cli import number, probability
 from coursekit.creatures import evolve_swimmers, resume_swimmers, simulate
 from coursekit.creatures.audit import audit, body_length
+from coursekit.creatures.generation import RHYTHM
 
 
 def run(seed: int, population: int, generations: int, seconds: float, workers: int, checkpoint: Path | None = None,
-        torch_device: str | None = None, numpy_step: bool = False):
+        torch_device: str | None = None, numpy_step: bool = False, rhythm: float = RHYTHM):
     """One seed's run; with ``checkpoint`` it saves every generation and resumes a killed run; with
     ``torch_device`` the generation swims in this process on torch there, with the graph-ready step
     (a CUDA graph on a GPU); with ``numpy_step`` the workers run the numpy step instead of the
-    compiled one (``World(compiled=False)``)."""
+    compiled one (``World(compiled=False)``); ``rhythm``: ``Creature.random``'s, for the first
+    generation (0: random wiring only, as the shipped Sims-scale champions were bred)."""
     options = dict(compiled=False) if numpy_step else {}
     if torch_device is not None:
         options, workers = dict(backend="torch", device=torch_device, graph=True), 1
@@ -64,7 +66,7 @@ def run(seed: int, population: int, generations: int, seconds: float, workers: i
         else:
             result = evolve_swimmers(generations=generations, rng=np.random.default_rng(seed), population_size=population,
                                      seconds=seconds, progress=False, callback=record, executor=pool,
-                                     checkpoint=checkpoint, **options)
+                                     checkpoint=checkpoint, random_options=dict(rhythm=rhythm), **options)
     finally:
         if pool is not None:
             pool.shutdown()
@@ -101,6 +103,8 @@ def main(argv=None) -> int:
                                                "with the graph-ready step (World(graph=True)), instead of numpy in worker processes")
     parser.add_argument("--numpy-step", action="store_true", help="the numpy step (World(compiled=False)) instead of the "
                                                                    "compiled one: the same physics up to rounding, so another run")
+    parser.add_argument("--rhythm", type=probability, default=RHYTHM, help="share of the first generation's effectors driven "
+                        f"by oscillators of one frequency (default {RHYTHM}; 0: random wiring only, as the shipped champions were bred)")
     parser.add_argument("--out", type=Path, help="folder for each seed's champion (JSON) and table")
     args = parser.parse_args(argv)
     if args.quick:
@@ -114,7 +118,7 @@ def main(argv=None) -> int:
         if args.out:
             args.out.mkdir(parents=True, exist_ok=True)
         result, rows, wall = run(seed, args.population, args.generations, args.seconds, args.workers, checkpoint,
-                                 args.torch_device, args.numpy_step)
+                                 args.torch_device, args.numpy_step, args.rhythm)
         evaluations = sum(result.history.evaluations[len(result.history.evaluations) - len(rows):])  # this process's
         champ = champion(result.best, max(args.seconds, 10.0), **(dict(compiled=False) if args.numpy_step else {}))
         g0, gN = result.history.best[0], result.history.best[-1]
@@ -124,7 +128,8 @@ def main(argv=None) -> int:
               f"pace {champ['pace']:.2f}; audit: {champ['audit']}")
         entry = dict(seed=seed, wall=wall, evaluations=evaluations, generations=rows, champion=champ,
                      command=f"coursekit bench sims_scale --seeds {seed} --population {args.population} "
-                             f"--generations {args.generations} --seconds {args.seconds:g}" + (" --numpy-step" if args.numpy_step else ""))
+                             f"--generations {args.generations} --seconds {args.seconds:g} --rhythm {args.rhythm:g}"
+                             + (" --numpy-step" if args.numpy_step else ""))
         summary.append(entry)
         if args.out:
             atomic_write(args.out / f"champion-seed{seed}.json", result.best.to_json())

@@ -28,6 +28,14 @@ def number(kind: type, low: float, *, above: bool = False):
     return parse
 
 
+def probability(text: str) -> float:
+    """An argparse type: a number from 0 to 1."""
+    value = number(float, 0)(text)
+    if value > 1:
+        raise argparse.ArgumentTypeError(f"must be a number from 0 to 1, got {text}")
+    return value
+
+
 def _lab(folder: Path, open_rel: str, no_browser: bool, extra: list[str]) -> int:
     """JupyterLab serving the working folder ``folder`` (lessons link to ../exercises), opened at ``open_rel``.
 
@@ -71,7 +79,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from coursekit import demos
 
     sizes = dict(population=args.population, generations=args.generations, seconds=args.seconds, seed=args.seed,
-                 workers=args.workers, budget=args.budget)
+                 workers=args.workers, budget=args.budget, rhythm=args.rhythm)
     if args.name != "pictures":
         try:
             demos.swimmer_sizes(args.population, args.generations, args.seconds, args.workers, args.budget)
@@ -205,6 +213,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--workers", type=number(int, 1), help="processes the swimmers swim in (default: one per core)")
     s.add_argument("--budget", type=number(float, 0), help="seconds the swimmers' evolution may take: no generation is begun that "
                    "would end after them (default by COURSEKIT_PROFILE: 75 in the classroom; 0: no limit)")
+    s.add_argument("--rhythm", type=probability, help="share of the first swimmers' effectors driven by oscillators of one "
+                   "frequency (default 0.5; 0: random wiring only, as the shipped demo champion was bred)")
     s.add_argument("--no-browser", action="store_true", help="pictures: do not open a browser window")
     s.set_defaults(func=_cmd_demo)
 

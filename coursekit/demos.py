@@ -109,7 +109,7 @@ def swimmer_sizes(population: int | None = None, generations: int | None = None,
 
 def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int | None = None,
              generations: int | None = None, seconds: float | None = None, seed: int = 0, workers: int | None = None,
-             budget: float | None = None, progress: bool = True) -> dict:
+             budget: float | None = None, rhythm: float | None = None, progress: bool = True) -> dict:
     """Evolve swimmers and write the champion's files and the run's fitness plot to ``out``.
 
     Files: ``best.json``, ``best.png``, ``best.mp4`` and ``best.gif`` (the champion swimming, the
@@ -120,9 +120,10 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
 
     Sizes default by profile (classroom: 100 creatures, 40 generations, 10 s swims, Sims' own
     evaluation time -- in 5 s swims evolution bred creatures that unfold once and stop after the
-    5 s; ci: tiny). Within the 75 s budget on 2 cores, 100 creatures bred swimmers of 0.065 to
-    0.38 body lengths/s over five seeds, where 40 creatures bred 0.02 to 0.18, and 40 creatures
-    stopped after 8 generations 0.008 to 0.05 (``benchmarks/NOTES.md``).
+    5 s; ci: tiny). Randomly wired first swimmers (``rhythm=0``) bred 0.065 to 0.38 body lengths/s
+    over five seeds within the 75 s budget on 2 cores, where 40 creatures bred 0.02 to 0.18; with
+    rhythm, all 40 generations of seeds 0-2 bred 0.24 to 0.33, against 0.09 to 0.38 without
+    (``benchmarks/NOTES.md``, "Rhythm").
 
     Args:
         budget: seconds the live evolution may take, so that the demo fits a lecture's break on
@@ -131,6 +132,9 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
             it, 1 to 1.5 minutes in all on 2 cores; ci and 0: no limit). The run is the same run
             either way, cut short: ``generations`` in the summary is what was bred, and
             ``--budget 0`` breeds them all.
+        rhythm: the first generation's share of effectors driven by oscillators
+            (``Creature.random``'s ``rhythm``; default :data:`~coursekit.creatures.generation.RHYTHM`;
+            0: random creatures as the kit drew them before, as the shipped demo champion was bred).
         workers: processes the population swims in, at most one per creature (default: one per
             core; 1: this process).
             The run is bit for bit the same either way. With more than one, the shipped
@@ -148,6 +152,7 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
     from coursekit.creatures import evolve_swimmers
     from coursekit.creatures.audit import audit
     from coursekit.creatures.champions import hall_of_fame
+    from coursekit.creatures.generation import RHYTHM
     from coursekit.creatures.render import render
 
     population, generations, seconds, workers, budget = swimmer_sizes(population, generations, seconds, workers, budget)
@@ -171,7 +176,8 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
                                progress=False) if filming is not None else None)  # no bars under evolution's
         clock = _Budget(budget, t)
         result = evolve_swimmers(generations=generations, rng=rng, population_size=population, seconds=seconds,
-                                 progress=progress, random_options=dict(max_parts=16), executor=pool, callback=clock)
+                                 progress=progress, random_options=dict(max_parts=16, rhythm=RHYTHM if rhythm is None else rhythm),
+                                 executor=pool, callback=clock)
         wall["evolution"] = time.perf_counter() - t
         best = result.best
         t = time.perf_counter()
@@ -224,7 +230,7 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
     summary = {
         "population": population, "generations": result.generation, "generations_planned": generations,
         "budget": budget, "stopped_by_budget": clock.stopped, "seconds": seconds, "seed": seed, "workers": workers,
-        "best_fitness": float(result.best_fitness), "best_parts": int(best.expand().body.n_bodies),
+        "rhythm": RHYTHM if rhythm is None else rhythm, "best_fitness": float(result.best_fitness), "best_parts": int(best.expand().body.n_bodies),
         "best_speed": report.speed, "best_body_length": report.body_length,
         "best_body_lengths_per_second": report.body_lengths_per_second,
         "audit": str(report), "audit_passed": report.passed,
@@ -360,7 +366,7 @@ def _links(page: str) -> list[str]:
 
 def both(out: str | os.PathLike[str] = "coursekit-demo", *, population: int | None = None,
          generations: int | None = None, seconds: float | None = None, seed: int = 0, workers: int | None = None,
-         budget: float | None = None, progress: bool = True) -> dict:
+         budget: float | None = None, rhythm: float | None = None, progress: bool = True) -> dict:
     """Both demos into ``out`` (``swimmers/``, ``pictures/``) and an ``index.html`` that opens them
     (the options are :func:`swimmers`').
 
@@ -371,7 +377,7 @@ def both(out: str | os.PathLike[str] = "coursekit-demo", *, population: int | No
     out = Path(out)
     t0 = time.perf_counter()
     sw = swimmers(out / "swimmers", population=population, generations=generations, seconds=seconds, seed=seed,
-                  workers=workers, budget=budget, progress=progress)
+                  workers=workers, budget=budget, rhythm=rhythm, progress=progress)
     pi = pictures(out / "pictures", seed=seed)
     total = time.perf_counter() - t0
     esc = html.escape

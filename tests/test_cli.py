@@ -207,6 +207,7 @@ def test_bench_refuses_a_bad_option_by_name():
     (["gallery_click", "--clicks", "0"], "argument --clicks: must be an integer >= 1, got 0"),
     (["render", "--size", "0", "0"], "argument --size: must be an integer >= 16, got 0"),
     (["sims_scale", "--population", "1"], "argument --population: must be an integer >= 2, got 1"),
+    (["sims_scale", "--rhythm", "2"], "argument --rhythm: must be a number from 0 to 1, got 2"),
     (["picture_variety", "--genomes", "0"], "argument --genomes: must be an integer >= 1, got 0"),
 ])
 def test_bench_scripts_refuse_bad_sizes_by_name(argv, message):
@@ -291,7 +292,9 @@ def test_the_swimmer_demo_keeps_to_its_budget_by_breeding_fewer_generations_of_t
                                              ("--seed=-1", "argument --seed: must be an integer >= 0, got -1"),
                                              ("--workers=0", "argument --workers: must be an integer >= 1, got 0"),
                                              ("--workers=100000", "--workers: must be an integer from 1 to the population ("),
-                                             ("--population=6 --workers=7", "--workers: must be an integer from 1 to the population (6), got 7")])
+                                             ("--population=6 --workers=7", "--workers: must be an integer from 1 to the population (6), got 7"),
+                                             ("--rhythm=1.5", "argument --rhythm: must be a number from 0 to 1, got 1.5"),
+                                             ("--rhythm=-0.1", "argument --rhythm: must be a number >= 0, got -0.1")])
 def test_the_demo_refuses_a_bad_size_by_name_before_it_starts(option, message, tmp_path):
     run = subprocess.run([sys.executable, "-m", "coursekit", "demo", "swimmers", *option.split(), "--out", str(tmp_path / "d")],
                          capture_output=True, text=True)

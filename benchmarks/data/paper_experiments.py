@@ -19,7 +19,8 @@ and seed it records the best fitness of every generation (m/s, and body lengths 
 creature) and the final champion's straight-line speed over Sims' 10 s test (m/s and body lengths/s).
 Elitism (the best fifth copied unchanged, not re-evaluated) makes each best-fitness curve
 non-decreasing. ``max_parts`` bounds the random first generation (``random_options``); grafting and
-mutation grow bodies beyond it. The file holds the command, the coursekit commit (``+dirty`` when
+mutation grow bodies beyond it. The first generation is wired at random, with no rhythm
+(``rhythm=0``, :func:`coursekit.creatures.generation.add_rhythm`), as when the shipped runs were made. The file holds the command, the coursekit commit (``+dirty`` when
 tracked files differed from it) and the settings.
 
     python benchmarks/data/paper_experiments.py [--out coursekit/data/paper_experiments.json]
@@ -98,7 +99,7 @@ def run_one(setting: dict, seed: int, sizes: dict, executor=None) -> dict:
     result = evolve_swimmers(generations=sizes["generations"], rng=np.random.default_rng(seed),
                              population_size=sizes["population"], seconds=sizes["seconds"], mutate=mutate,
                              ratios=tuple(s["ratios"]), joint_types=s["joint_types"], progress=False,
-                             random_options=dict(max_parts=sizes["max_parts"]), callback=keep, executor=executor)
+                             random_options=dict(max_parts=sizes["max_parts"], rhythm=0.0), callback=keep, executor=executor)
     return {"seed": seed, "best_ms": [float(b) for b in result.history.best], "best_bl": [float(b) for b in best_bl],
             "champion": result.best}
 

@@ -14,7 +14,9 @@ OpenBLAS's ``SkylakeX`` kernels), where their commands follow them generation by
 there, ``NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" OPENBLAS_CORETYPE=Haswell``
 (read when numpy loads) takes another path (benchmarks/NOTES.md). The demo's champion is the
 demo's seed-0 run at its classroom sizes with ``--budget 0`` (all 40 generations), made with the
-same step on the same machine. So a champion is not re-derived on every change. What the tests
+same step on the same machine. All four were bred from randomly wired creatures, before random
+creatures had a rhythm (:func:`~coursekit.creatures.generation.add_rhythm`): their commands say
+``--rhythm 0``. So a champion is not re-derived on every change. What the tests
 check is what a student sees now: every champion still swims at its recorded pace, steadily, and
 passes the audit (:mod:`~coursekit.creatures.audit`).
 

@@ -4,8 +4,9 @@ hand-designed swimmers (paper sections 2.1.1 and 2.2.2).
 Random genomes and mutation draw from "a predefined list of valid values" (section 2.2.2): the
 value lists below (sizes, face coordinates, forces, limits, scales, joint axes, the 24 cube
 rotations of a link). :func:`random_genotype` draws a whole creature (a random tree over its
-nodes, a few shared links, recursion and symmetry entries, neurons), pruned until its expansion
-fits the part cap; :func:`figure1_snake` and :func:`paddle_turtle` build the paper's Figure 1
+nodes, a few shared links, recursion and symmetry entries, neurons, a rhythm: oscillators of one
+frequency driving some of its effectors, :func:`add_rhythm`), pruned until its expansion fits the
+part cap; :func:`figure1_snake` and :func:`paddle_turtle` build the paper's Figure 1
 and a second, rowing swimmer. :class:`~coursekit.creatures.genotype.Creature` offers them as
 ``Creature.random``, ``Creature.figure1_snake`` and ``Creature.paddle_turtle``.
 """
@@ -41,7 +42,7 @@ T = TypeVar("T")
 __all__ = ["SIZES", "COORDS", "FORCES", "REVOLUTE_LIMITS", "PRISMATIC_LIMITS", "DEFAULT_JOINT_TYPES",
            "joint_types_arg", "limit_values", "random_limits", "SCALES", "AXES", "ROTATIONS", "FACES",
            "choice", "random_face_point", "facing_rotation", "mirror_axis", "random_node", "random_link",
-           "random_recursion", "random_genotype", "figure1_snake", "paddle_turtle"]
+           "random_recursion", "random_genotype", "RHYTHM", "RHYTHM_HZ", "add_rhythm", "figure1_snake", "paddle_turtle"]
 
 # Predefined value lists used by random generation and mutation.
 SIZES = (0.025, 0.04, 0.06, 0.08, 0.1, 0.125, 0.15, 0.2, 0.25, 0.3)
@@ -54,6 +55,12 @@ AXES = tuple(
     tuple(float(v) for v in np.asarray(a, float) / np.linalg.norm(a))
     for a in [(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, -1, 0), (1, 0, 1), (1, 0, -1), (0, 1, 1), (0, 1, -1)]
 )
+
+
+#: The default chance that a random creature's effector is driven by an oscillator.
+RHYTHM = 0.5
+#: The frequencies (Hz) a random creature's oscillators share: one stroke every 2 s to 0.4 s.
+RHYTHM_HZ = (0.5, 2.5)
 
 
 def _cube_rotations() -> tuple:
@@ -198,7 +205,7 @@ def _int_range(pair) -> tuple:
 def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), max_children: int = 3,
                     neurons: tuple = (0, 3), brain_neurons: tuple = (0, 3), p_recursion: float = 0.3,
                     p_symmetry: float = 0.4, max_parts: int | None = None,
-                    joint_types: Sequence[str] | None = None) -> tuple[list, list]:
+                    joint_types: Sequence[str] | None = None, rhythm: float = RHYTHM) -> tuple[list, list]:
     """The nodes and brain of a random valid creature (``Creature.random`` wraps them).
 
     Args:
@@ -214,6 +221,8 @@ def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), 
         joint_types: the joint types nodes draw from (names of
             :data:`~.morphology.JOINT_AXES`, repeats weighting the draw; default
             :data:`DEFAULT_JOINT_TYPES`, 1-DOF joints only).
+        rhythm: the chance that an effector is driven by an oscillator (:func:`add_rhythm`); 0
+            draws the creatures of the kit before rhythm existed, number for number.
 
     Returns:
         ``(nodes, brain)``: nodes numbered in LR pre-order, all reachable, acyclic.
@@ -232,6 +241,8 @@ def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), 
     for name, p in (("p_recursion", p_recursion), ("p_symmetry", p_symmetry)):
         if not (is_real(p) and 0.0 <= p <= 1.0):
             raise ValueError(f"Creature.random.{name}: must be a probability in [0, 1], got {p!r}")
+    if not (is_real(rhythm) and 0.0 <= rhythm <= 1.0):
+        raise ValueError(f"Creature.random.rhythm: must be a probability in [0, 1], got {rhythm!r}")
     max_parts = MAX_PARTS if max_parts is None else max_parts
     if not is_int(max_parts) or max_parts < hi:
         raise ValueError(f"Creature.random.max_parts: must be an int >= the largest node count {hi}, got {max_parts!r}")
@@ -269,12 +280,46 @@ def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), 
         kw = dict(brain=False, n_local=n_local, n_brain=nb, n_children=nc, dof=node.dof)
         node.neurons = [random_neuron(rng, **kw) for _ in range(k)]
         node.effectors = [random_input(rng, **kw) for _ in range(node.dof)]
+    if rhythm > 0:
+        add_rhythm(rng, nodes, brain, rhythm)
     draft = _Draft(renumber(nodes), brain)
     # Sims discards creatures over the part cap; we prune multipliers until it fits.
     while expand(draft, max_parts).body.meta["truncated"]:
         _prune_one(draft, rng)
         draft = _Draft(renumber(draft.nodes), draft.brain)
     return draft.nodes, draft.brain
+
+
+def add_rhythm(rng: np.random.Generator, nodes: list, brain: list, p: float) -> None:
+    """Drive each effector, with probability ``p``, by an oscillator (in place).
+
+    A creature moves its joints back and forth, but reciprocal strokes barely move it through
+    viscous water: it swims when joints beat at one frequency with different phases (a wave
+    along a body, paddles a quarter stroke apart). Random sensor-and-neuron wiring rarely does
+    that: in 200 random creatures (seed 0, at most 16 parts) the fastest covered 0.007 body
+    lengths a second over 10 s, and evolution at a lecture's size (40 creatures, 15 generations)
+    bred 0.004-0.06. So every oscillator of a random creature beats at one frequency drawn from
+    :data:`RHYTHM_HZ`, with its own random phase and weight; half of them are central (brain)
+    neurons, half local to the effector's part (within the neuron caps), so parts made from one
+    node beat in step. Mutation and mating then work on them as on any neuron: this only
+    changes where evolution starts (``benchmarks/NOTES.md``, "Rhythm").
+    """
+    hz = float(np.round(rng.uniform(*RHYTHM_HZ), 3))
+
+    def oscillator():
+        return Neuron("oscillate_wave", [Input(None, 0, float(np.round(rng.uniform(-math.pi, math.pi), 3)))], hz)
+
+    for node in nodes:
+        for e in range(node.dof):
+            if rng.random() >= p:
+                continue
+            w = float(np.round(rng.choice((-1.0, 1.0)) * rng.uniform(0.5, 2.0), 3))
+            if rng.random() < 0.5 and len(brain) < MAX_BRAIN_NEURONS:
+                brain.append(oscillator())
+                node.effectors[e] = Input(-2, len(brain) - 1, w)
+            elif len(node.neurons) < MAX_NEURONS:
+                node.neurons.append(oscillator())
+                node.effectors[e] = Input(0, N_SENSORS + len(node.neurons) - 1, w)
 
 
 def _prune_one(creature: _Draft, rng) -> None:
