@@ -212,7 +212,8 @@ def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), 
         rng: the random generator.
         n_nodes: node count, an int or an inclusive range ``(lo, hi)`` within [1, MAX_NODES].
         max_children: most child links per node (<= MAX_CHILDREN).
-        neurons: inclusive range of local neurons per node (within [0, MAX_NEURONS]).
+        neurons: inclusive range of randomly wired local neurons per node (within [0, MAX_NEURONS];
+            ``rhythm`` adds its oscillators to them, within the cap).
         brain_neurons: inclusive range of brain neurons (within [0, MAX_BRAIN_NEURONS]).
         p_recursion, p_symmetry: chance a node recurses / a link gets a symmetric copy.
         max_parts: the expansion must fit this many parts without truncation (default
@@ -281,7 +282,7 @@ def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), 
         node.neurons = [random_neuron(rng, **kw) for _ in range(k)]
         node.effectors = [random_input(rng, **kw) for _ in range(node.dof)]
     if rhythm > 0:
-        add_rhythm(rng, nodes, brain, rhythm)
+        add_rhythm(rng, nodes, rhythm)
     draft = _Draft(renumber(nodes), brain)
     # Sims discards creatures over the part cap; we prune multipliers until it fits.
     while expand(draft, max_parts).body.meta["truncated"]:
@@ -290,36 +291,29 @@ def random_genotype(rng: np.random.Generator, *, n_nodes: int | tuple = (1, 5), 
     return draft.nodes, draft.brain
 
 
-def add_rhythm(rng: np.random.Generator, nodes: list, brain: list, p: float) -> None:
+def add_rhythm(rng: np.random.Generator, nodes: list, p: float) -> None:
     """Drive each effector, with probability ``p``, by an oscillator (in place).
 
     A creature moves its joints back and forth, but reciprocal strokes barely move it through
     viscous water: it swims when joints beat at one frequency with different phases (a wave
     along a body, paddles a quarter stroke apart). Random sensor-and-neuron wiring rarely does
     that: in 200 random creatures (seed 0, at most 16 parts) the fastest covered 0.007 body
-    lengths a second over 10 s, and evolution at a lecture's size (40 creatures, 15 generations)
-    bred 0.004-0.06. So every oscillator of a random creature beats at one frequency drawn from
-    :data:`RHYTHM_HZ`, with its own random phase and weight; half of them are central (brain)
-    neurons, half local to the effector's part (within the neuron caps), so parts made from one
-    node beat in step. Mutation and mating then work on them as on any neuron: this only
-    changes where evolution starts (``benchmarks/NOTES.md``, "Rhythm").
+    lengths a second over 10 s, and evolution at a lecture's size (40 creatures, 12 generations)
+    bred 0.014-0.084. So every oscillator of a random creature beats at one frequency drawn from
+    :data:`RHYTHM_HZ`, with its own random phase and weight. Each is a neuron added to the
+    effector's own part (within :data:`~.neural.MAX_NEURONS`; the parts made from one node beat in
+    step); the brain is left as drawn, so ``brain_neurons`` still bounds it and ``neurons``
+    counts the randomly wired neurons of a part. Mutation and mating then work on them as on any
+    neuron: this only changes where evolution starts (``benchmarks/NOTES.md``, "Rhythm").
     """
     hz = float(np.round(rng.uniform(*RHYTHM_HZ), 3))
-
-    def oscillator():
-        return Neuron("oscillate_wave", [Input(None, 0, float(np.round(rng.uniform(-math.pi, math.pi), 3)))], hz)
-
     for node in nodes:
         for e in range(node.dof):
-            if rng.random() >= p:
+            if rng.random() >= p or len(node.neurons) >= MAX_NEURONS:
                 continue
-            w = float(np.round(rng.choice((-1.0, 1.0)) * rng.uniform(0.5, 2.0), 3))
-            if rng.random() < 0.5 and len(brain) < MAX_BRAIN_NEURONS:
-                brain.append(oscillator())
-                node.effectors[e] = Input(-2, len(brain) - 1, w)
-            elif len(node.neurons) < MAX_NEURONS:
-                node.neurons.append(oscillator())
-                node.effectors[e] = Input(0, N_SENSORS + len(node.neurons) - 1, w)
+            phase = float(np.round(rng.uniform(-math.pi, math.pi), 3))
+            node.neurons.append(Neuron("oscillate_wave", [Input(None, 0, phase)], hz))
+            node.effectors[e] = Input(0, N_SENSORS + len(node.neurons) - 1, float(np.round(rng.choice((-1.0, 1.0)) * rng.uniform(0.5, 2.0), 3)))
 
 
 def _prune_one(creature: _Draft, rng) -> None:
