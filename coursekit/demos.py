@@ -122,7 +122,7 @@ def swimmers(out: str | os.PathLike[str] = "swimmers-demo", *, population: int |
     evaluation time -- in 5 s swims evolution bred creatures that unfold once and stop after the
     5 s; ci: tiny). Randomly wired first swimmers (``rhythm=0``) bred 0.065 to 0.38 body lengths/s
     over five seeds within the 75 s budget on 2 cores, where 40 creatures bred 0.02 to 0.18; with
-    rhythm, all 40 generations of seeds 0-2 bred 0.24 to 0.33, against 0.09 to 0.38 without
+    rhythm, all 40 generations of seeds 0-2 bred 0.19 to 0.70, against 0.09 to 0.38 without
     (``benchmarks/NOTES.md``, "Rhythm").
 
     Args:
