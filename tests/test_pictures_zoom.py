@@ -125,6 +125,9 @@ def test_extension_is_bounded_by_the_picture_and_follows_one_rule():
     assert P.padding("blur", [float("inf")], 1 / 32, 1 / 32, 32, 32) == (32, 32)  # a kernel's own overflow
     assert P.padding("blur", [float("nan")], 1 / 32, 1 / 32, 32, 32) == (0, 0)
     assert P.padding("plus", [], 1 / 32, 1 / 32, 32, 32) == (0, 0)
+    # nor beyond the largest picture: a poster of 4096 x 4096 is not extended, one of 3000 by 548
+    assert P.padding("blur", [1.0], 1 / 4096, 1 / 4096, 4096, 4096) == (0, 0)
+    assert P.padding("blur", [1.0], 1 / 3000, 1 / 3000, 3000, 3000) == (548, 548)
     # otherwise at least the reach of the three box passes (3 r pixels), rounded up to a step
     rows, cols = P.padding("band-pass", [0.03], 1 / 64, 1 / 128, 64, 128)
     assert rows >= 3 * 11 and cols >= 3 * 5 and rows % 4 == 0 and cols % 8 == 0

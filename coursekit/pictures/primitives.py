@@ -72,6 +72,9 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from math import isqrt
+
+from .frame import MAX_PIXELS
 
 __all__ = ["Param", "Primitive", "PRIMITIVES", "FORMS", "IMAGE_KERNELS", "PIXEL_KERNELS", "names", "arity", "get",
            "terminals", "functions", "max_arity", "register_primitive", "image_kernel", "pixel_kernel", "PIXMAPS",
@@ -216,6 +219,7 @@ PIXEL_KERNELS: dict = {}
 REACHES: dict = {}
 #: Extensions of a picture's grid are multiples of its size divided by this (:func:`padding`).
 EXTENSION_STEPS = 16
+_MAX_SIDE = isqrt(MAX_PIXELS)
 #: Names given to :func:`register_primitive` in this process: worker processes (:mod:`.workers`)
 #: import the built-ins only, so genomes using these render in-process.
 REGISTERED: set[str] = set()
@@ -314,7 +318,8 @@ def padding(name: str, p: Sequence[float], px: float, py: float, H: int, W: int,
     (:data:`REACHES`), rounded up so that the extension in all is a multiple of a
     :data:`EXTENSION_STEPS`-th of the picture's size (few distinct extended grids in a
     population, so that waves stack more of them: :mod:`.grouped`), and at most ``H`` rows and
-    ``W`` columns beyond the window in all; ``(0, 0)`` for a primitive without a
+    ``W`` columns beyond the window in all (nor more than the largest picture,
+    :data:`~.frame.MAX_PIXELS`, allows: a poster of 4096 x 4096 is not extended); ``(0, 0)`` for a primitive without a
     reach. The one rule both evaluators follow."""
     f = REACHES.get(name)
     if f is None:
@@ -323,10 +328,11 @@ def padding(name: str, p: Sequence[float], px: float, py: float, H: int, W: int,
     return _extension(int(rows), pad[0], H), _extension(int(cols), pad[1], W)
 
 
-def _extension(reach: int, pad: int, most: int) -> int:
+def _extension(reach: int, pad: int, n: int) -> int:
     if reach <= 0:
         return 0
-    step = -(-most // EXTENSION_STEPS)
+    most = max(0, min(n, (_MAX_SIDE - n) // 2))  # never a grid larger than the largest picture
+    step = -(-n // EXTENSION_STEPS)
     return max(0, min(-(-(pad + reach) // step) * step, most) - pad)
 
 
