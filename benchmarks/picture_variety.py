@@ -23,7 +23,9 @@ generation (:func:`coursekit.pictures.variety.random_population`, one genome per
   channel;
 - *noisy*: the picture differs from a 4x supersampled render of it (256 x 256, box-averaged to
   64 x 64) by more than 0.1 (mean absolute difference): detail finer than its pixels, pixel
-  noise at this size (or a fine texture).
+  noise at this size (or a fine texture);
+- *pale*: every channel's standard deviation is below 0.05 (a grey mist, a faint wash), or
+  below 0.08 with a mean luminance of at least 0.6 (washed out, a pale pastel).
 
 **Children identical** (``--sessions`` sessions, default 30): session ``s`` starts a widget-free
 gallery (:class:`~coursekit.pictures.gallery.Evolution`, 20 pictures, first generation as the
@@ -41,9 +43,9 @@ interpolation: the children *identical* to a parent or any sibling (1/255, as ab
 (3/255).
 
 **Flat children** (the same sessions): the fraction of those children that are flat or black,
-and that are one colour, and along a *chain*: session ``s`` evolves (mixed operators) from one
-random picture, then from one random child of that, four times; the same two fractions over the
-chain, and the plain children of the chain. These yardsticks are the benchmark's own, so that one script measures any version of the
+that are one colour and that are pale, and along a *chain*: session ``s`` evolves (mixed
+operators) from one random picture, then from one random child of that, four times; the same
+three fractions over the chain, and the plain children of the chain. These yardsticks are the benchmark's own, so that one script measures any version of the
 library.
 
 Usage: ``python benchmarks/picture_variety.py [--genomes 600] [--sessions 30]``
@@ -79,6 +81,15 @@ def plain_pictures(images, below=0.7):
     across = np.abs(np.diff(im, axis=2)).mean(axis=(1, 2)) * (im.shape[2] - 1)
     down = np.abs(np.diff(im, axis=1)).mean(axis=(1, 2)) * (im.shape[1] - 1)
     return (across + down).max(axis=1) < below
+
+
+def pale_pictures(images):
+    """Per picture: every channel's standard deviation under 0.05, or under 0.08 with a mean
+    luminance (Rec. 601) of at least 0.6."""
+    n = len(images)
+    spread = images.reshape(n, -1, 3).std(axis=1).max(axis=1)
+    light = _luminance(images).reshape(n, -1).mean(axis=1) >= 0.6
+    return (spread < 0.05) | ((spread < 0.08) & light)
 
 
 def one_colour(images, share=0.9, levels=16):
@@ -150,7 +161,7 @@ def first_generation(rng, n):
 def children_figures(sessions, n=20):
     """(children checked, fraction repeating, fraction identical to a parent or sibling, and
     per operator the fraction identical)."""
-    checked = repeats = identical = flat = single = alike = 0
+    checked = repeats = identical = flat = single = alike = pale = 0
     per_op: dict = {}
     for s in range(sessions):
         rng = np.random.default_rng(s)
@@ -173,11 +184,12 @@ def children_figures(sessions, n=20):
                 alike += min(d_par + d_sib) < ALIKE
                 flat += bool(flat_or_black(kid[None])[0])
                 single += bool(one_colour(kid[None])[0])
+                pale += bool(pale_pictures(kid[None])[0])
                 per_op.setdefault(name, []).append(min(d_par + d_sib) < SAME)
             ev.undo()
             ev.state.selected.clear()
     return (checked, repeats / checked, identical / checked, {k: float(np.mean(v)) for k, v in per_op.items()},
-            flat / checked, single / checked, alike / checked)
+            flat / checked, single / checked, alike / checked, pale / checked)
 
 
 def sibling_figures(sessions, n=20):
@@ -211,7 +223,7 @@ def chain_figures(sessions, n=20, depth=4):
     """Flat or black children, one-colour children and plain children, over chains of ``depth``
     evolve clicks, each from one random picture of the generation before (children checked, the
     three fractions)."""
-    checked = flat = single = plain = 0
+    checked = flat = single = plain = pale = 0
     for s in range(sessions):
         rng = np.random.default_rng(1000 + s)
         ev = Evolution(GalleryState(first_generation(rng, n)), rng)
@@ -223,7 +235,8 @@ def chain_figures(sessions, n=20, depth=4):
             flat += int(flat_or_black(kids).sum())
             single += int(one_colour(kids).sum())
             plain += int(plain_pictures(kids).sum())
-    return checked, flat / checked, single / checked, plain / checked
+            pale += int(pale_pictures(kids).sum())
+    return checked, flat / checked, single / checked, plain / checked, pale / checked
 
 
 def main(argv=None):
@@ -237,7 +250,8 @@ def main(argv=None):
     plain = [Genome.random(np.random.default_rng(i)) for i in range(args.genomes)]
     pics = _render(plain)
     rows.append(("Genome.random (defaults)", picture_figures(pics, photos) + [with_photo(plain)]
-                 + [float(dark_pictures(pics).mean()), float(noisy_pictures(plain, pics).mean())]))
+                 + [float(dark_pictures(pics).mean()), float(noisy_pictures(plain, pics).mean()),
+                    float(pale_pictures(pics).mean())]))
     t1 = time.perf_counter()
     try:
         from coursekit.pictures.variety import random_population
@@ -249,7 +263,8 @@ def main(argv=None):
         pics = _render(first)
         rows.append(("first generation (random_population)",
                      picture_figures(pics, photos) + [with_photo(first)]
-                     + [float(dark_pictures(pics).mean()), float(noisy_pictures(first, pics).mean())]))
+                     + [float(dark_pictures(pics).mean()), float(noisy_pictures(first, pics).mean()),
+                        float(pale_pictures(pics).mean())]))
     t2 = time.perf_counter()
     children = children_figures(args.sessions) if args.sessions > 0 else None
     chain = chain_figures(args.sessions) if args.sessions > 0 else None
@@ -257,14 +272,15 @@ def main(argv=None):
     t3 = time.perf_counter()
     print(f"random pictures: {args.genomes} genomes (seeds 0..{args.genomes - 1}) at {SIZE}^2")
     print(f"{'':38s} {'flat':>6s} {'black':>6s} {'1 col.':>6s} {'grey':>6s} {'plain':>6s} {'photo':>6s} {'photo in tree':>14s}"
-          f" {'dark':>6s} {'noisy':>6s}")
-    for name, (flat, black, single, grey, plain_, photo, tree, dark, noisy) in rows:
+          f" {'dark':>6s} {'noisy':>6s} {'pale':>6s}")
+    for name, (flat, black, single, grey, plain_, photo, tree, dark, noisy, pale) in rows:
         print(f"{name:38s} {flat:6.1%} {black:6.1%} {single:6.1%} {grey:6.1%} {plain_:6.1%} {photo:6.1%} {tree:14.1%}"
-              f" {dark:6.1%} {noisy:6.1%}")
+              f" {dark:6.1%} {noisy:6.1%} {pale:6.1%}")
     if children is not None:
         _print_children(args.sessions, *children[:4], children[6])
-        print(f"  flat or black: {children[4]:.1%}, one colour: {children[5]:.1%}; over chains of 4 evolve clicks "
-              f"({chain[0]} children): {chain[1]:.1%} and {chain[2]:.1%}; plain over the chains: {chain[3]:.1%}")
+        print(f"  flat or black: {children[4]:.1%}, one colour: {children[5]:.1%}, pale: {children[7]:.1%}; over chains "
+              f"of 4 evolve clicks ({chain[0]} children): {chain[1]:.1%}, {chain[2]:.1%} and {chain[4]:.1%}; plain over "
+              f"the chains: {chain[3]:.1%}")
         print("children of two siblings: " + ", ".join(f"{k} ({c} children) identical {same:.1%}, alike {alike:.1%}"
                                                        for k, (c, same, alike) in sib.items()))
     first_s = f"{t_first:.1f}" if random_population is not None else "-"

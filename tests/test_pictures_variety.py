@@ -12,8 +12,8 @@ from hypothesis import given, settings, strategies as st
 
 from coursekit.pictures import Genome, operators as O, primitives, random_population, render
 from coursekit.pictures.gallery import Evolution, GalleryState
-from coursekit.pictures.variety import (BLACK, DARK, FLAT as FLAT_STD, LEVELS, ONE_COLOUR, PLAIN, SAME, dark, distinct_children, dull, greyscale,
-                                        preview, variation)
+from coursekit.pictures.variety import (BLACK, DARK, FAINT, FLAT as FLAT_STD, LEVELS, ONE_COLOUR, PLAIN, SAME, WASHED, dark,
+                                        distinct_children, dull, faint, greyscale, preview, variation)
 
 
 @pytest.fixture(scope="module")
@@ -234,6 +234,38 @@ def test_a_pale_wash_or_a_faint_gradient_is_plain_and_a_full_ramp_an_edge_or_a_p
     # smooth pictures measure the same at any resolution
     big = np.stack([np.mgrid[0:128, 0:128][1] / 127.0] * 3, axis=-1)[None]
     assert variation(big)[0] == pytest.approx(variation(ramp)[0])
+
+
+def test_a_grey_mist_and_a_pale_pastel_are_faint_and_the_same_textures_with_contrast_are_not():
+    y, x = np.mgrid[0:32, 0:32] / 31.0
+    tex = np.sin(17 * x) * np.cos(11 * y + 0.4)  # a busy texture: standard deviation about 0.5
+    mist = np.stack([0.45 + 0.08 * tex] * 3, axis=-1)[None]                          # a grey mist (lesson 00's #10)
+    pastel = (np.array([0.95, 0.8, 0.85]) + 0.12 * tex[..., None] * np.array([0.3, 1.0, 0.9]))[None]  # pale pink
+    dim = pastel - 0.5                                                                  # the same contrast, dim
+    lively = np.stack([0.5 + 0.4 * tex, 0.5 - 0.3 * tex, 0.5 + 0.0 * x], axis=-1)[None]
+    # busy, so not plain, and no flat field: the checks before let both through
+    assert min(variation(mist)[0], variation(pastel)[0]) >= PLAIN
+    assert faint(mist)[0] and faint(pastel)[0] and dull(mist)[0] and dull(pastel)[0]
+    assert FAINT <= pastel.reshape(-1, 3).std(axis=0).max() < WASHED[0]  # washed out: only because it is pale
+    assert not faint(dim)[0] and not faint(lively)[0] and not dull(lively)[0]
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), k=st.floats(0.0, 1.0))
+def test_a_faint_picture_stays_faint_with_less_contrast(seed, k):
+    pic = np.random.default_rng(seed).random((1, 16, 16, 3))
+    pic = 0.7 + 0.25 * (pic - 0.5) * np.random.default_rng(seed + 1).random()  # light, some contrast
+    mean = pic.mean(axis=(1, 2), keepdims=True)
+    if faint(pic)[0]:
+        assert faint(mean + k * (pic - mean))[0]
+    assert faint(mean + (pic - mean) * (FAINT * 0.99 / max(pic.reshape(-1, 3).std(axis=0).max(), 1e-9)))[0]
+
+
+def test_lesson_00s_first_screen_has_no_faint_or_washed_out_picture():
+    # its gallery: seed 2026, 15 pictures at 128 x 128 (sessions 22 and 26 found pale ones there)
+    pop = random_population(np.random.default_rng(2026), 15)
+    assert not faint(preview(pop)).any()
+    assert not faint(render(pop, 128)).any()
 
 
 def test_a_dim_shape_on_black_is_dark_and_a_deep_blue_or_a_grey_texture_is_not():

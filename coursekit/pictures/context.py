@@ -4,7 +4,9 @@ A :class:`Context` is where a tree is evaluated: the world coordinates ``x`` and
 pixel centres, the image size, a pixel's world size, the time, the device's :class:`Resources`
 and the render's memo of shared subtree values. ``x`` is ``(1, 1, 1, W)`` and ``y`` is
 ``(1, 1, H, 1)`` in the unwarped context; a coordinate transform makes a new context whose
-coordinates may be whole images, one per genome. A context is *separable* when ``x`` varies
+coordinates may be whole images, one per genome. A neighbourhood primitive evaluates its
+argument in the context *extended* (``pad``) beyond the window by its reach, the same coordinates
+on more pixels (:func:`~.tree.padded`). A context is *separable* when ``x`` varies
 along columns only and ``y`` along rows only (:func:`separable`, the one test for it): noise and
 pixel maps then sample rows, then columns, which is exact and much cheaper than per pixel.
 
@@ -17,7 +19,7 @@ from __future__ import annotations
 
 import threading
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import torch
@@ -81,11 +83,25 @@ class Context:
     res: Resources
     memo: object  # shared subtree values (:class:`.tree.Memo`), shared by derived contexts
     key: tuple | None = None  # (H, W, window) of the unwarped context: its terminals are cached
+    frame: tuple | None = None  # (x0, y0, signed px, signed py, H, W) of the picture's window
+    pad: tuple = (0, 0)  # rows and columns on each side beyond the window (:func:`.tree.padded`)
+    origin: tuple | None = None  # (warp node, context it was made in); None: unwarped
+    variants: dict = field(default_factory=dict, repr=False)  # padded and warped contexts made from this one
 
     def with_coords(self, x, y, memo=None) -> Context:
         """The context at new coordinates (NaN -> 0 and clipped), same image and time."""
-        return Context(sane(x), sane(y), self.H, self.W, self.px, self.py, self.time, self.res,
-                       self.memo if memo is None else memo)
+        return self.moved(sane(x), sane(y), memo=memo)
+
+    def moved(self, x, y, origin=None, memo=None) -> Context:
+        """The context at coordinates ``x``, ``y`` as they are (same image, time and extension),
+        made by ``origin`` (a warp node and the context it was made in)."""
+        return Context(x, y, self.H, self.W, self.px, self.py, self.time, self.res,
+                       self.memo if memo is None else memo, frame=self.frame, pad=self.pad, origin=origin)
+
+    @property
+    def picture(self) -> tuple[int, int]:
+        """The picture's size ``(H, W)`` (``H``, ``W`` include the extension, :attr:`pad`)."""
+        return (self.frame[4], self.frame[5]) if self.frame is not None else (self.H, self.W)
 
     @property
     def separable(self) -> bool:

@@ -22,7 +22,9 @@ to the three channels, NaN becomes 0, values are clipped to +-1e6 and then *fold
 [-1, 0], and so on). Folding never saturates to flat white and is continuous.
 
 **Coordinates.** ``window=(x0, y0, x1, y1)`` (default the unit square) gives the world
-rectangle shown; pixel centres are sampled, so zooming and panning re-evaluate the genome.
+rectangle shown; pixel centres are sampled, so zooming and panning re-evaluate the genome. A
+blur's argument is evaluated beyond the window by the blur's reach (:func:`.tree.padded`), so a
+zoomed or panned window is the crop of a larger render, blurs included.
 
 **Batch invariance.** A picture never depends on what it was rendered with (batched, in waves,
 in a worker): see :mod:`.kernels`.
@@ -41,6 +43,7 @@ from .context import clear_cache, default_device, to_rgb
 from .frame import MAX_PIXELS, parse_size, parse_time, parse_window
 from .genome import Genome, Node
 from .local import no_gc, render_into
+from .tree import paddings
 from .workers import render_parts
 
 __all__ = ["clear_cache", "cost", "default_device", "render", "to_rgb", "MAX_PIXELS"]
@@ -123,7 +126,7 @@ def render(genomes: Genome | Sequence[Genome], size: int | tuple[int, int] = (12
     group = (device.type != "cpu" or H * W <= _WAVES_PIXELS) if group is None else bool(group)
     with no_gc():
         trees = [g.decode() for g in genomes]  # once: the workers get the trees
-        groups = _groups(trees, batch)
+        groups = _groups(trees, batch, (H, W), window)
         if (device.type == "cpu" and workers > 1 and len(groups) > 1 and len(genomes) * H * W >= _POOL_PIXELS
                 and not (P.REGISTERED and any(_uses(t, P.REGISTERED) for t in trees))):
             pics = render_parts([(idx, [trees[i] for i in idx]) for idx in groups],
@@ -141,9 +144,12 @@ def _uses(node: Node, names: set[str]) -> bool:
     return node.symbol in names or any(_uses(c, names) for c in node.children)
 
 
-def _groups(trees: list[Node], batch: bool) -> list[list[int]]:
-    """Indices of same-shaped trees (one batch each), or one index per group without ``batch``."""
+def _groups(trees: list[Node], batch: bool, size: tuple[int, int], window) -> list[list[int]]:
+    """Indices of same-shaped trees whose neighbourhoods extend the picture alike (one batch
+    each: :func:`.tree.paddings`), or one index per group without ``batch``."""
+    H, W = size
+    px, py = abs((window[2] - window[0]) / W), abs((window[3] - window[1]) / H)  # as render_into
     groups: dict = {}
     for i, t in enumerate(trees):
-        groups.setdefault(t.structure() if batch else i, []).append(i)
+        groups.setdefault((t.structure(), paddings(t, px, py, H, W)) if batch else i, []).append(i)
     return list(groups.values())

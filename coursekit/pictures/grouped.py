@@ -18,7 +18,9 @@ alone stays one row); the arguments of pointwise functions of two arguments are 
 one shape first, which leaves their values unchanged and makes fewer, larger groups. Warped
 coordinates are stacked as they are, except a separable context (unwarped, or a warp by a
 uniform displacement), which is used unstacked, since noise and pixel maps sample such
-coordinates by rows and columns. The pictures are bit for bit those of genome-by-genome
+coordinates by rows and columns. A blur reads its argument on the grid extended by its reach
+(:func:`.tree.padded`); a warped context is extended by making its warps again on the extended
+grid, in later waves (``coords`` instances), and the blur waits for it (``then``). The pictures are bit for bit those of genome-by-genome
 evaluation, because every primitive computes each image of a batch as it would alone (see
 :mod:`.kernels`, batch invariance; tested).
 """
@@ -30,7 +32,7 @@ from collections import defaultdict
 import torch
 
 from .context import Context
-from .tree import BNode, Memo, apply_kernel
+from .tree import BNode, Memo, apply_kernel, crop, extension, padded
 
 __all__ = ["evaluate_population"]
 
@@ -41,22 +43,26 @@ def _broadcast(*shapes) -> tuple:
 
 
 class _Inst:
-    """One node evaluated in one coordinate context (``alias``: its value is ``inputs[0]``'s)."""
+    """One node evaluated in one coordinate context (``alias``: its value is ``inputs[0]``'s;
+    ``coords``: its value is the context the warp node makes; ``then``: ``resume()`` goes on
+    once its inputs are ready)."""
 
-    __slots__ = ("ctx", "inputs", "kind", "node", "parents", "value", "waiting")
+    __slots__ = ("ctx", "inputs", "kind", "node", "parents", "resume", "value", "waiting", "where")
 
     def __init__(self, node: BNode, ctx: Context):
         self.node, self.ctx = node, ctx
+        self.where = ctx  # where its inputs are evaluated: ``ctx`` extended by a neighbourhood's reach
         self.inputs: list[_Inst] = []
         self.kind = "eval"
         self.value = None
         self.parents: list[_Inst] = []
         self.waiting = 0
+        self.resume = None
 
     def batch(self) -> int:
         """Images this instance stands for: 1 when nothing in it differs between genomes."""
         sizes = [p.shape[0] for p in self.node.params] + [i.value.shape[0] for i in self.inputs]
-        return max([self.ctx.x.shape[0], self.ctx.y.shape[0], *sizes])
+        return max([self.where.x.shape[0], self.where.y.shape[0], *sizes])
 
 
 class _Waves:
@@ -71,9 +77,49 @@ class _Waves:
             inst = self.instances[key] = _Inst(node, ctx)
             if node.form == "warp":  # first the displacement (if any), then the warped subtree
                 self._wait(inst, [self.request(c, ctx) for c in node.children[1:]], "warp")
+            elif node.form in ("filter", "neighbourhood"):  # its argument on the extended grid
+                where = self._padded(ctx, *extension(node, ctx))
+                if isinstance(where, Context):
+                    self._evaluate_in(inst, where)
+                else:  # the extended context of a warp is made in a later wave
+                    inst.resume = lambda: self._evaluate_in(inst, where.value)
+                    self._wait(inst, [where], "then")
             else:
                 self._wait(inst, [self.request(c, ctx) for c in node.children], "eval")
         return inst
+
+    def _evaluate_in(self, inst: _Inst, where: Context) -> None:
+        inst.where = where
+        self._wait(inst, [self.request(c, where) for c in inst.node.children], "eval")
+
+    def _padded(self, ctx: Context, rows: int, cols: int):
+        """:func:`.tree.padded`, a warped context's made in waves: the context, or an instance
+        whose value it will be."""
+        if ctx.origin is None or (rows, cols) == tuple(ctx.pad):
+            return padded(ctx, rows, cols)
+        key = ("padded", id(ctx), rows, cols)
+        if key not in self.instances:
+            node, parent = ctx.origin
+            base = self._padded(parent, rows, cols)
+            if isinstance(base, Context):
+                self.instances[key] = ctx if base is parent else self._coords(node, base)
+            else:
+                inst = self.instances[key] = _Inst(node, ctx)
+
+                def resume():
+                    made = self._coords(node, base.value)
+                    self._wait(inst, [made], "alias")
+                inst.resume = resume
+                self._wait(inst, [base], "then")
+        return self.instances[key]
+
+    def _coords(self, node: BNode, ctx: Context) -> _Inst:
+        """An instance whose value is the context warp ``node`` makes in ``ctx``."""
+        key = ("coords", id(node), id(ctx))
+        if key not in self.instances:
+            inst = self.instances[key] = _Inst(node, ctx)
+            self._wait(inst, [self.request(c, ctx) for c in node.children[1:]], "coords")
+        return self.instances[key]
 
     def _wait(self, inst: _Inst, inputs: list[_Inst], kind: str) -> None:
         inst.inputs, inst.kind = inputs, kind
@@ -100,7 +146,10 @@ class _Waves:
                 if inst.kind == "alias":
                     self._done(inst, inst.inputs[0].value)
                     continue
-                s, ctx = inst.node.symbol, inst.ctx
+                if inst.kind == "then":
+                    inst.resume()
+                    continue
+                s, ctx = inst.node.symbol, inst.where
                 # coordinates keep their shapes (a warp can leave them separable, which changes
                 # how noise and pixel maps are sampled); inputs are broadcast to one shape before
                 # stacking where that gives the same values: fewer, larger groups
@@ -124,7 +173,7 @@ class _Waves:
         instances and asks for their first argument there."""
         sizes = [inst.batch() for inst in insts]
         first = insts[0]
-        c = first.ctx
+        c = first.where
 
         def stack(tensors, shape=None):
             parts = [t.expand(b, *(shape or t.shape[1:])) for t, b in zip(tensors, sizes)]
@@ -136,8 +185,8 @@ class _Waves:
             assert v.shape[0] == sum(sizes), (first.node.symbol, v.shape, sizes)
             return torch.split(v, sizes)
 
-        ctx = c if isinstance(coords, int) else Context(stack([i.ctx.x for i in insts]), stack([i.ctx.y for i in insts]),
-                                            c.H, c.W, c.px, c.py, c.time, c.res, Memo())
+        ctx = c if isinstance(coords, int) else c.moved(stack([i.where.x for i in insts]),
+                                                        stack([i.where.y for i in insts]), memo=Memo())
         def stack_params(tensors):
             out = stack(tensors)
             if all(hasattr(t, "host") for t in tensors):  # and their host copies (context.host)
@@ -149,12 +198,15 @@ class _Waves:
         if first.kind == "eval":
             value = apply_kernel(first.node, ctx, p, inputs)
             for inst, v in zip(insts, split(value)):
-                self._done(inst, v)
+                self._done(inst, crop(v, inst.where, inst.ctx))
             return
         w = first.node.kernel(ctx, p, *inputs)
         for inst, x, y in zip(insts, split(w.x), split(w.y)):
-            w = Context(x, y, c.H, c.W, c.px, c.py, c.time, c.res, c.memo)
-            self._wait(inst, [self.request(inst.node.children[0], w)], "alias")
+            w = inst.ctx.moved(x, y, origin=(inst.node, inst.ctx))
+            if inst.kind == "coords":
+                self._done(inst, w)
+            else:
+                self._wait(inst, [self.request(inst.node.children[0], w)], "alias")
 
 
 def evaluate_population(roots: list[BNode], ctx: Context) -> list[torch.Tensor]:

@@ -60,7 +60,7 @@ def render_into(out: torch.Tensor, trees, groups: list[list[int]], window, time:
     xs = (x0 + (torch.arange(W, device=device, dtype=torch.float64) + 0.5) * px).float()
     ys = (y0 + (torch.arange(H, device=device, dtype=torch.float64) + 0.5) * py).float()
     ctx = Context(xs.reshape(1, 1, 1, W), ys.reshape(1, 1, H, 1), H, W, abs(px), abs(py), time,
-                  Resources.on(device), Memo(), key=(H, W, x0, y0, x1, y1))
+                  Resources.on(device), Memo(), key=(H, W, x0, y0, x1, y1), frame=(x0, y0, px, py, H, W))
     # subtrees repeated anywhere in the population (children of one parent share most of
     # theirs) are built as one node and evaluated once per coordinate context
     shared: dict = {}

@@ -42,6 +42,13 @@ Conventions shared by both evaluators:
   arguments swapped give the same picture bit for bit (checked on random arguments, NaN and
   infinite ones included, in both evaluators). ``minus`` is not, though at the root it looks
   so: the final mapping folds ``-v`` like ``v``.
+- Neighbourhoods see the picture beyond the window: a ``filter`` or ``neighbourhood``
+  primitive declares its *reach* (:data:`REACHES`: how many pixels beyond the window its value
+  at the window's pixels reads), and both evaluators evaluate its argument on the window
+  extended by that many pixels (:func:`padding`), filter, and keep the window, so a zoomed or
+  panned window is the matching crop of a larger render. The extension of one picture is at
+  most its own size on each side in all (nested filters add up); beyond it borders are
+  replicated.
 - ``grad-dir`` is 0 where its argument is flat, its gradient under :data:`FLAT_GRADIENT` per
   world unit: there the direction is only the rounding error of a constant field (which would
   show as noise at every size).
@@ -63,12 +70,15 @@ primitive stays in the set and can reach the root by mutation.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from math import isqrt
+
+from .frame import MAX_PIXELS
 
 __all__ = ["Param", "Primitive", "PRIMITIVES", "FORMS", "IMAGE_KERNELS", "PIXEL_KERNELS", "names", "arity", "get",
            "terminals", "functions", "max_arity", "register_primitive", "image_kernel", "pixel_kernel", "PIXMAPS",
-           "FLAT_GRADIENT"]
+           "FLAT_GRADIENT", "REACHES", "reach", "padding"]
 
 #: How the evaluators feed a primitive (module docstring).
 FORMS = ("terminal", "pointwise", "filter", "neighbourhood", "warp")
@@ -201,6 +211,15 @@ PRIMITIVES: dict[str, Primitive] = {p.name: p for p in _LIST}
 IMAGE_KERNELS: dict = {}
 #: Per-pixel implementations by primitive name (the built-ins: :mod:`.reference`).
 PIXEL_KERNELS: dict = {}
+#: Reaches of neighbourhood primitives by name (the built-ins: :mod:`.textures`):
+#: ``reach(p, px, py, H, W) -> (rows, columns)``, the pixels beyond the window on each side that
+#: the value at the window's pixels reads (``p``: the parameters as floats; ``px``, ``py``: a
+#: pixel's world size; ``H``, ``W``: the picture's size). A filter without one sees replicated
+#: borders at the window's edges.
+REACHES: dict = {}
+#: Extensions of a picture's grid are multiples of its size divided by this (:func:`padding`).
+EXTENSION_STEPS = 16
+_MAX_SIDE = isqrt(MAX_PIXELS)
 #: Names given to :func:`register_primitive` in this process: worker processes (:mod:`.workers`)
 #: import the built-ins only, so genomes using these render in-process.
 REGISTERED: set[str] = set()
@@ -210,7 +229,7 @@ REDEFINED = 0
 
 
 def register_primitive(primitive: Primitive, *, image: Callable | None = None, pixel: Callable | None = None,
-                       replace: bool = False) -> Primitive:
+                       reach: Callable | None = None, replace: bool = False) -> Primitive:
     """Add ``primitive`` to the alphabet, with its whole-image (``image``) and per-pixel
     (``pixel``) implementations (module docstring, *Forms*). From then on random genomes and
     mutations can draw it (in proportion to its ``weight``), genomes holding it decode,
@@ -219,6 +238,7 @@ def register_primitive(primitive: Primitive, *, image: Callable | None = None, p
     Args:
         primitive: the declaration; its name must be new unless ``replace``.
         image, pixel: the implementations (both needed to render it with both evaluators).
+        reach: for a ``filter`` or ``neighbourhood`` primitive, its reach (:data:`REACHES`).
         replace: allow redefining a primitive of the same name (a notebook cell run again).
     Returns:
         ``primitive``.
@@ -256,7 +276,10 @@ def register_primitive(primitive: Primitive, *, image: Callable | None = None, p
             raise ValueError(f"primitive.params[{k}]: {prm!r} must be a Param with low <= high")
     if primitive.name in PRIMITIVES and not replace:
         raise ValueError(f"primitive.name: {primitive.name!r} is already registered (replace=True redefines it)")
-    for where, fn in (("image", image), ("pixel", pixel)):
+    if reach is not None and primitive.form not in ("filter", "neighbourhood"):
+        raise ValueError(f"reach: only a filter or neighbourhood primitive reads pixels beyond its own "
+                         f"({primitive.name!r} is {primitive.form})")
+    for where, fn in (("image", image), ("pixel", pixel), ("reach", reach)):
         if fn is not None and not callable(fn):
             raise TypeError(f"{where}: expected a function, got {type(fn).__name__}")
     global REDEFINED
@@ -264,7 +287,7 @@ def register_primitive(primitive: Primitive, *, image: Callable | None = None, p
         REDEFINED += 1
     PRIMITIVES[primitive.name] = primitive
     REGISTERED.add(primitive.name)
-    for table, fn in ((IMAGE_KERNELS, image), (PIXEL_KERNELS, pixel)):
+    for table, fn in ((IMAGE_KERNELS, image), (PIXEL_KERNELS, pixel), (REACHES, reach)):
         if fn is not None:
             table[primitive.name] = fn
         else:
@@ -286,6 +309,31 @@ def _binder(table: dict, what: str) -> Callable[[str], Callable[[Callable], Call
 
 image_kernel = _binder(IMAGE_KERNELS, "whole-image")
 pixel_kernel = _binder(PIXEL_KERNELS, "per-pixel")
+reach = _binder(REACHES, "reach")
+
+
+def padding(name: str, p: Sequence[float], px: float, py: float, H: int, W: int, pad: tuple[int, int] = (0, 0)) -> tuple[int, int]:
+    """Rows and columns on each side by which primitive ``name`` (parameters ``p``, floats) in a
+    context already extended by ``pad`` evaluates its argument beyond that: its reach
+    (:data:`REACHES`), rounded up so that the extension in all is a multiple of a
+    :data:`EXTENSION_STEPS`-th of the picture's size (few distinct extended grids in a
+    population, so that waves stack more of them: :mod:`.grouped`), and at most ``H`` rows and
+    ``W`` columns beyond the window in all (nor more than the largest picture,
+    :data:`~.frame.MAX_PIXELS`, allows: a poster of 4096 x 4096 is not extended); ``(0, 0)`` for a primitive without a
+    reach. The one rule both evaluators follow."""
+    f = REACHES.get(name)
+    if f is None:
+        return 0, 0
+    rows, cols = f(p, px, py, H, W)
+    return _extension(int(rows), pad[0], H), _extension(int(cols), pad[1], W)
+
+
+def _extension(reach: int, pad: int, n: int) -> int:
+    if reach <= 0:
+        return 0
+    most = max(0, min(n, (_MAX_SIDE - n) // 2))  # never a grid larger than the largest picture
+    step = -(-n // EXTENSION_STEPS)
+    return max(0, min(-(-(pad + reach) // step) * step, most) - pad)
 
 
 def names() -> list[str]:

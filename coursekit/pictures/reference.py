@@ -8,8 +8,9 @@ against, and the baseline of the lesson's speed comparison. It is slow on purpos
 Each primitive's per-pixel function is bound to its name in the registry of :mod:`.primitives`
 (:func:`~.primitives.pixel_kernel`, signatures by form there). Neighbourhood primitives
 (``blur``, ``band-pass``, ``bump``, ``grad-mag``, ``grad-dir``) need their argument at
-neighbouring pixels: the argument is evaluated pixel by pixel on the whole grid (memoised,
-:class:`Grid`) and filtered with explicit loops, borders replicated. Coordinate transforms
+neighbouring pixels: the argument is evaluated pixel by pixel on the whole grid extended beyond
+the window by the primitive's reach (memoised, :class:`Grid`; :func:`~.primitives.padding`) and
+filtered with explicit loops, the extended grid's borders replicated. Coordinate transforms
 evaluate their argument at the transformed coordinates of the pixel.
 """
 
@@ -63,10 +64,12 @@ def _grey(a):
 
 
 class _Coords:
-    """Pixel (i, j) -> world (x, y), memoised."""
+    """Pixel (i, j) -> world (x, y), memoised; ``pad``: the rows and columns beyond the window on
+    each side it is evaluated on (a neighbourhood's argument, :func:`~.primitives.padding`),
+    ``origin``: the warp node and the coordinates it was made from (None: unwarped)."""
 
-    def __init__(self, fn):
-        self.fn, self.memo = fn, {}
+    def __init__(self, fn, pad=(0, 0), origin=None):
+        self.fn, self.memo, self.pad, self.origin = fn, {}, pad, origin
 
     def __call__(self, i, j):
         key = (i, j)
@@ -80,11 +83,14 @@ class _Reference:
     def __init__(self, H, W, window, time):
         self.H, self.W, self.time = H, W, float(time)
         x0, y0, x1, y1 = window
-        self.px, self.py = (x1 - x0) / W, (y1 - y0) / H
-        xs = [float(np.float32(x0 + (j + 0.5) * self.px)) for j in range(W)]
-        ys = [float(np.float32(y0 + (i + 0.5) * self.py)) for i in range(H)]
-        self.px, self.py = abs(self.px), abs(self.py)
-        self.base = _Coords(lambda i, j: (xs[j], ys[i]))
+        sx, sy = (x1 - x0) / W, (y1 - y0) / H
+        self.px, self.py = abs(sx), abs(sy)
+
+        def unwarped(i, j):  # pixel centres, any row or column (beyond the window too)
+            return float(np.float32(x0 + (j + 0.5) * sx)), float(np.float32(y0 + (i + 0.5) * sy))
+        self.unwarped = unwarped
+        self.base = _Coords(unwarped)
+        self.extended = {(0, 0): self.base}
         self.table = T.noise_table().astype(np.float64)
         self.memo: dict = {}
         self.derived: dict = {}
@@ -102,29 +108,53 @@ class _Reference:
         b = t[j1, i0] + su * (t[j1, i1] - t[j1, i0])
         return float(a + sv * (b - a))
 
-    def coords(self, node, C, make):
+    def warp(self, node, C):
+        """The coordinates warp ``node`` makes from ``C`` (its first argument is evaluated there)."""
         key = (id(node), id(C))
         if key not in self.derived:
-            self.derived[key] = (_Coords(make), C)  # keep C alive so ids stay unique
+            f, p, k = P.PIXEL_KERNELS[node.symbol], node.params, node.children
+
+            def make(ii, jj):
+                return f(p, *C(ii, jj), *[self.ev(c, ii, jj, C) for c in k[1:]])
+            self.derived[key] = (_Coords(make, C.pad, (node, C)), C)  # keep C alive so ids stay unique
         return self.derived[key][0]
 
+    def padded(self, C, rows, cols):
+        """``C`` on the pixel grid extended to ``rows`` rows and ``cols`` columns on each side."""
+        if (rows, cols) == C.pad:
+            return C
+        if C.origin is not None:
+            node, parent = C.origin
+            return self.warp(node, self.padded(parent, rows, cols))
+        if (rows, cols) not in self.extended:
+            self.extended[(rows, cols)] = _Coords(self.unwarped, (rows, cols))
+        return self.extended[(rows, cols)]
+
+    def inner(self, node, C):
+        """Where neighbourhood ``node`` evaluated on ``C`` reads its argument: ``C`` extended by its reach."""
+        q = P.padding(node.symbol, node.params, self.px, self.py, self.H, self.W, C.pad)
+        return self.padded(C, C.pad[0] + q[0], C.pad[1] + q[1])
+
     def grid(self, node, C):
+        """``node``'s values on every pixel of ``C``'s (extended) grid, rows of channel tuples."""
         key = (id(node), id(C))
         if key not in self.grids:
-            self.grids[key] = [[self.ev(node, i, j, C) for j in range(self.W)] for i in range(self.H)]
+            (qy, qx) = C.pad
+            self.grids[key] = [[self.ev(node, i, j, C) for j in range(-qx, self.W + qx)]
+                               for i in range(-qy, self.H + qy)]
         return self.grids[key]
 
     def blur(self, node, C, sigma):
         key = ("blur", id(node), id(C), sigma)
         if key not in self.grids:
-            self.grids[key] = self._blur(node, C, sigma)
+            self.grids[key] = _Shifted(self._blur(node, C, sigma), C.pad)
         return self.grids[key]
 
     def _blur(self, node, C, sigma):
         g = [[list(v) for v in row] for row in self.grid(node, C)]
         rx = T.box_radius(abs(sigma) / self.px, 4 * self.W)
         ry = T.box_radius(abs(sigma) / self.py, 4 * self.H)
-        H, W = self.H, self.W
+        H, W = len(g), len(g[0])  # the extended grid, its borders replicated
         for _ in range(3):
             if rx:
                 g = [[[sum(g[i][min(max(j + d, 0), W - 1)][c] for d in range(-rx, rx + 1)) / (2 * rx + 1)
@@ -136,12 +166,26 @@ class _Reference:
 
     def gradient(self, node, C, i, j):
         g = self.grid(node, C)
-        H, W = self.H, self.W
+        qy, qx = C.pad
+        i, j = i + qy, j + qx  # into the extended grid
+        H, W = len(g), len(g[0])
 
         def grey(a, b):
             return _sane(_grey(g[a][b])[0])
-        gx = (grey(i, min(j + 1, W - 1)) - grey(i, max(j - 1, 0))) / (2.0 * self.px)
-        gy = (grey(min(i + 1, H - 1), j) - grey(max(i - 1, 0), j)) / (2.0 * self.py)
+
+        def side(k, n, at):  # the neighbour at k, extrapolated linearly beyond the grid's edges
+            if k < 0:
+                return 2.0 * at(0) - at(1)
+            if k >= n:
+                return 2.0 * at(n - 1) - at(n - 2)
+            return at(k)
+        gx = gy = 0.0
+        if W > 1:
+            row = lambda b: grey(i, b)  # noqa: E731
+            gx = (side(j + 1, W, row) - side(j - 1, W, row)) / (2.0 * self.px)
+        if H > 1:
+            col = lambda a: grey(a, j)  # noqa: E731
+            gy = (side(i + 1, H, col) - side(i - 1, H, col)) / (2.0 * self.py)
         return gx, gy
 
     # -- evaluation ---------------------------------------------------------------------
@@ -162,16 +206,44 @@ class _Reference:
             return f(self, *C(i, j), p)
         if form == "pointwise":
             return f(self, *C(i, j), p, *[self.ev(c, i, j, C) for c in k])
-        if form == "filter" or form == "neighbourhood":
-            return f(self, p, Grid(self, k[0], C), i, j)
+        if form == "filter" or form == "neighbourhood":  # its argument on the grid extended by its reach
+            return f(self, p, Grid(self, k[0], self.inner(n, C)), i, j)
+        return self.ev(k[0], i, j, self.warp(n, C))  # a warp: the first argument at the transformed coordinates
 
-        def make(ii, jj):  # a warp: the first argument at the transformed coordinates
-            return f(p, *C(ii, jj), *[self.ev(c, ii, jj, C) for c in k[1:]])
-        return self.ev(k[0], i, j, self.coords(n, C, make))
+
+class _Shifted:
+    """Rows of an extended grid indexed by the window's pixel numbers: ``[i][j]`` for ``i`` from
+    minus the extension on (``pad``: its rows and columns on each side)."""
+
+    __slots__ = ("g", "pad")
+
+    def __init__(self, g, pad):
+        self.g, self.pad = g, pad
+
+    def __getitem__(self, i):
+        return _Row(self.g[_index(i, self.pad[0], len(self.g))], self.pad[1])
+
+
+class _Row:
+    __slots__ = ("row", "cols")
+
+    def __init__(self, row, cols):
+        self.row, self.cols = row, cols
+
+    def __getitem__(self, j):
+        return self.row[_index(j, self.cols, len(self.row))]
+
+
+def _index(i: int, pad: int, n: int) -> int:
+    """Pixel number ``i`` of a window extended by ``pad`` as an index into its ``n`` rows or columns."""
+    if not -pad <= i < n - pad:
+        raise IndexError(f"pixel {i} is outside the grid extended by {pad}")
+    return i + pad
 
 
 class Grid:
-    """An argument of a neighbourhood primitive on the whole pixel grid (evaluated once)."""
+    """An argument of a neighbourhood primitive on the whole pixel grid (evaluated once), extended
+    beyond the window by the primitive's reach (:func:`~.primitives.padding`)."""
 
     __slots__ = ("ref", "node", "C")
 
@@ -179,11 +251,13 @@ class Grid:
         self.ref, self.node, self.C = ref, node, C
 
     def blur(self, sigma: float) -> list:
-        """Rows of channel lists: three box passes of radius ``sigma`` (world units) per axis."""
+        """Rows of channel lists, indexed by the window's pixels (``[i][j]``, ``i`` and ``j`` from
+        minus the extension on): three box passes of radius ``sigma`` (world units) per axis."""
         return self.ref.blur(self.node, self.C, sigma)
 
     def gradient(self, i: int, j: int) -> tuple[float, float]:
-        """Central differences of the grey value at pixel ``(i, j)``, per world unit."""
+        """Central differences of the grey value at pixel ``(i, j)``, per world unit (one-sided
+        on the grid's edges)."""
         return self.ref.gradient(self.node, self.C, i, j)
 
 

@@ -1,4 +1,5 @@
-"""Fixed data both picture evaluators share: the noise lattice and the pixel maps (section 3.1).
+"""Fixed data both picture evaluators share: the noise lattice, the pixel maps and the reach of
+the neighbourhood primitives (section 3.1).
 
 Noise is *value noise* on a 256 x 256 lattice of random values generated once from a fixed
 seed, so a chromosome's noise is the same in every run, every window and both evaluators.
@@ -13,7 +14,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .primitives import PIXMAPS
+from .primitives import PIXMAPS, reach
 
 LATTICE = 256
 # Per-channel lattice offsets of color-noise, per-octave offsets of turbulence.
@@ -64,3 +65,24 @@ def box_radius(sigma_px: float, limit: int) -> int:
     sigma_px = min(sigma_px, 4.0 * limit + 4.0) if sigma_px == sigma_px else 0.0  # inf: the limit; NaN: none
     r = int(round((-1.0 + (1.0 + 4.0 * sigma_px * sigma_px) ** 0.5) / 2.0))
     return max(0, min(r, limit))
+
+
+def _box_reach(scale: float):
+    """The reach of three box passes of the radius :func:`box_radius` gives ``scale * sigma``
+    (``sigma``: the first parameter, world units): 3 r pixels, per axis (``scale`` times sigma
+    rounded as the blur rounds it, in float32)."""
+    def reach_of(p, px, py, H, W):
+        with np.errstate(over="ignore"):  # a hostile sigma overflows to inf, as in the blur
+            s = abs(float(np.float32(scale) * np.float32(p[0]))) if scale != 1.0 else abs(float(p[0]))
+        if s != s:  # NaN: no blur
+            return 0, 0
+        return 3 * box_radius(s / py, 4 * H), 3 * box_radius(s / px, 4 * W)
+    return reach_of
+
+
+# The gradients (``bump``, ``grad-mag``, ``grad-dir``) read one pixel on each side: they take
+# one-sided differences on the window's edges instead (exact for a linear argument), which costs
+# nothing, where extending the grid would evaluate their argument apart from the rest of the
+# picture (a third more tensor operations in waves: ``benchmarks/NOTES.md``).
+reach("blur")(_box_reach(1.0))
+reach("band-pass")(_box_reach(3.0))  # its wider blur

@@ -1,14 +1,16 @@
 """Pictures worth a look: a first generation and children that never waste a slot (sections 3.3, 3.4).
 
 With the user as the fitness function (paper section 3.4) every picture on the screen costs a
-judgement, so a slot that shows a flat, black, one-colour, plain (a pale wash, a faint gradient),
-dark or static picture, or a copy of its parent or of a sibling, is a wasted click. Two cheap previews
+judgement, so a slot that shows a flat, black, one-colour, plain (a wash, a faint gradient), faint
+or washed-out (a grey mist, a pale pastel), dark or static picture, or a copy of its parent or of
+a sibling, is a wasted click. Two cheap previews
 prevent that; both render low-resolution thumbnails (:data:`PREVIEW`, 32 x 32) and never change
 what the genomes are:
 
 - :func:`random_population` draws random genomes (:meth:`Genome.random`, whose draw weights
   already favour colour and structure) and redraws those with a tiny coding part, those whose
-  preview is *dull* (flat, black, one colour almost everywhere, plain, dark or static, :func:`dull`) or
+  preview is *dull* (flat, black, one colour almost everywhere, plain, faint, dark or static,
+  :func:`dull`) or
   repeats another picture of the population, and a greyscale one once (grey pictures stay, as a
   minority).
 - :func:`distinct_children` takes children from an operator and redraws those whose preview
@@ -35,8 +37,9 @@ from .evaluate import render
 from .genome import Genome
 from .operators import coding
 
-__all__ = ["PREVIEW", "SAME", "BLACK", "FLAT", "ONE_COLOUR", "PLAIN", "STATIC", "DARK", "LEVELS", "MIN_NODES", "preview", "dull",
-           "dullness", "variation", "dark", "static", "greyscale", "random_population", "distinct_children"]
+__all__ = ["PREVIEW", "SAME", "BLACK", "FLAT", "ONE_COLOUR", "PLAIN", "FAINT", "WASHED", "STATIC", "DARK", "LEVELS",
+           "MIN_NODES", "preview", "dull", "dullness", "variation", "faint", "dark", "static", "greyscale",
+           "random_population", "distinct_children"]
 
 PREVIEW = 32  # pixels of a preview's side
 SAME = 2.0 / 255.0  # mean absolute difference under which two pictures look the same (on contact sheets of near pairs)
@@ -44,6 +47,8 @@ BLACK = 1.0 / 255.0  # a picture with no value above this is black
 FLAT = 0.02  # a picture whose every channel has a standard deviation below this is flat
 ONE_COLOUR = 0.9  # a picture with one colour on this share of its pixels is that colour, a speck or a line aside
 PLAIN = 0.7  # a picture whose colours change by less than this across it (variation) is a wash or a faint gradient
+FAINT = 0.05  # a picture whose every channel has a standard deviation below this is faint (a grey mist, a pale wash)
+WASHED = (0.08, 0.6)  # ... below this, with a mean luminance of at least this, it is washed out (a pale pastel)
 DARK = (0.2, 0.4)  # a picture with 95 % of its pixels under this luminance and this brightest channel is dark
 STATIC = 0.05  # a picture whose neighbouring pixels correlate less than this (across or down) is static
 LEVELS = 16  # levels per channel at which two colours count as one
@@ -60,21 +65,37 @@ def dull(images: np.ndarray, flat: float = FLAT, one_colour: float = ONE_COLOUR,
     below ``flat``), black (no value above :data:`BLACK`), one colour (:data:`LEVELS` levels per
     channel) on at least the share ``one_colour`` of its pixels (a black field with a few
     specks or one thin line has a high standard deviation and is still not worth a click),
-    plain (its colours change by less than ``plain`` across it, :func:`variation`: a pale wash
-    or a faint gradient), dark (:func:`dark`: a dim shape on black, a murky field) or static
-    (:func:`static`: pixels uncorrelated with their neighbours)."""
+    plain (its colours change by less than ``plain`` across it, :func:`variation`: a wash or a
+    faint gradient), faint or washed out (:func:`faint`: little contrast, a fine texture in a
+    grey mist or a pale pastel), dark (:func:`dark`: a dim shape on black, a murky field) or
+    static (:func:`static`: pixels uncorrelated with their neighbours)."""
     return dullness(images, flat, one_colour, plain) > 0
 
 
 def dullness(images: np.ndarray, flat: float = FLAT, one_colour: float = ONE_COLOUR, plain: float = PLAIN) -> np.ndarray:
     """Per picture of ``images``, how dull (:func:`dull`) it is: 2 when flat, black or one colour,
-    1 when only plain, dark or static, 0 when worth a look."""
+    1 when only plain, faint, dark or static, 0 when worth a look."""
     n = len(images)
     pixels = images.reshape(n, -1, 3)
     empty = ((pixels.std(axis=1).max(axis=1) < flat)
              | (pixels.reshape(n, -1).max(axis=1) <= BLACK)
              | (_commonest_share(pixels) >= one_colour))
-    return np.where(empty, 2, ((variation(images) < plain) | dark(images) | static(images)).astype(np.int64))
+    lesser = (variation(images) < plain) | faint(images) | dark(images) | static(images)
+    return np.where(empty, 2, lesser.astype(np.int64))
+
+
+def faint(images: np.ndarray, below: float = FAINT, washed: tuple[float, float] = WASHED) -> np.ndarray:
+    """Per picture of ``images`` ``(N, H, W, 3)``: faint, too little contrast to show its
+    structure. Every channel's standard deviation is below ``below`` (a grey mist, a pale
+    wash with a fine texture, which :func:`variation` counts as busy), or below ``washed[0]``
+    while its mean luminance (Rec. 601) is at least ``washed[1]``: washed out, a pale pastel
+    (thresholds chosen on contact sheets of first generations: ``benchmarks/NOTES.md``)."""
+    im = np.nan_to_num(np.asarray(images, dtype=np.float64)).reshape(len(images), -1, 3)
+    if im.shape[1] == 0:
+        return np.zeros(len(im), bool)
+    spread = im.std(axis=1).max(axis=1)
+    light = (im @ np.array([0.299, 0.587, 0.114])).mean(axis=1) >= washed[1]
+    return (spread < below) | ((spread < washed[0]) & light)
 
 
 def static(images: np.ndarray, below: float = STATIC) -> np.ndarray:
@@ -210,7 +231,7 @@ def distinct_children(parents: Sequence[Genome], children: Iterator, n: int, *,
     parent's or another child's. The ``n`` children are then previewed at ``size``; slot by
     slot, one within :data:`SAME` (mean absolute difference) of a parent or of an already
     accepted child, or one duller than its liveliest parent (:func:`dullness`: flat, black or one
-    colour, then plain or dark), is drawn again, at most ``tries`` rounds (what is left then is
+    colour, then plain, faint, dark or static), is drawn again, at most ``tries`` rounds (what is left then is
     the slot's best draw: a lively one before a flat one, then the most different); each
     distinct expression is previewed once (a picture depends on nothing else).
 

@@ -15,8 +15,10 @@ evaluations, not ``H W``.
 
 **Coordinates.** Coordinate transforms (``swirl``, ``rotate``, ``warp-swirl``, ``warp-by``)
 return the context in which their first argument is evaluated; neighbourhood operations
-(``blur``, ``band-pass``, ``bump``, ``grad-mag``, ``grad-dir``) act on the pixel grid with
-replicated borders and sizes in world units.
+(``blur``, ``band-pass``, ``bump``, ``grad-mag``, ``grad-dir``) act on the pixel grid, sizes in
+world units, their argument evaluated on the grid extended by their reach beyond the window
+(:func:`~..tree.padded`: as a renderer filters, so a zoomed window is a crop of a larger
+render).
 
 **Speed.** Most of the time goes to a few primitives on whole images, so each picks the
 cheapest exact method for the coordinates it gets. On :func:`~coursekit.pictures.context.separable` coordinates

@@ -1,5 +1,7 @@
 """Neighbourhood operations on the pixel grid: ``blur``, ``band-pass``, ``bump``, ``grad-mag``,
-``grad-dir`` (paper section 3.2): replicated borders, sizes in world units. Blurs multiply by
+``grad-dir`` (paper section 3.2), sizes in world units. Each gets its argument on the context
+extended by its reach (:data:`~..primitives.REACHES`, bound in :mod:`..textures`), so the
+replicated borders of the extended grid never reach the window's pixels. Blurs multiply by
 banded matrices cut into row tiles (:meth:`~coursekit.pictures.context.Resources.box_matrix`),
 touching only the band; large images use cumulative sums."""
 
@@ -37,12 +39,13 @@ def _blur_by(v, sigmas: list, ctx):
     if v.shape[-1] == 1 and v.shape[-2] == 1:
         return v
     B = max(len(sigmas), v.shape[0])  # a uniform blur may see per-genome inputs
+    H, W = ctx.picture
     v = v.expand(B, *v.shape[1:])
     outs = []
     for b in range(B):
         s = sigmas[b if len(sigmas) > 1 else 0]
-        rx = T.box_radius(abs(s) / ctx.px, 4 * ctx.W)
-        ry = T.box_radius(abs(s) / ctx.py, 4 * ctx.H)
+        rx = T.box_radius(abs(s) / ctx.px, 4 * W)  # the picture's size, not the extension's
+        ry = T.box_radius(abs(s) / ctx.py, 4 * H)
         o = v[b:b + 1]
         if max(ctx.H, ctx.W) <= 1024:  # one banded matrix per axis (fast for small images)
             if rx and o.shape[3] > 1:
@@ -59,12 +62,16 @@ def _blur_by(v, sigmas: list, ctx):
 
 
 def _diff(v, dim, step):
-    """Central difference along ``dim`` with replicated borders, divided by 2 step."""
+    """Derivative along ``dim`` per world unit: central differences, one-sided on the first and
+    last pixel (the picture beyond them extrapolated linearly)."""
     n = v.shape[dim]
     if n == 1:
         return torch.zeros_like(v)
     pad = (1, 1, 0, 0) if dim == 3 else (0, 0, 1, 1)
     p = torch.nn.functional.pad(v, pad, mode="replicate")
+    # extrapolated neighbours: 2 v[0] - v[1] before the first pixel, 2 v[-1] - v[-2] after the last
+    p.narrow(dim, 0, 1).mul_(2.0).sub_(v.narrow(dim, 1, 1))
+    p.narrow(dim, n + 1, 1).mul_(2.0).sub_(v.narrow(dim, n - 2, 1))
     return (p.narrow(dim, 2, n) - p.narrow(dim, 0, n)).div_(2.0 * step)
 
 
