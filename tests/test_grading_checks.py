@@ -16,6 +16,7 @@ from coursekit.grading import checks, evaluate, runner, stats
 from coursekit.grading.formative import check as formative_check, format_judgement
 from coursekit.grading.channel import read_results, validate_call
 from coursekit.grading.grader import make_plan
+from check_points import assert_a_point_weighs_half
 from solution_cells import solution_functions
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -251,10 +252,7 @@ def test_a_detail_wrong_keeps_more_than_half(name, fn):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_every_check_has_a_point_weighing_half(name):
-    check = checks.get(name)
-    weights = dict(check.weights)
-    total = 1 + sum(weights.get(p, 1) for p, _ in check.props)  # "runs" counts 1
-    assert [p for p, _ in check.props if 2 * weights.get(p, 1) == total], check.weights
+    assert_a_point_weighs_half(name)
 
 
 @pytest.mark.parametrize("name,fn", [("ga.one_point_crossover", crossover_global_rng),
