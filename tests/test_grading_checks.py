@@ -611,7 +611,8 @@ def mutate_force_only(c, rng, rate=1.0):
 @pytest.mark.parametrize("name, fn, prop, weight, at_most", [
     ("ga.one_point_crossover", crossover_fixed_cut, "cut point uniform", 6, 0.5),
     ("swimmers.fitness", fitness_final_distance, "one push and coasting scores below a steady swimmer", 4, 0.78),
-    ("creatures.mutate", mutate_force_only, "deletes, adds and modifies in all six steps", 5, 0.7),
+    ("creatures.mutate", mutate_force_only, "deletes, adds and modifies in six steps, about one node per call, "
+                                            "scaled by rate", 8, 0.5),
 ])
 def test_the_operators_point_weighs_more_than_one_property(name, fn, prop, weight, at_most):
     """Red team, round 2: answers that did one easy part of the job -- a fixed cut, the final distance
