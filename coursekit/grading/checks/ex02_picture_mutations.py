@@ -201,6 +201,13 @@ register(Check(
 # -- mutations (section 3.3.1) -------------------------------------------------------------------
 
 MUT_CASES = ("basic", "many", "single")
+#: What transposition, root transposition and rotation judge first: a valid genome (gate), changed (the job,
+#: a gate), in one string only.
+_IN_ONE_STRING = (
+    ("returns a valid genome of the same shape", valid(MUT_CASES)),
+    ("changes the genome", changes(MUT_CASES)),
+    ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
+)
 
 
 def _mutation_cases(rng):
@@ -284,11 +291,7 @@ def _same_region(parent, child):
 
 
 _TRANSPOSITION = operator_props(
-    (
-        ("returns a valid genome of the same shape", valid(MUT_CASES)),
-        ("changes the genome", changes(MUT_CASES)),
-        ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
-    ),
+    _IN_ONE_STRING,
     # the point: what changes (never the root, both chromosomes in one region, an interchange or a clone), and
     # that both outcomes occur
     "interchange or clone in one region, never the root",
@@ -331,11 +334,7 @@ def _root_only(parent, child):
 
 
 _ROOT_TRANSPOSITION = operator_props(
-    (
-        ("returns a valid genome of the same shape", valid(MUT_CASES)),
-        ("changes the genome", changes(MUT_CASES)),
-        ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
-    ),
+    _IN_ONE_STRING,
     # the point: the root and one head chromosome change, by an interchange or a clone, and both outcomes occur
     "the root interchanged with a head chromosome or cloned from one",
     each(MUT_CASES, _root_only, "only the root and one head chromosome change"),
@@ -526,11 +525,7 @@ def _rotation_varies(ctx):
 
 
 _ROTATION = operator_props(
-    (
-        ("returns a valid genome of the same shape", valid(MUT_CASES)),
-        ("changes the genome", changes(MUT_CASES)),
-        ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
-    ),
+    _IN_ONE_STRING,
     # the point: each result shifts one region cyclically, and heads and tails are rotated by several step counts
     "the head or the tail shifted cyclically, several steps",
     each(MUT_CASES, _rotation_shift, "each result rotates the head or the tail of one string"),

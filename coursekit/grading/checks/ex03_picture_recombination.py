@@ -33,6 +33,12 @@ HINTS = {
 # -- recombinations (section 3.3.2) --------------------------------------------------------------
 
 REC_CASES = ("basic", "many", "single")
+#: What crossover and random copy judge first: two valid children (gate) holding material of both parents
+#: (the job, a gate).
+_TWO_CHILDREN = (
+    ("returns two valid genomes of the parents' shape", valid(REC_CASES, pair=True)),
+    ("children hold material of both parents", mixes(REC_CASES)),
+)
 
 
 def _recombination_cases(rng, same_symbols=False):
@@ -121,9 +127,7 @@ def _split_varies(ctx):
 
 
 _CROSSOVER = operator_props(
-    (
-        ("returns two valid genomes of the parents' shape", valid(REC_CASES, pair=True)),
-        ("children hold material of both parents", mixes(REC_CASES)),
+    _TWO_CHILDREN + (
         ("only the parents' material at the same positions", _each_pair(REC_CASES, _same_positions, "children hold only the parents' chromosomes at the same positions")),
     ),
     # the point: complementary children, one string pair cut at one position, both chosen at random
@@ -198,9 +202,7 @@ def _copy_arbitrary(ctx):
 
 
 _RANDOM_COPY = operator_props(
-    (
-        ("returns two valid genomes of the parents' shape", valid(REC_CASES, pair=True)),
-        ("children hold material of both parents", mixes(REC_CASES)),
+    _TWO_CHILDREN + (
         ("only the parents' material", _each_pair(REC_CASES, _copy_material, "each child is its parent plus chromosomes of the other parent")),
     ),
     # the point: one copy into every string, from and to positions chosen at random
