@@ -19,6 +19,8 @@ from coursekit.creatures import Creature, operators
 from coursekit.creatures.genotype import preorder, random_link, random_node, renumber
 from coursekit.grading import checks, evaluate
 from coursekit.grading.checks import creature_expansion as cc
+from coursekit.grading.checks.ex05_creature_operators import CROSSOVER_POINT, EXPAND_POINT, MUTATE_POINT
+from creature_answers import crossover_orphans_dropped as crossover_drops_orphans, take_blocks
 from solution_cells import solution_functions
 
 NAMES = ["creatures.expand", "creatures.crossover", "creatures.mutate"]
@@ -168,35 +170,13 @@ def crossover_shifted(a, b, rng):
     return Creature(renumber(nodes), copy.deepcopy(a.brain))
 
 
-def crossover_drops_orphans(a, b, rng):
-    """The solution without its re-attaching repair: unreachable nodes are collected."""
-    L = max(len(a.nodes), len(b.nodes))
-    n, m = (int(v) for v in rng.integers(1, L + 1, size=2))
-    slots, pos, from_a = [], 0, True
-    while pos < L:
-        src, span = (a.nodes, n) if from_a else (b.nodes, m)
-        slots += [copy.deepcopy(src[k]) if k < len(src) else None for k in range(pos, min(pos + span, L))]
-        pos += span
-        from_a = not from_a
-    for i, node in enumerate(slots):
-        if node is not None:
-            node.children = [lk for lk in node.children if slots[lk.child] is not None and not SOL["reaches"](slots, lk.child, i)]
-            node.symmetry = [s for s in node.symmetry if any(lk.child == s.child for lk in node.children)]
-    return Creature(renumber(slots), copy.deepcopy(a.brain))
-
-
 def crossover_keeps_loops(a, b, rng):
     """The solution without removing the links that close a cycle (a student's walk: 4/4 before the
     grader's parents could close one); orphans still join where they close none."""
     pa, pb = [a.nodes[i] for i in preorder(a.nodes)], [b.nodes[i] for i in preorder(b.nodes)]
     L = max(len(pa), len(pb))
     n, m = (int(v) for v in rng.integers(1, L + 1, size=2))
-    slots, pos, from_a = [], 0, True
-    while pos < L:
-        src, span = (pa, n) if from_a else (pb, m)
-        slots += [copy.deepcopy(src[k]) if k < len(src) else None for k in range(pos, min(pos + span, L))]
-        pos += span
-        from_a = not from_a
+    slots = take_blocks(pa, pb, n, m)
     for node in slots:
         if node is not None:
             node.children = [lk for lk in node.children if slots[lk.child] is not None]
@@ -293,36 +273,36 @@ def link_scale_off_list(c, rng, rate=1.0):
 WRONG = [
     ("creatures.expand", make_expand(as_tuples=True), "returns a list of part records"),
     ("creatures.expand", make_expand(reverse=True), "parents precede children"),
-    ("creatures.expand", make_expand(symmetry=False), "children match the genotype (links, symmetry, recursion)"),
-    ("creatures.expand", make_expand(terminal_only=False), "children match the genotype (links, symmetry, recursion)"),
-    ("creatures.expand", make_expand(reset_depth=False), "recursion depth and limit"),
-    ("creatures.expand", make_expand(multiply_scale=False), "scales multiply"),
-    ("creatures.expand", make_expand(inherit_mirror=False), "mirrored copies and force sign"),
-    ("creatures.expand", make_expand(signed_gain=False), "mirrored copies and force sign"),
+    ("creatures.expand", make_expand(symmetry=False), EXPAND_POINT),
+    ("creatures.expand", make_expand(terminal_only=False), EXPAND_POINT),
+    ("creatures.expand", make_expand(reset_depth=False), EXPAND_POINT),
+    ("creatures.expand", make_expand(multiply_scale=False), EXPAND_POINT),
+    ("creatures.expand", make_expand(inherit_mirror=False), EXPAND_POINT),
+    ("creatures.expand", make_expand(signed_gain=False), EXPAND_POINT),
     ("creatures.expand", make_expand(cap=False), "part cap respected"),
     ("creatures.expand", make_expand(cap_offset=-1), "part cap respected"),
     ("creatures.crossover", crossover_invalid, "returns a valid creature"),
-    ("creatures.crossover", crossover_shifted, "nodes from alternating LR blocks at their positions"),
-    ("creatures.crossover", crossover_drops_orphans, "every taken node is kept"),
-    ("creatures.crossover", crossover_changes_links, "links between taken nodes are kept"),
-    ("creatures.crossover", crossover_always_a, "n and m are random"),
-    ("creatures.crossover", crossover_fixed_blocks, "n and m are random"),
+    ("creatures.crossover", crossover_shifted, CROSSOVER_POINT),
+    ("creatures.crossover", crossover_drops_orphans, CROSSOVER_POINT),
+    ("creatures.crossover", crossover_changes_links, CROSSOVER_POINT),
+    ("creatures.crossover", crossover_always_a, CROSSOVER_POINT),
+    ("creatures.crossover", crossover_fixed_blocks, CROSSOVER_POINT),
     ("creatures.crossover", crossover_keeps_loops, "the repair leaves no loop"),
     ("creatures.crossover", crossover_global_rng, "deterministic for a seed"),
     ("creatures.crossover", crossover_modifies_a, "inputs unchanged"),
     ("creatures.mutate", make_mutate(off_list=True), "values from the predefined lists"),
     ("creatures.mutate", link_scale_off_list, "values from the predefined lists"),
-    ("creatures.mutate", make_mutate(change=False), "about one node changes per call"),
-    ("creatures.mutate", make_mutate(scale_by_size=False), "about one node changes per call"),
-    ("creatures.mutate", make_mutate(use_rate=False), "honours rate"),
+    ("creatures.mutate", make_mutate(change=False), MUTATE_POINT),
+    ("creatures.mutate", make_mutate(scale_by_size=False), MUTATE_POINT),
+    ("creatures.mutate", make_mutate(use_rate=False), MUTATE_POINT),
     ("creatures.mutate", make_mutate(steps=(lambda n, r: None,) * 5 + (SOL["mutate_symmetry"],)),
-     "deletes, adds and modifies in all six steps"),
+     MUTATE_POINT),
     ("creatures.mutate", make_mutate(steps=tuple(s if s.__name__ != "mutate_size" else mutate_size_anywhere
                                                   for s in SOL["STEPS"])), "a size moves to a neighbouring value"),
     ("creatures.mutate", make_mutate(global_rng=True), "deterministic for a seed"),
     ("creatures.mutate", make_mutate(deepcopy=False), "input unchanged"),
 ]
-WRONG_IDS = [f"{name.split('.')[1]}-{prop.split(' ')[0]}-{k}" for k, (name, _, prop) in enumerate(WRONG)]
+WRONG_IDS = [f"{name.split('.')[1]}-{getattr(fn, '__name__', 'fn')}-{k}" for k, (name, fn, _) in enumerate(WRONG)]
 
 
 @pytest.mark.parametrize("name,fn,prop", WRONG, ids=WRONG_IDS)
@@ -358,9 +338,9 @@ def test_a_random_size_fails_only_the_neighbouring_size_rule():
 
 def test_a_single_broken_rule_costs_only_its_properties():
     j = evaluate("creatures.expand", make_expand(multiply_scale=False))
-    assert {v.prop for v in j.verdicts if not v.passed} == {"scales multiply"}
+    assert {v.prop for v in j.verdicts if not v.passed} == {EXPAND_POINT}
     j = evaluate("creatures.crossover", crossover_changes_links, timeout=30)
-    assert {v.prop for v in j.verdicts if not v.passed} == {"links between taken nodes are kept"}
+    assert {v.prop for v in j.verdicts if not v.passed} == {CROSSOVER_POINT}
 
 
 def test_messages_name_the_rule_not_the_answer():

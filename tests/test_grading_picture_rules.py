@@ -13,6 +13,7 @@ import pytest
 from coursekit.grading import checks, evaluate
 from coursekit.grading.checks import picture_genomes as PG
 from coursekit.pictures import Genome
+from check_points import assert_a_point_weighs_half
 from test_grading_pictures import (
     MUTATIONS, RECOMBINATIONS, copy_same_position, crossover_fixed, crossover_identical_children,
     decode_depth_first, interp_children_independent, interp_half, interp_u_per_parameter, root_swap_only,
@@ -24,10 +25,7 @@ NAMES = [f"pictures.{n}" for n in ["decode"] + MUTATIONS + RECOMBINATIONS]
 
 @pytest.mark.parametrize("name", NAMES)
 def test_every_check_has_a_point_weighing_half(name):
-    check = checks.get(name)
-    weights = dict(check.weights)
-    total = 1 + sum(weights.get(p, 1) for p, _ in check.props)  # "runs" counts 1
-    assert [p for p, _ in check.props if 2 * weights.get(p, 1) == total], check.weights
+    assert_a_point_weighs_half(name)
 
 
 # What the study's buggy answers did (scores before: 83 %, 80-90 %, 100 %, 91 %, 94 % ...).

@@ -8,6 +8,7 @@ parsed and validated by the library (:func:`parse`), never trusted as given.
 
 from __future__ import annotations
 
+import functools
 import json
 
 import numpy as np
@@ -31,8 +32,12 @@ def random_creature(rng, **kw):
     return creature_cls().random(np.random.default_rng(int(rng.integers(2**31))), **kw)
 
 
+@functools.lru_cache(maxsize=1024)
 def parse(text):
-    """A student's result as a Creature (validated by the library), or raise ValueError/TypeError."""
+    """A student's result as a Creature (validated by the library), or raise ValueError/TypeError.
+
+    Cached by its text: the properties of a check read the same results many times (mutation's, 325
+    results, about five times each) and never change them."""
     return creature_cls().from_json(text)
 
 

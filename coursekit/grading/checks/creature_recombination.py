@@ -3,7 +3,11 @@
 See :mod:`~coursekit.grading.checks.ex05_creature_operators` for the rationale. Every node of
 the child is identified (by its body attributes, :func:`~.creature_cases.body_signature`) as
 the node at some LR position of a parent; the positions must follow alternating blocks, every
-taken node is kept, links between taken nodes survive, and the block lengths vary between calls.
+taken node is kept, links between taken nodes survive, the block lengths vary between calls and
+the blocks alternate (:func:`alternates`: over the 40 calls of "many" and the 30 of "long", whose
+parents have 10-12 nodes, some child takes nodes of ``a`` again after a block of ``b``; with ``n``
+and ``m`` uniform in ``1..L`` a correct recombination misses that in every call with probability
+below 1e-6, see the sweep in benchmarks/NOTES.md).
 """
 
 from __future__ import annotations
@@ -59,13 +63,16 @@ def make_cases(rng):
     for k in range(3):
         a, b = _cycle_prone_pair(rng)
         cases.append({"id": f"loop{k}", "args": [obj(a), obj(b), RNG], "seeds": more[k * LOOP_SEEDS:(k + 1) * LOOP_SEEDS]})
+    a, b = _parent_pair(rng, 10, 12)  # long parents: three blocks or more in most calls (drawn after the rest)
+    cases.append({"id": "long", "args": [obj(a), obj(b), RNG], "seeds": seeds(rng, LONG_SEEDS)})
     for case in cases:
         case["max_len"] = MAX_JSON
     return cases
 
 
-CASES = ("basic", "many") + tuple(f"pair{k}" for k in range(6))
+CASES = ("basic", "many") + tuple(f"pair{k}" for k in range(6)) + ("long",)
 LOOP_SEEDS = 12
+LONG_SEEDS = 30
 LOOP_CASES = tuple(f"loop{k}" for k in range(3))
 
 
@@ -205,3 +212,20 @@ def random_blocks(ctx):
     if len(set(sets)) < 3:
         return False, f"in {len(sets)} calls with different seeds the child took the same LR blocks almost every time; draw n and m at random in every call"
     return True, f"{len(set(sets))} different block patterns in {len(sets)} calls"
+
+
+def alternates(ctx):
+    """Some child goes back to ``a`` after a block of ``b``: the blocks alternate, not one cut."""
+    n = 0
+    for cid in ("many", "long"):
+        a, b = ctx.arg(cid, 0), ctx.arg(cid, 1)
+        for text in ctx.out(cid):
+            locs, _ = _trace(a, b, parse(text))
+            if locs is None:
+                return False, "not checked until the child's nodes can be traced to LR blocks"
+            n += 1
+            first_b = min((pos for src, pos in locs if src == 1), default=None)
+            if first_b is not None and any(src == 0 and pos > first_b for src, pos in locs):
+                return True, "the blocks alternate: a, b, a, ..."
+    return False, (f"in {n} calls no child took nodes of a again after a block of b; the blocks alternate until the "
+                   "positions run out: n from a, m from b, n from a again, m from b again, ...")

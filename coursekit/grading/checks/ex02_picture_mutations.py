@@ -12,9 +12,8 @@ import json
 from coursekit.grading.checks import Check, exercise, register
 from coursekit.grading.checks.picture_genomes import (
     MAX_JSON, N_STAT, REPEAT_SEEDS, REPEATS, Bad, both_occur, changes, diff, distinct_pair, each, lib, obj, one_string,
-    reaching_tail, region, repeat_genomes, results, row_name, rows, valid)
-from coursekit.grading.checks.properties import (
-    NEW_GENOME, RNG, all_of, deterministic, point, repeated, seeds, unmodified)
+    operator_props, reaching_tail, region, repeat_genomes, results, row_name, rows, valid)
+from coursekit.grading.checks.properties import RNG, point, repeated, seeds
 
 
 #: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
@@ -202,6 +201,13 @@ register(Check(
 # -- mutations (section 3.3.1) -------------------------------------------------------------------
 
 MUT_CASES = ("basic", "many", "single")
+#: What transposition, root transposition and rotation judge first: a valid genome (gate), changed (the job,
+#: a gate), in one string only.
+_IN_ONE_STRING = (
+    ("returns a valid genome of the same shape", valid(MUT_CASES)),
+    ("changes the genome", changes(MUT_CASES)),
+    ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
+)
 
 
 def _mutation_cases(rng):
@@ -284,22 +290,17 @@ def _same_region(parent, child):
     return None
 
 
-_TRANSPOSITION = (
-    ("returns a valid genome of the same shape", valid(MUT_CASES)),
-    ("changes the genome", changes(MUT_CASES)),
-    ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
+_TRANSPOSITION = operator_props(
+    _IN_ONE_STRING,
     # the point: what changes (never the root, both chromosomes in one region, an interchange or a clone), and
     # that both outcomes occur
-    ("interchange or clone in one region, never the root", all_of(
-        each(MUT_CASES, _no_root, "the root of every string stays"),
-        each(MUT_CASES, _same_region, "both chromosomes lie in the head or both in the tail"),
-        each(MUT_CASES, _swap_or_clone(_transposition_kind, "an interchange of two of its chromosomes nor one replaced "
-                                       "by a clone of another"), "each result is an interchange or a clone"),
-        _swaps_and_clones(_transposition_kind, "transposition either interchanges the two chromosomes or replaces the "
-                                               "first by a clone of the second, and both should happen"))),
-    ("deterministic for a seed", deterministic("basic")),
-    ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
-)
+    "interchange or clone in one region, never the root",
+    each(MUT_CASES, _no_root, "the root of every string stays"),
+    each(MUT_CASES, _same_region, "both chromosomes lie in the head or both in the tail"),
+    each(MUT_CASES, _swap_or_clone(_transposition_kind, "an interchange of two of its chromosomes nor one replaced "
+                                   "by a clone of another"), "each result is an interchange or a clone"),
+    _swaps_and_clones(_transposition_kind, "transposition either interchanges the two chromosomes or replaces the "
+                                           "first by a clone of the second, and both should happen"))
 
 register(Check(
     hints=HINTS.get("pictures.transposition", ()),
@@ -332,20 +333,15 @@ def _root_only(parent, child):
     return None
 
 
-_ROOT_TRANSPOSITION = (
-    ("returns a valid genome of the same shape", valid(MUT_CASES)),
-    ("changes the genome", changes(MUT_CASES)),
-    ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
+_ROOT_TRANSPOSITION = operator_props(
+    _IN_ONE_STRING,
     # the point: the root and one head chromosome change, by an interchange or a clone, and both outcomes occur
-    ("the root interchanged with a head chromosome or cloned from one", all_of(
-        each(MUT_CASES, _root_only, "only the root and one head chromosome change"),
-        each(MUT_CASES, _swap_or_clone(_root_kind, "the root interchanged with another head chromosome nor the root "
-                                       "replaced by a clone of one"), "each result is an interchange or a clone"),
-        _swaps_and_clones(_root_kind, "the root is either interchanged with a second head chromosome or replaced by a "
-                                      "clone of it, and both should happen"))),
-    ("deterministic for a seed", deterministic("basic")),
-    ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
-)
+    "the root interchanged with a head chromosome or cloned from one",
+    each(MUT_CASES, _root_only, "only the root and one head chromosome change"),
+    each(MUT_CASES, _swap_or_clone(_root_kind, "the root interchanged with another head chromosome nor the root "
+                                   "replaced by a clone of one"), "each result is an interchange or a clone"),
+    _swaps_and_clones(_root_kind, "the root is either interchanged with a second head chromosome or replaced by a "
+                                  "clone of it, and both should happen"))
 
 register(Check(
     hints=HINTS.get("pictures.root_transposition", ()),
@@ -469,17 +465,16 @@ def _substitution_anywhere(ctx):
     return True, f"replaces chromosomes in head and tail of {len(strings)} different strings, the PreHeader too"
 
 
-_SUBSTITUTION = (
-    ("returns a valid genome of the same shape", valid(SUB_CASES)),
-    ("changes a chromosome", _substitution_changes),
-    ("changes at most one chromosome", each(SUB_CASES, _at_most_one, "at most one chromosome changes")),
+_SUBSTITUTION = operator_props(
+    (
+        ("returns a valid genome of the same shape", valid(SUB_CASES)),
+        ("changes a chromosome", _substitution_changes),
+        ("changes at most one chromosome", each(SUB_CASES, _at_most_one, "at most one chromosome changes")),
+    ),
     # the point: a random new chromosome (not one of the string's), valid for its place (functions at head
     # positions too), at any position of any string
-    ("any chromosome replaced by a random one for its place", all_of(
-        _substitution_random, _substitution_fresh, _substitution_functions, _substitution_anywhere)),
-    ("deterministic for a seed", deterministic("basic")),
-    ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
-)
+    "any chromosome replaced by a random one for its place",
+    _substitution_random, _substitution_fresh, _substitution_functions, _substitution_anywhere)
 
 register(Check(
     hints=HINTS.get("pictures.substitution", ()),
@@ -529,17 +524,12 @@ def _rotation_varies(ctx):
     return True, f"rotates heads and tails by {len(steps)} different step counts"
 
 
-_ROTATION = (
-    ("returns a valid genome of the same shape", valid(MUT_CASES)),
-    ("changes the genome", changes(MUT_CASES)),
-    ("changes one string only", each(MUT_CASES, one_string, "only one string changes")),
+_ROTATION = operator_props(
+    _IN_ONE_STRING,
     # the point: each result shifts one region cyclically, and heads and tails are rotated by several step counts
-    ("the head or the tail shifted cyclically, several steps", all_of(
-        each(MUT_CASES, _rotation_shift, "each result rotates the head or the tail of one string"),
-        _rotation_varies)),
-    ("deterministic for a seed", deterministic("basic")),
-    ("input unchanged", unmodified({0: "genome"}, NEW_GENOME, what="the genome {name}")),
-)
+    "the head or the tail shifted cyclically, several steps",
+    each(MUT_CASES, _rotation_shift, "each result rotates the head or the tail of one string"),
+    _rotation_varies)
 
 register(Check(
     hints=HINTS.get("pictures.head_tail_rotation", ()),

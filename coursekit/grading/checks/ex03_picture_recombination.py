@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from coursekit.grading.checks import Check, exercise, register
 from coursekit.grading.checks.picture_genomes import (
-    MAX_JSON, N_STAT, REPEAT_SEEDS, REPEATS, diff, distinct_pair, lib, mixes, obj, pair_results, reaching_tail, region,
-    row_name, rows, same_symbols_pair, valid)
+    MAX_JSON, N_STAT, REPEAT_SEEDS, REPEATS, diff, distinct_pair, lib, mixes, obj, operator_props, pair_results,
+    reaching_tail, region, row_name, rows, same_symbols_pair, valid)
 from coursekit.grading.checks.properties import (
     NEW_GENOME, RNG, all_of, deterministic, point, repeated, seeds, unmodified)
 
@@ -33,6 +33,12 @@ HINTS = {
 # -- recombinations (section 3.3.2) --------------------------------------------------------------
 
 REC_CASES = ("basic", "many", "single")
+#: What crossover and random copy judge first: two valid children (gate) holding material of both parents
+#: (the job, a gate).
+_TWO_CHILDREN = (
+    ("returns two valid genomes of the parents' shape", valid(REC_CASES, pair=True)),
+    ("children hold material of both parents", mixes(REC_CASES)),
+)
 
 
 def _recombination_cases(rng, same_symbols=False):
@@ -120,18 +126,15 @@ def _split_varies(ctx):
     return True, f"crossed {len(keys)} different strings at {len(qs)} different positions"
 
 
-_CROSSOVER = (
-    ("returns two valid genomes of the parents' shape", valid(REC_CASES, pair=True)),
-    ("children hold material of both parents", mixes(REC_CASES)),
-    ("only the parents' material at the same positions", _each_pair(REC_CASES, _same_positions, "children hold only the parents' chromosomes at the same positions")),
+_CROSSOVER = operator_props(
+    _TWO_CHILDREN + (
+        ("only the parents' material at the same positions", _each_pair(REC_CASES, _same_positions, "children hold only the parents' chromosomes at the same positions")),
+    ),
     # the point: complementary children, one string pair cut at one position, both chosen at random
-    ("complementary children of one random cut", all_of(
-        _each_pair(REC_CASES, _complementary, "the children are complementary"),
-        _each_pair(REC_CASES, _one_split, "one pair of strings is cut at one position"),
-        _split_varies)),
-    ("deterministic for a seed", deterministic("basic")),
-    ("inputs unchanged", unmodified({0: "a", 1: "b"}, NEW_GENOME, what="the genome {name}")),
-)
+    "complementary children of one random cut",
+    _each_pair(REC_CASES, _complementary, "the children are complementary"),
+    _each_pair(REC_CASES, _one_split, "one pair of strings is cut at one position"),
+    _split_varies, args=("a", "b"))
 
 register(Check(
     hints=HINTS.get("pictures.crossover", ()),
@@ -198,17 +201,14 @@ def _copy_arbitrary(ctx):
     return True, f"{n} copies to head and tail positions, {moved} from a different position"
 
 
-_RANDOM_COPY = (
-    ("returns two valid genomes of the parents' shape", valid(REC_CASES, pair=True)),
-    ("children hold material of both parents", mixes(REC_CASES)),
-    ("only the parents' material", _each_pair(REC_CASES, _copy_material, "each child is its parent plus chromosomes of the other parent")),
+_RANDOM_COPY = operator_props(
+    _TWO_CHILDREN + (
+        ("only the parents' material", _each_pair(REC_CASES, _copy_material, "each child is its parent plus chromosomes of the other parent")),
+    ),
     # the point: one copy into every string, from and to positions chosen at random
-    ("a copy into every string, between arbitrary positions", all_of(
-        _each_pair(REC_CASES, _copy_every_string, "every string of each child receives a copy"),
-        _copy_arbitrary)),
-    ("deterministic for a seed", deterministic("basic")),
-    ("inputs unchanged", unmodified({0: "a", 1: "b"}, NEW_GENOME, what="the genome {name}")),
-)
+    "a copy into every string, between arbitrary positions",
+    _each_pair(REC_CASES, _copy_every_string, "every string of each child receives a copy"),
+    _copy_arbitrary, args=("a", "b"))
 
 register(Check(
     hints=HINTS.get("pictures.random_copy", ()),

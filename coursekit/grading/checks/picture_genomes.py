@@ -43,6 +43,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from coursekit.grading.checks.properties import NEW_GENOME, all_of, deterministic, unmodified
+
 GENOME = "coursekit.pictures.genome:Genome"
 MAX_JSON = 200_000
 N_STAT = 60  # calls per statistical case (an outcome of probability 0.3 is missed with p = 0.7**60 < 1e-8)
@@ -286,3 +288,15 @@ def both_occur(ctx, cids, classify, kinds, what):
     return True, f"both outcomes occur over {n} calls ({', '.join(f'{k}: {v}' for k, v in seen.items())})"
 
 
+
+
+def operator_props(head: tuple, point_name: str, *parts, args=("genome",)) -> tuple:
+    """A picture operator's properties, in the order its check lists them: ``head`` (the result's validity,
+    the job gate, what may change), then the point ``point_name`` (``parts`` judged as one, :func:`all_of`),
+    determinism on the case ``"basic"``, and the arguments ``args`` left unchanged."""
+    return tuple(head) + (
+        (point_name, all_of(*parts)),
+        ("deterministic for a seed", deterministic("basic")),
+        ("input unchanged" if len(args) == 1 else "inputs unchanged",
+         unmodified(dict(enumerate(args)), NEW_GENOME, what="the genome {name}")),
+    )
