@@ -14,18 +14,7 @@ import pytest
 from coursekit.pictures import operators as O
 from coursekit.pictures.gallery import Gallery, GalleryState
 from coursekit.profile import sized
-
-SMALL = {"n_strings": 2, "head_length": 3}
-
-
-@pytest.fixture
-def gallery(tmp_path):
-    return Gallery(np.random.default_rng(0), n=6, columns=3, size=12, genome_params=SMALL,
-                   autosave=tmp_path / "session.json")
-
-
-def saved(tmp_path):
-    return GalleryState.from_dict(json.loads((tmp_path / "session.json").read_text()))
+from tests.test_pictures_gallery import SMALL, gallery, saved  # noqa: F401  (the fixture, shared)
 
 
 # ---- session files: every field checked, the random state kept --------------------------------
