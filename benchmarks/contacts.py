@@ -23,30 +23,25 @@ import importlib
 
 import numpy as np
 
-from coursekit.creatures import BrainBatch, Creature
+from coursekit.creatures import Creature, simulate
+from coursekit.creatures.simulate import DT
 from coursekit.creatures.physics.world import World
-from coursekit.creatures.simulate import DT, _brains
 
 
-def swim(creatures, seconds: float, settle: float = 0.5):
-    """``(worst, worst_m, deep_steps, world)``: each creature's worst penetration (share of the
+def swim(creatures, seconds: float):
+    """``(worst, worst_m, deep_steps, diverged, world)``: each creature's worst penetration (share of the
     thinner part's thickness, and in metres; 0 without contact), its steps with a pair over 10 %,
-    and the world."""
-    brains, bodies = _brains(creatures)
-    world = World(bodies, dt=DT)
+    whether the step flagged it, and a world holding the creatures (its contacts name the candidate pairs). The swim is
+    :func:`~coursekit.creatures.simulate`'s, every step recorded; each step's poses are set in
+    the world and tested."""
+    swum = simulate(creatures, seconds, record_every=1)
+    world = World([c.expand().body for c in creatures], dt=swum.dt)
     m = world.model
-    brain = BrainBatch(brains, backend=m.backend, device=m.device, compiled=world.compiled)
-    world.set_effectors(np.zeros(m.n_joints))
-    for _ in range(int(round(settle / DT))):
-        world.step()
-    brain.reset()
     thin = 2.0 * m.half_extents_np.min(axis=1)
     worst, worst_m, deep = np.zeros(m.n_creatures), np.zeros(m.n_creatures), np.zeros(m.n_creatures)
-    for _ in range(int(round(seconds / DT))):
-        for _ in range(2):  # two brain ticks per physics step, as simulate does
-            effector = brain.step(*world.sensors(native=True), DT / 2)
-        world.set_effectors(effector)
-        world.step()
+    zero = [np.zeros(len(f[0]) - 1) for f in swum.trajectory]  # qvel: one fewer than qpos (quaternion)
+    for k in range(1, len(swum.frame_times)):  # the steps after the start
+        world.set_state([f[k] for f in swum.trajectory], zero)
         _, a, b, _, depth, _ = world.contacts.detect(*world.body_poses())
         if len(depth):
             share, owner = depth / np.minimum(thin[a], thin[b]), m.creature[a]
@@ -55,7 +50,7 @@ def swim(creatures, seconds: float, settle: float = 0.5):
             over = np.zeros(m.n_creatures, dtype=bool)
             over[owner[share > 0.1]] = True
             deep += over
-    return worst, worst_m, deep, world
+    return worst, worst_m, deep, swum.diverged, world
 
 
 def main(argv=None) -> None:
@@ -64,24 +59,24 @@ def main(argv=None) -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--seconds", type=float, default=10.0)
     args = parser.parse_args(argv)
-    steps = int(round(args.seconds / DT))
+    steps = int(round(args.seconds / DT))  # simulate's step
     print(f"| random creatures (seed) | with pairs | worst p50 / p90 / max | ever > 25 % | steps > 10 % (of {steps}) | diverged |")
     print("|---|---:|---:|---:|---:|---:|")
     for seed in args.seeds:
         rng = np.random.default_rng(seed)
-        worst, _, deep, world = swim([Creature.random(rng) for _ in range(args.creatures)], args.seconds)
+        worst, _, deep, diverged, world = swim([Creature.random(rng) for _ in range(args.creatures)], args.seconds)
         m = world.model
         paired = np.zeros(m.n_creatures, dtype=bool)
         paired[m.creature[np.asarray(world.contacts.a, dtype=np.int64)]] = True
-        ok = paired & ~world.diverged
+        ok = paired & ~diverged
         p50, p90, top = (100 * v for v in (np.percentile(worst[ok], 50), np.percentile(worst[ok], 90), worst[ok].max()))
         print(f"| {args.creatures} ({seed}) | {paired.sum()} | {p50:.0f} / {p90:.0f} / {top:.0f} % | {(worst[ok] > 0.25).sum()} "
-              f"| {deep[ok].mean():.0f} | {world.diverged.sum()} |")
+              f"| {deep[ok].mean():.0f} | {diverged.sum()} |")
     print()
     print(f"| champion | worst (mm) | worst (% of the thinner part) | steps > 10 % (of {steps}) |")
     print("|---|---:|---:|---:|")
     for champion in importlib.import_module("coursekit.creatures.champions").hall_of_fame():
-        worst, worst_m, deep, world = swim([champion.creature], args.seconds)
+        worst, worst_m, deep, _, _ = swim([champion.creature], args.seconds)
         print(f"| {champion.name} | {1000 * worst_m[0]:.0f} | {100 * worst[0]:.0f} % | {deep[0]:.0f} |")
 
 

@@ -178,7 +178,7 @@ def test_random_creatures_with_rhythm_swim_further_than_without():
     """What rhythm is for: random creatures that beat their joints at one frequency include
     better swimmers than randomly wired ones, which barely move (reciprocal strokes in viscous
     water). The fastest tenth of 150 random creatures, in body lengths per second over 6 s, is
-    1.7-2.8 times faster with rhythm on seeds 0-4 (benchmarks/NOTES.md, "Rhythm")."""
+    2.0-3.1 times faster with rhythm on seeds 0-4 (benchmarks/NOTES.md, "Rhythm")."""
     n, seconds = 150, 6.0
     fastest = {}
     for rhythm in (0.0, RHYTHM):
