@@ -4,7 +4,9 @@ See :mod:`~coursekit.grading.checks.ex05_creature_operators` for the rationale. 
 expansion returns one record per part; every part's children are compared with what its
 genotype node implies (links, terminal-only links, symmetric copies, recursion up to the limit),
 the part total with an independent count by the recursion formula (:func:`full_count`), scales,
-mirror parity and the force sign locally, and the part cap.
+mirror parity and the force sign locally, the depth-first order (:func:`depth_first`, on the
+student's own list: a pre-order walk, cut by the cap only on the path to its last part), and the
+part cap.
 """
 
 from __future__ import annotations
@@ -158,6 +160,43 @@ def in_order(ctx):
                 return False, (f"on test input {cid!r}, part {i} has parent {p['parent']}; every part's parent must be "
                                "an earlier part (index 0..i-1)")
     return True, "the root comes first and parents precede their children"
+
+
+def depth_first(ctx):
+    """The parts come in depth-first pre-order, judged on the student's own list: every part after the root
+    hangs under the part just before it or one of that part's ancestors (the walk's current path). Where the
+    cap cuts the expansion short, the walk stopped on the path to its last part, so every other part has all
+    the children its genotype node implies: the parts kept are the first ``max_parts`` of the full walk (a
+    walk that keeps the shallow parts under the cap, in pre-order or not, fails here). The order of one
+    part's children is not judged here, nor the part count (:func:`capped`)."""
+    for cid in CASES:
+        parts = _parts(ctx, cid)
+        path = [0]  # the part just before and its ancestors
+        for i, p in enumerate(parts[1:], 1):
+            if p["parent"] not in path:
+                shown = ("..., " if len(path) > 6 else "") + ", ".join(map(str, path[-6:]))
+                return False, (f"{_where(cid, i, p)} hangs under part {p['parent']}, which is neither the part just "
+                               f"before it nor one of that part's ancestors (parts {shown}): depth first, a part's "
+                               "whole subtree is listed before the walk goes back up to the part's next sibling, so every "
+                               "part's parent is on the path to the part before it (a queue walks breadth first, "
+                               "level by level)")
+            del path[path.index(p["parent"]) + 1:]
+            path.append(i)
+        creature, cap = ctx.arg(cid, 0), ctx.arg(cid, 1)
+        full = full_count(creature)
+        if full <= cap:
+            continue
+        on_path = set(path)
+        for j, kids in enumerate(_children_of(parts)):
+            q = parts[j]
+            want = len(_expected_children(creature.nodes[q["node"]], q["node"], q["depth"]))
+            if j not in on_path and len(kids) < want:
+                return False, (f"on test input {cid!r} (the genotype expands to {full} parts, max_parts is {cap}), "
+                               f"part {j} (node {q['node']}, recursion depth {q['depth']}) has {len(kids)} of the "
+                               f"{want} children its genotype node implies, but it is not on the path to your last "
+                               f"part ({len(parts) - 1}): a depth-first walk that the cap stops has finished every "
+                               "other part's subtree, so the parts kept are the first max_parts of the full walk")
+    return True, "the parts come depth first, and the cap keeps the first parts of the walk"
 
 
 def _children_of(parts):

@@ -8,7 +8,10 @@ reference output:
   (``node``, ``parent``, ``depth``, ``scale``, ``mirrored``, ``gain``). Every part's children
   are compared with what its genotype node implies (links, terminal-only links, symmetric
   copies, recursion up to the limit); the part total with an independent count by the
-  recursion formula; scales, mirror parity and the force sign locally; and the part cap.
+  recursion formula; scales, mirror parity and the force sign locally; the depth-first order
+  (every part's parent is the part just before it or one of that part's ancestors; where the cap
+  cuts the expansion short, only the path to the last part is unfinished, so the parts kept are the
+  first ``max_parts`` of the walk); and the part cap.
 - ``creatures.crossover``: every node of the child is identified (by its body attributes) as
   the node at some LR position of a parent; the positions must follow alternating blocks
   ``[0, n)`` from ``a``, the next ``m`` from ``b``, the next ``n`` from ``a`` again, ...; every
@@ -28,8 +31,8 @@ Each check's *point* (:func:`~.properties.point`, judged with :func:`~.propertie
 operator's definition and weighs half its points: every part as its genotype node implies (children,
 depth, scale, mirroring); alternating LR blocks of random lengths (a, b, a, ...: some child of the
 long parents goes back to ``a``), every taken node kept with its links; deletions, additions and all six
-modification steps, about one node a call, scaled by ``rate``. The cap, the loop repair, values from
-the lists, the size step, determinism and untouched inputs are details with small shares.
+modification steps, about one node a call, scaled by ``rate``. The cap, the depth-first order, the loop
+repair, values from the lists, the size step, determinism and untouched inputs are details with small shares.
 
 All three also check determinism for a seed and that inputs stay unmodified. Expansion and
 recombination are checked exactly. The mutation statistics (changed nodes per call at rate 1
@@ -55,6 +58,11 @@ HINTS = {
         ("expands more than the root", (
             "Expanding follows the genotype's links from the root: each link makes a child part of the node it points to.",
             "Walk the graph depth-first from node 0, one part record per visit, until the recursion limits stop it.")),
+        ("walks depth first", (
+            "Depth first: after a part come its first child's whole subtree, then its next child's; not a level at a time.",
+            "Print node and parent of your parts for a small creature: is every part's parent the part just before it "
+            "or one of that part's ancestors?",
+            "A helper that appends a part and then grows each child in turn walks depth first; a queue walks breadth first.")),
     ),
     "creatures.crossover": (
         ("the child holds nodes of both parents", (
@@ -79,6 +87,7 @@ _EXPAND = (
     ("returns a list of part records", expansion.valid),
     ("expands more than the root", expansion.grows),
     ("parents precede children", expansion.in_order),
+    ("walks depth first", expansion.depth_first),
     (EXPAND_POINT, all_of(expansion.counts, expansion.depths, expansion.scales, expansion.mirrors)),
     ("part cap respected", expansion.capped),
 )
@@ -91,7 +100,9 @@ register(Check(
                'coursekit.grading.checks.creature_expansion:full_count',
                'coursekit.grading.checks.creature_expansion:_expected_children'),
     props=_EXPAND,
-    weights=point(EXPAND_POINT, _EXPAND, (("part cap respected", 2),)),
+    # depth first counts 2 like the cap: the order numbers the body and decides which parts the cap keeps
+    # (s27: a breadth-first expansion got every part right and kept 4/4; now 3.5/4)
+    weights=point(EXPAND_POINT, _EXPAND, (("walks depth first", 2), ("part cap respected", 2))),
 ))
 
 
