@@ -91,6 +91,42 @@ def expand_one_over_the_cap(creature, max_parts=64):
     return expand_with(creature, max_parts + 1)
 
 
+def expand_breadth_first(creature, max_parts=64):
+    """The solution's rules for every part, but a queue instead of the recursion: the parts come level by
+    level (breadth first), and under the cap the shallow parts survive instead of the first subtrees."""
+    parts = []
+    queue = [(0, -1, 0, 1.0, False)]
+    while queue and len(parts) < max_parts:
+        node_id, parent, depth, scale, mirrored = queue.pop(0)
+        node = creature.nodes[node_id]
+        me = len(parts)
+        parts.append({"node": node_id, "parent": parent, "depth": depth, "scale": scale, "mirrored": mirrored,
+                      "gain": node.force if mirrored else abs(node.force)})
+        terminal = depth >= node.recursive_limit or not node.recursion
+        for link in node.children:
+            if link.terminal_only and not terminal:
+                continue
+            flip = link.reflect >= 0
+            queue.append((link.child, me, 0, scale * link.scale, mirrored != flip))
+            queue += [(link.child, me, 0, scale * link.scale, mirrored == flip)
+                      for s in node.symmetry if s.child == link.child]
+        if not terminal:
+            queue += [(node_id, me, depth + 1, scale * r.scale, mirrored) for r in node.recursion]
+    return parts
+
+
+def expand_cap_keeps_shallow_parts(creature, max_parts=64):
+    """The whole expansion in depth-first order, then the cap keeps the max_parts parts nearest the root (the
+    body's first levels), still in depth-first order: under the cap, not the first parts of the walk."""
+    parts = expand_with(creature, 10**6)
+    level = []
+    for p in parts:
+        level.append(level[p["parent"]] + 1 if p["parent"] >= 0 else 0)
+    keep = sorted(sorted(range(len(parts)), key=lambda i: (level[i], i))[:max_parts])
+    new_index = {old: k for k, old in enumerate(keep)}
+    return [dict(parts[i], parent=new_index.get(parts[i]["parent"], -1)) for i in keep]
+
+
 def expand_iterative(creature, max_parts=64):
     """Correct: an explicit stack instead of recursion, the same order."""
     parts = []
@@ -324,6 +360,8 @@ BUGGY = [
     ("creatures.expand", expand_terminal_only_ignored, "point"),
     ("creatures.expand", expand_twins_not_mirrored, "point"),
     ("creatures.expand", expand_one_over_the_cap, "detail"),
+    ("creatures.expand", expand_breadth_first, "detail"),
+    ("creatures.expand", expand_cap_keeps_shallow_parts, "detail"),
     ("creatures.crossover", crossover_copies_a, "point"),
     ("creatures.crossover", crossover_one_cut, "point"),
     ("creatures.crossover", crossover_no_remap, "point"),
