@@ -20,17 +20,19 @@ def _randomly_wired(seed: int, n: int = 150):
     return [Creature.random(rng, max_parts=12, rhythm=0.0) for _ in range(n)]
 
 
-def test_creatures_pressing_their_parts_together_go_nowhere_in_a_vacuum():
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_creatures_pressing_their_parts_together_go_nowhere_in_a_vacuum(seed):
     # Without water nothing outside a creature pushes it: its centre of mass stays where it is, up to
-    # the step's truncation error in violent motions. Measured with the springs (seed 2, 150 creatures,
-    # 6 s): 99th percentile 0.007 m, largest 0.020 m; forces applied away from the poses they were made
-    # for drifted 0.64 m and 1.33 m.
-    creatures = _randomly_wired(2)
-    swim = simulate(creatures, 6.0, drag_coefficient=0.0)
+    # the step's truncation error, which 4 sub-steps make small (in one step some violent creatures
+    # drift up to 0.27 m in 6 s, contacts or not: the audit's refine is for them). Measured with the
+    # springs (seeds 0-2, 150 creatures, 6 s, 4 sub-steps): 99th percentile 0.0001 m, largest
+    # 0.0017 m; contact forces applied away from the poses they were made for: 0.27-0.37 m, 0.35-2.3 m.
+    creatures = _randomly_wired(seed)
+    swim = simulate(creatures, 6.0, drag_coefficient=0.0, substeps=4)
     alive = ~swim.diverged
     drift = np.linalg.norm(swim.com[alive, -1] - swim.com[alive, 0], axis=1)
     assert alive.sum() >= 0.95 * len(creatures)
-    assert np.percentile(drift, 99) < 0.02 and drift.max() < 0.1, (np.percentile(drift, 99), drift.max())
+    assert np.percentile(drift, 99) < 0.005 and drift.max() < 0.02, (np.percentile(drift, 99), drift.max())
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
