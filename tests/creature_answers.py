@@ -29,7 +29,8 @@ def as_cell(fn, name: str) -> str:
 # -- expansion -------------------------------------------------------------------------------------
 
 
-def expand_with(creature, max_parts, *, terminal=None, link_depth=None, twin_mirrored=None, terminal_only=True):
+def expand_with(creature, max_parts, *, terminal=None, link_depth=None, twin_mirrored=None, terminal_only=True,
+                recursion_first=False, twin_first=False):
     """The solution's depth-first expansion; each buggy answer passes one rule of its own."""
     terminal = terminal or (lambda node, depth: depth >= node.recursive_limit or not node.recursion)
     link_depth = link_depth or (lambda depth: 0)
@@ -47,11 +48,13 @@ def expand_with(creature, max_parts, *, terminal=None, link_depth=None, twin_mir
             if terminal_only and link.terminal_only and not term:
                 continue
             flip = link.reflect >= 0
-            todo.append((link.child, link_depth(depth), scale * link.scale, mirrored != flip))
-            todo += [(link.child, link_depth(depth), scale * link.scale, twin_mirrored(mirrored, flip))
+            own = [(link.child, link_depth(depth), scale * link.scale, mirrored != flip)]
+            twins = [(link.child, link_depth(depth), scale * link.scale, twin_mirrored(mirrored, flip))
                      for s in node.symmetry if s.child == link.child]
+            todo += twins + own if twin_first else own + twins
         if not term:
-            todo += [(node_id, depth + 1, scale * r.scale, mirrored) for r in node.recursion]
+            copies = [(node_id, depth + 1, scale * r.scale, mirrored) for r in node.recursion]
+            todo = copies + todo if recursion_first else todo + copies
         for child, d, s, m in todo:
             if len(parts) >= max_parts:
                 return
@@ -89,6 +92,18 @@ def expand_twins_not_mirrored(creature, max_parts=64):
 def expand_one_over_the_cap(creature, max_parts=64):
     """The cap tested with ``>``: one part more than max_parts wherever the genotype grows past it."""
     return expand_with(creature, max_parts + 1)
+
+
+def expand_recursion_first(creature, max_parts=64):
+    """Depth first and every part right, but a part grows its recursion copies before the children of its
+    links (the notebook: links, each with its symmetric twins, then the recursion copies): the parts are
+    numbered differently, and under the cap other parts survive."""
+    return expand_with(creature, max_parts, recursion_first=True)
+
+
+def expand_twin_first(creature, max_parts=64):
+    """Depth first and every part right, but each link's mirrored twins come before its own child."""
+    return expand_with(creature, max_parts, twin_first=True)
 
 
 def expand_breadth_first(creature, max_parts=64):
@@ -361,6 +376,8 @@ BUGGY = [
     ("creatures.expand", expand_twins_not_mirrored, "point"),
     ("creatures.expand", expand_one_over_the_cap, "detail"),
     ("creatures.expand", expand_breadth_first, "detail"),
+    ("creatures.expand", expand_recursion_first, "detail"),
+    ("creatures.expand", expand_twin_first, "detail"),
     ("creatures.expand", expand_cap_keeps_shallow_parts, "detail"),
     ("creatures.crossover", crossover_copies_a, "point"),
     ("creatures.crossover", crossover_one_cut, "point"),

@@ -5,8 +5,9 @@ expansion returns one record per part; every part's children are compared with w
 genotype node implies (links, terminal-only links, symmetric copies, recursion up to the limit),
 the part total with an independent count by the recursion formula (:func:`full_count`), scales,
 mirror parity and the force sign locally, the depth-first order (:func:`depth_first`, on the
-student's own list: a pre-order walk, cut by the cap only on the path to its last part), and the
-part cap.
+student's own list: a pre-order walk, cut by the cap only on the path to its last part), the order
+of one part's children (:func:`children_in_order`: links with their twins, then recursion copies),
+and the part cap.
 """
 
 from __future__ import annotations
@@ -168,7 +169,7 @@ def depth_first(ctx):
     cap cuts the expansion short, the walk stopped on the path to its last part, so every other part has all
     the children its genotype node implies: the parts kept are the first ``max_parts`` of the full walk (a
     walk that keeps the shallow parts under the cap, in pre-order or not, fails here). The order of one
-    part's children is not judged here, nor the part count (:func:`capped`)."""
+    part's children is not judged here (:func:`children_in_order`), nor the part count (:func:`capped`)."""
     for cid in CASES:
         parts = _parts(ctx, cid)
         path = [0]  # the part just before and its ancestors
@@ -197,6 +198,59 @@ def depth_first(ctx):
                                f"part ({len(parts) - 1}): a depth-first walk that the cap stops has finished every "
                                "other part's subtree, so the parts kept are the first max_parts of the full walk")
     return True, "the parts come depth first, and the cap keeps the first parts of the walk"
+
+
+def _child_kind(kind, node_id):
+    child, flipped = kind
+    return "recursion copy" if child == node_id else f"node {child}{' mirrored' if flipped else ''}"
+
+
+def _kinds(kinds, node_id, at=None, most=8):
+    shown = [(f"part {at[k]}: " if at else "") + _child_kind(kd, node_id) for k, kd in enumerate(kinds[:most])]
+    return ", ".join(shown) + (f", ... ({len(kinds)} in all)" if len(kinds) > most else "")
+
+
+def _in_order_of(got, want):
+    """``got`` (a sub-multiset of ``want``) in ``want``'s order: ``want`` without what ``got`` lacks."""
+    left = Counter(got)
+    out = []
+    for kind in want:
+        if left[kind]:
+            left[kind] -= 1
+            out.append(kind)
+    return out
+
+
+def children_in_order(ctx):
+    """Every part's children come in the order the exercise defines (its section 1, and the library's
+    :mod:`~coursekit.creatures.phenotype`, where that order is what a relative id counts): for each link of
+    ``node.children`` that applies, its child, then one mirrored copy per symmetry entry naming that child;
+    the recursion copies last. Judged on the student's own list, one part's children at a time, each child as
+    its node and whether it is mirrored relative to the part (a link's own child and its twins differ only
+    there). Only the order is judged: a part whose children are not among those its node implies (a wrong
+    count, twin or terminal-only link: :func:`counts`, :func:`mirrors`) is left to those properties, and
+    missing children do not count here: the children listed must come in the same relative order as in the
+    exercise's list. So a part the cap cut short is judged on the children it has; that they are the first
+    ones is not judged here, since a part that lacks its first children looks the same as one whose node
+    makes too few (the walk's order under the cap: :func:`depth_first`, and this order on the inputs the cap
+    does not cut)."""
+    for cid in CASES:
+        creature = ctx.arg(cid, 0)
+        parts = _parts(ctx, cid)
+        for i, kids in enumerate(_children_of(parts)):
+            q = parts[i]
+            want = _expected_children(creature.nodes[q["node"]], q["node"], q["depth"])
+            got = [(parts[k]["node"], parts[k]["mirrored"] != q["mirrored"]) for k in kids]
+            if Counter(got) - Counter(want):
+                continue  # not the children its node implies: counts and mirrors judge that
+            order = _in_order_of(got, want)
+            if got != order:
+                return False, (f"{_where(cid, i, q)} lists its children as {_kinds(got, q['node'], kids)}; in the "
+                               f"exercise's order the same children come as {_kinds(order, q['node'])} (for each "
+                               "link in its node's children list that applies, the link's child, then one mirrored "
+                               "copy per symmetry entry naming that child; the recursion copies last; 'mirrored' "
+                               f"relative to part {i}): the order numbers the parts and decides which ones the cap keeps")
+    return True, "every part's children come in the exercise's order: links with their twins, then recursion copies"
 
 
 def _children_of(parts):

@@ -11,7 +11,8 @@ reference output:
   recursion formula; scales, mirror parity and the force sign locally; the depth-first order
   (every part's parent is the part just before it or one of that part's ancestors; where the cap
   cuts the expansion short, only the path to the last part is unfinished, so the parts kept are the
-  first ``max_parts`` of the walk); and the part cap.
+  first ``max_parts`` of the walk); the order of one part's children (each applicable link's child,
+  then its mirrored twins; the recursion copies last); and the part cap.
 - ``creatures.crossover``: every node of the child is identified (by its body attributes) as
   the node at some LR position of a parent; the positions must follow alternating blocks
   ``[0, n)`` from ``a``, the next ``m`` from ``b``, the next ``n`` from ``a`` again, ...; every
@@ -31,8 +32,9 @@ Each check's *point* (:func:`~.properties.point`, judged with :func:`~.propertie
 operator's definition and weighs half its points: every part as its genotype node implies (children,
 depth, scale, mirroring); alternating LR blocks of random lengths (a, b, a, ...: some child of the
 long parents goes back to ``a``), every taken node kept with its links; deletions, additions and all six
-modification steps, about one node a call, scaled by ``rate``. The cap, the depth-first order, the loop
-repair, values from the lists, the size step, determinism and untouched inputs are details with small shares.
+modification steps, about one node a call, scaled by ``rate``. The cap, the depth-first order, the order of
+one part's children, the loop repair, values from the lists, the size step, determinism and untouched inputs
+are details with small shares.
 
 All three also check determinism for a seed and that inputs stay unmodified. Expansion and
 recombination are checked exactly. The mutation statistics (changed nodes per call at rate 1
@@ -52,6 +54,10 @@ from coursekit.grading.checks.creature_cases import valid_creatures
 from coursekit.grading.checks.properties import COPY_OBJECT, all_of, deterministic, point, unmodified
 
 
+#: The order of one part's children (s27: a depth-first expansion that grew the recursion copies before the links
+#: kept 4/4, and under the part cap other parts than the library's).
+CHILD_ORDER = "children in the exercise's order"
+
 #: Hint ladders (formative ``hint(...)``): a nudge, where to look, a concrete pointer; never the answer.
 HINTS = {
     "creatures.expand": (
@@ -63,6 +69,12 @@ HINTS = {
             "Print node and parent of your parts for a small creature: is every part's parent the part just before it "
             "or one of that part's ancestors?",
             "A helper that appends a part and then grows each child in turn walks depth first; a queue walks breadth first.")),
+        (CHILD_ORDER, (
+            "One part's children come in the order section 1 lists them, which also decides what the part cap keeps.",
+            "Print node and mirrored of one part's children, for a creature with a node that has links, symmetry "
+            "entries and recursion entries: which kind comes first, and where does each twin come?",
+            "Collect a part's children in one list, in the order of the two numbered rules, before growing any of "
+            "them; then grow them in that list's order.")),
     ),
     "creatures.crossover": (
         ("the child holds nodes of both parents", (
@@ -88,6 +100,7 @@ _EXPAND = (
     ("expands more than the root", expansion.grows),
     ("parents precede children", expansion.in_order),
     ("walks depth first", expansion.depth_first),
+    (CHILD_ORDER, expansion.children_in_order),
     (EXPAND_POINT, all_of(expansion.counts, expansion.depths, expansion.scales, expansion.mirrors)),
     ("part cap respected", expansion.capped),
 )
@@ -101,7 +114,9 @@ register(Check(
                'coursekit.grading.checks.creature_expansion:_expected_children'),
     props=_EXPAND,
     # depth first counts 2 like the cap: the order numbers the body and decides which parts the cap keeps
-    # (s27: a breadth-first expansion got every part right and kept 4/4; now 3.5/4)
+    # (s27: a breadth-first expansion got every part right and kept 4/4; 3.5/4, now 3.56/4 with the child order);
+    # the order of one part's children counts 1, the smallest share: the walk is right and only one rule of the
+    # numbering is misread (recursion copies first: 4/4 before, now 3.78/4)
     weights=point(EXPAND_POINT, _EXPAND, (("walks depth first", 2), ("part cap respected", 2))),
 ))
 
