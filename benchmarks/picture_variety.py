@@ -21,9 +21,14 @@ generation (:func:`coursekit.pictures.variety.random_population`, one genome per
 - *photo in tree*: the coding part holds a ``pixmap`` chromosome (an ingredient, seen or not);
 - *dark*: 95 % of the pixels under 0.2 in luminance (Rec. 601) and under 0.4 in their brightest
   channel;
-- *noisy*: the picture differs from a 4x supersampled render of it (256 x 256, box-averaged to
+- *aliased*: the picture differs from a 4x supersampled render of it (256 x 256, box-averaged to
   64 x 64) by more than 0.1 (mean absolute difference): detail finer than its pixels, pixel
-  noise at this size (or a fine texture);
+  noise at this size or, more often, a fine texture (this column was called *noisy* before
+  2026-12-06);
+- *noisy*: snow, grain at the scale of single pixels dominates the picture: the correlation of
+  neighbouring pixels, in the best of four directions (across, down, the two diagonals),
+  weighted over the channels by their variance, is below 0.2 (independent noise scores about 0,
+  stripes and smooth pictures near 1);
 - *pale*: every channel's standard deviation is below 0.05 (a grey mist, a faint wash), or
   below 0.08 with a mean luminance of at least 0.6 (washed out, a pale pastel).
 
@@ -43,9 +48,9 @@ interpolation: the children *identical* to a parent or any sibling (1/255, as ab
 (3/255).
 
 **Flat children** (the same sessions): the fraction of those children that are flat or black,
-that are one colour and that are pale, and along a *chain*: session ``s`` evolves (mixed
-operators) from one random picture, then from one random child of that, four times; the same
-three fractions over the chain, and the plain children of the chain. These yardsticks are the benchmark's own, so that one script measures any version of the
+that are one colour, that are pale and that are noisy, and along a *chain*: session ``s`` evolves
+(mixed operators) from one random picture, then from one random child of that, four times; the
+same four fractions over the chain, and the plain children of the chain. These yardsticks are the benchmark's own, so that one script measures any version of the
 library.
 
 Usage: ``python benchmarks/picture_variety.py [--genomes 600] [--sessions 30]``
@@ -143,10 +148,21 @@ def dark_pictures(images):
     return (np.percentile(lum, 95, axis=1) < 0.2) & (np.percentile(images.max(axis=3).reshape(n, -1), 95, axis=1) < 0.4)
 
 
-def noisy_pictures(genomes, images):
+def aliased_pictures(genomes, images):
     """Per picture: more than 0.1 (mean absolute difference) from a 4x supersampled render."""
     fine = render(list(genomes), 4 * SIZE, workers=1).reshape(len(genomes), SIZE, 4, SIZE, 4, 3).mean(axis=(2, 4))
     return np.abs(images - fine).mean(axis=(1, 2, 3)) > 0.1
+
+
+def noisy_pictures(images, below=0.2):
+    """Per picture: the correlation of neighbouring pixels, best of across, down and the two
+    diagonals, weighted over the channels by their variance, is below ``below``."""
+    x = np.asarray(images, dtype=np.float64)
+    x = x - x.mean(axis=(1, 2), keepdims=True)
+    var = (x * x).mean(axis=(1, 2)) + 1e-12
+    pairs = ((x[:, :, 1:], x[:, :, :-1]), (x[:, 1:], x[:, :-1]), (x[:, 1:, 1:], x[:, :-1, :-1]), (x[:, 1:, :-1], x[:, :-1, 1:]))
+    best = np.max([((a * b).mean(axis=(1, 2)) / var * var).sum(axis=1) / var.sum(axis=1) for a, b in pairs], axis=0)
+    return (best < below) & (var.sum(axis=1) > 1e-10)
 
 
 def first_generation(rng, n):
@@ -161,7 +177,7 @@ def first_generation(rng, n):
 def children_figures(sessions, n=20):
     """(children checked, fraction repeating, fraction identical to a parent or sibling, and
     per operator the fraction identical)."""
-    checked = repeats = identical = flat = single = alike = pale = 0
+    checked = repeats = identical = flat = single = alike = pale = noisy = 0
     per_op: dict = {}
     for s in range(sessions):
         rng = np.random.default_rng(s)
@@ -185,11 +201,12 @@ def children_figures(sessions, n=20):
                 flat += bool(flat_or_black(kid[None])[0])
                 single += bool(one_colour(kid[None])[0])
                 pale += bool(pale_pictures(kid[None])[0])
+                noisy += bool(noisy_pictures(kid[None])[0])
                 per_op.setdefault(name, []).append(min(d_par + d_sib) < SAME)
             ev.undo()
             ev.state.selected.clear()
     return (checked, repeats / checked, identical / checked, {k: float(np.mean(v)) for k, v in per_op.items()},
-            flat / checked, single / checked, alike / checked, pale / checked)
+            flat / checked, single / checked, alike / checked, pale / checked, noisy / checked)
 
 
 def sibling_figures(sessions, n=20):
@@ -223,7 +240,7 @@ def chain_figures(sessions, n=20, depth=4):
     """Flat or black children, one-colour children and plain children, over chains of ``depth``
     evolve clicks, each from one random picture of the generation before (children checked, the
     three fractions)."""
-    checked = flat = single = plain = pale = 0
+    checked = flat = single = plain = pale = noisy = 0
     for s in range(sessions):
         rng = np.random.default_rng(1000 + s)
         ev = Evolution(GalleryState(first_generation(rng, n)), rng)
@@ -236,7 +253,8 @@ def chain_figures(sessions, n=20, depth=4):
             single += int(one_colour(kids).sum())
             plain += int(plain_pictures(kids).sum())
             pale += int(pale_pictures(kids).sum())
-    return checked, flat / checked, single / checked, plain / checked, pale / checked
+            noisy += int(noisy_pictures(kids).sum())
+    return checked, flat / checked, single / checked, plain / checked, pale / checked, noisy / checked
 
 
 def main(argv=None):
@@ -250,8 +268,8 @@ def main(argv=None):
     plain = [Genome.random(np.random.default_rng(i)) for i in range(args.genomes)]
     pics = _render(plain)
     rows.append(("Genome.random (defaults)", picture_figures(pics, photos) + [with_photo(plain)]
-                 + [float(dark_pictures(pics).mean()), float(noisy_pictures(plain, pics).mean()),
-                    float(pale_pictures(pics).mean())]))
+                 + [float(dark_pictures(pics).mean()), float(aliased_pictures(plain, pics).mean()),
+                    float(pale_pictures(pics).mean()), float(noisy_pictures(pics).mean())]))
     t1 = time.perf_counter()
     try:
         from coursekit.pictures.variety import random_population
@@ -263,8 +281,8 @@ def main(argv=None):
         pics = _render(first)
         rows.append(("first generation (random_population)",
                      picture_figures(pics, photos) + [with_photo(first)]
-                     + [float(dark_pictures(pics).mean()), float(noisy_pictures(first, pics).mean()),
-                        float(pale_pictures(pics).mean())]))
+                     + [float(dark_pictures(pics).mean()), float(aliased_pictures(first, pics).mean()),
+                        float(pale_pictures(pics).mean()), float(noisy_pictures(pics).mean())]))
     t2 = time.perf_counter()
     children = children_figures(args.sessions) if args.sessions > 0 else None
     chain = chain_figures(args.sessions) if args.sessions > 0 else None
@@ -272,15 +290,15 @@ def main(argv=None):
     t3 = time.perf_counter()
     print(f"random pictures: {args.genomes} genomes (seeds 0..{args.genomes - 1}) at {SIZE}^2")
     print(f"{'':38s} {'flat':>6s} {'black':>6s} {'1 col.':>6s} {'grey':>6s} {'plain':>6s} {'photo':>6s} {'photo in tree':>14s}"
-          f" {'dark':>6s} {'noisy':>6s} {'pale':>6s}")
-    for name, (flat, black, single, grey, plain_, photo, tree, dark, noisy, pale) in rows:
+          f" {'dark':>6s} {'alias.':>6s} {'pale':>6s} {'noisy':>6s}")
+    for name, (flat, black, single, grey, plain_, photo, tree, dark, aliased, pale, noisy) in rows:
         print(f"{name:38s} {flat:6.1%} {black:6.1%} {single:6.1%} {grey:6.1%} {plain_:6.1%} {photo:6.1%} {tree:14.1%}"
-              f" {dark:6.1%} {noisy:6.1%} {pale:6.1%}")
+              f" {dark:6.1%} {aliased:6.1%} {pale:6.1%} {noisy:6.1%}")
     if children is not None:
         _print_children(args.sessions, *children[:4], children[6])
-        print(f"  flat or black: {children[4]:.1%}, one colour: {children[5]:.1%}, pale: {children[7]:.1%}; over chains "
-              f"of 4 evolve clicks ({chain[0]} children): {chain[1]:.1%}, {chain[2]:.1%} and {chain[4]:.1%}; plain over "
-              f"the chains: {chain[3]:.1%}")
+        print(f"  flat or black: {children[4]:.1%}, one colour: {children[5]:.1%}, pale: {children[7]:.1%}, noisy: "
+              f"{children[8]:.1%}; over chains of 4 evolve clicks ({chain[0]} children): {chain[1]:.1%}, {chain[2]:.1%}, "
+              f"{chain[4]:.1%} and {chain[5]:.1%}; plain over the chains: {chain[3]:.1%}")
         print("children of two siblings: " + ", ".join(f"{k} ({c} children) identical {same:.1%}, alike {alike:.1%}"
                                                        for k, (c, same, alike) in sib.items()))
     first_s = f"{t_first:.1f}" if random_population is not None else "-"

@@ -75,6 +75,37 @@ def test_chunks_balance_costs_and_keep_every_unit_once():
     assert Wk._chunks([1.0], 4) == [[0]]
 
 
+def test_the_cost_estimate_counts_the_grid_a_filter_extends():
+    """Workers are balanced by :func:`cost`; a blur's argument is evaluated on a grid extended by
+    the blur's reach (:func:`primitives.padding`), and the estimate counts its pixels."""
+    from coursekit.pictures import primitives as P
+    from coursekit.pictures.evaluate import cost
+    from coursekit.pictures.genome import Chromosome, Node
+
+    def node(symbol, *children, params=()):
+        return Node(Chromosome(symbol, params), children, ("pre", 0))
+
+    H = W = 64
+    frame = (1 / W, 1 / H, H, W)
+    x = node("x")
+    assert cost(x, frame=frame) == cost(x) == P.get("x").cost
+    plain = node("sin", node("plus", x, node("y")))
+    assert cost(plain, frame=frame) == pytest.approx(cost(plain))  # nothing extends its grid
+    r, c = P.padding("blur", [0.05], 1 / W, 1 / H, H, W)
+    assert r > 0 and c > 0
+    area = (H + 2 * r) * (W + 2 * c) / (H * W)
+    blurred = node("blur", x, params=(0.05,))
+    assert cost(blurred) == pytest.approx(P.get("blur").cost + P.get("x").cost)
+    assert cost(blurred, frame=frame) == pytest.approx(area * (P.get("blur").cost + P.get("x").cost))
+    # nested filters: the inner one's argument on a grid extended by both reaches (at most H, W)
+    r2, c2 = P.padding("band-pass", [0.03], 1 / W, 1 / H, H, W, (r, c))
+    inner = (H + 2 * (r + r2)) * (W + 2 * (c + c2)) / (H * W)
+    nested = node("blur", node("band-pass", x, params=(0.03,)), params=(0.05,))
+    assert cost(nested, frame=frame) == pytest.approx(area * P.get("blur").cost
+                                                       + inner * (P.get("band-pass").cost + P.get("x").cost))
+    assert 1.0 < inner <= 9.0
+
+
 @pytest.mark.parametrize("bad", [0, -2, 1.5, True, "2"])
 def test_workers_must_be_a_positive_integer(bad):
     g = Genome.random(np.random.default_rng(0))

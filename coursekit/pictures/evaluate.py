@@ -53,17 +53,32 @@ _WAVES_PIXELS = 64 * 64  # pixels per image up to which waves pay off on the CPU
 
 
 
-def cost(node: Node, warped: bool = False) -> float:
+def cost(node: Node, warped: bool = False, frame: tuple[float, float, int, int] | None = None,
+         pad: tuple[int, int] = (0, 0)) -> float:
     """Estimated evaluation time of a decoded tree, in milliseconds at 256 x 256 on one CPU core:
     the sum of its primitives' ``cost`` (:mod:`.primitives`), three times that for a primitive
     that ``samples`` coordinates warped by a transform above it (whole images, not rows).
-    Measured: correlation 0.89 with the times of 20 random genomes (tree size alone: 0.04)."""
+    Measured: correlation 0.89 with the times of 20 random genomes (tree size alone: 0.04).
+
+    With ``frame`` ``(px, py, H, W)`` (a pixel's world size, the picture's size) a primitive
+    evaluated on a grid extended beyond the window -- the argument of ``blur`` and
+    ``band-pass`` (and of the other primitives with a reach), by :func:`.primitives.padding`,
+    as the evaluators do (:func:`.tree.paddings`) -- counts that grid's pixels, ``(H + 2 rows)
+    (W + 2 columns) / (H W)`` times its cost (up to 9 times: an extension is at most the
+    picture's size on each side in all); ``pad``: the extension the tree's root is already
+    evaluated on. Without ``frame``, the window's pixels only."""
     prim = P.get(node.symbol)
     c = prim.cost * (3.0 if warped and prim.samples else 1.0)
+    if frame is not None:
+        px, py, H, W = frame
+        if node.symbol in P.REACHES:
+            with np.errstate(over="ignore"):
+                p = [float(v) for v in np.asarray(node.params, dtype=np.float32)]  # as the kernels read them
+            q = P.padding(node.symbol, p, px, py, H, W, pad)
+            pad = (pad[0] + q[0], pad[1] + q[1])  # the grid of this primitive's argument (and its filter)
+        c *= (H + 2 * pad[0]) * (W + 2 * pad[1]) / (H * W)
     warp = prim.form == "warp"  # the first argument sees new coordinates
-    return c + sum(cost(ch, warped or (k == 0 and warp)) for k, ch in enumerate(node.children))
-
-
+    return c + sum(cost(ch, warped or (k == 0 and warp), frame, pad) for k, ch in enumerate(node.children))
 
 
 def render(genomes: Genome | Sequence[Genome], size: int | tuple[int, int] = (128, 128), *,
@@ -130,8 +145,9 @@ def render(genomes: Genome | Sequence[Genome], size: int | tuple[int, int] = (12
         groups = _groups(trees, batch, (H, W), window)
         if (device.type == "cpu" and workers > 1 and len(groups) > 1 and len(genomes) * H * W >= _POOL_PIXELS
                 and not (P.REGISTERED and any(_uses(t, P.REGISTERED) for t in trees))):
+            frame = (*_pixel(window, H, W), H, W)
             pics = render_parts([(idx, [trees[i] for i in idx]) for idx in groups],
-                                [cost(trees[idx[0]]) * len(idx) for idx in groups], (H, W),
+                                [cost(trees[idx[0]], frame=frame) * len(idx) for idx in groups], (H, W),
                                 {"window": window, "time": float(time), "group": group}, int(workers))
             if pics is not None:
                 return torch.from_numpy(pics) if as_tensor else pics
@@ -149,8 +165,14 @@ def _groups(trees: list[Node], batch: bool, size: tuple[int, int], window) -> li
     """Indices of same-shaped trees whose neighbourhoods extend the picture alike (one batch
     each: :func:`.tree.paddings`), or one index per group without ``batch``."""
     H, W = size
-    px, py = abs((window[2] - window[0]) / W), abs((window[3] - window[1]) / H)  # as render_into
+    px, py = _pixel(window, H, W)
     groups: dict = {}
     for i, t in enumerate(trees):
         groups.setdefault((t.structure(), paddings(t, px, py, H, W)) if batch else i, []).append(i)
     return list(groups.values())
+
+
+def _pixel(window, H: int, W: int) -> tuple[float, float]:
+    """A pixel's world size ``(px, py)`` in a picture of ``H`` x ``W`` showing ``window``, as
+    :func:`~.local.render_into` computes it."""
+    return abs((window[2] - window[0]) / W), abs((window[3] - window[1]) / H)

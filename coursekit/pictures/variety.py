@@ -2,8 +2,8 @@
 
 With the user as the fitness function (paper section 3.4) every picture on the screen costs a
 judgement, so a slot that shows a flat, black, one-colour, plain (a wash, a faint gradient), faint
-or washed-out (a grey mist, a pale pastel), dark or static picture, or a copy of its parent or of
-a sibling, is a wasted click. Two cheap previews
+or washed-out (a grey mist, a pale pastel), dark, static or noisy (snow) picture, or a copy of its
+parent or of a sibling, is a wasted click. Two cheap previews
 prevent that; both render low-resolution thumbnails (:data:`PREVIEW`, 32 x 32) and never change
 what the genomes are:
 
@@ -12,13 +12,17 @@ what the genomes are:
   preview is *dull* (flat, black, one colour almost everywhere, plain, faint, dark or static,
   :func:`dull`) or
   repeats another picture of the population, and a greyscale one once (grey pictures stay, as a
-  minority).
+  minority). A preview with little coherence between neighbouring pixels is rendered again at
+  :data:`NOISY_SIZE` (64 x 64) and redrawn when it is *noisy* there (:func:`noisy`: snow, grain
+  finer than the preview can tell from a fine texture).
 - :func:`distinct_children` takes children from an operator and redraws those whose preview
   is within :data:`SAME` (mean absolute difference, 2/255) of a parent's or of another child's,
   and those duller than their liveliest parent (a grey noise bred on by ``round``,
   ``mod`` or a bit operation easily gives flat children: ``benchmarks/picture_variety.py``
   measures them along chains of evolve clicks). When the parents have too few distinct
   children to give (two siblings, a tiny coding part), it mutates the rest once more.
+  Children are not judged :func:`noisy` (that takes a second render, at 64 x 64, on every
+  click); fewer are, with no noisy parents in the first generation.
 
 The operators themselves (:mod:`.operators`) already aim at the coding part, and count swapped
 arguments of a commutative primitive (``plus``, ``times`` ...) as no change, so most children
@@ -38,7 +42,8 @@ from .genome import Genome
 from .operators import coding
 
 __all__ = ["PREVIEW", "SAME", "BLACK", "FLAT", "ONE_COLOUR", "PLAIN", "FAINT", "WASHED", "STATIC", "DARK", "LEVELS",
-           "MIN_NODES", "preview", "dull", "dullness", "variation", "faint", "dark", "static", "greyscale",
+           "NOISY", "NOISY_SIZE", "NOISY_SCREEN", "MIN_NODES", "preview", "dull", "dullness", "variation", "faint",
+           "dark", "static", "coherence", "noisy", "greyscale",
            "random_population", "distinct_children"]
 
 PREVIEW = 32  # pixels of a preview's side
@@ -51,6 +56,10 @@ FAINT = 0.05  # a picture whose every channel has a standard deviation below thi
 WASHED = (0.08, 0.6)  # ... below this, with a mean luminance of at least this, it is washed out (a pale pastel)
 DARK = (0.2, 0.4)  # a picture with 95 % of its pixels under this luminance and this brightest channel is dark
 STATIC = 0.05  # a picture whose neighbouring pixels correlate less than this (across or down) is static
+NOISY = 0.2  # a picture whose neighbouring pixels at NOISY_SIZE correlate less than this in every direction is noisy
+NOISY_SIZE = 64  # pixels of the side at which a picture is judged noisy
+NOISY_SCREEN = 0.3  # previews less coherent than this are rendered at NOISY_SIZE to be judged (those of 117 of
+#                     118 noisy pictures measured; about 7 % of the previews, +10 % time: benchmarks/NOTES.md)
 LEVELS = 16  # levels per channel at which two colours count as one
 MIN_NODES = 5  # coding chromosomes a random genome of a first generation has at least
 
@@ -105,14 +114,55 @@ def static(images: np.ndarray, below: float = STATIC) -> np.ndarray:
     variance, is below ``below``; a texture, stripes or a swirl correlate along one direction at
     least (threshold chosen on a contact sheet of the 40 least correlated of 240 random pictures:
     ``benchmarks/NOTES.md``; independent noise at 32 x 32 scores about 0.02)."""
+    c, var = _correlations(images)
+    return (c[:, :2].max(axis=1) * var).sum(axis=1) / var.sum(axis=1) < below if c.size else np.zeros(len(c), bool)
+
+
+def coherence(images: np.ndarray) -> np.ndarray:
+    """Per picture of ``images`` ``(N, H, W, 3)``: how much its neighbouring pixels have in
+    common, the correlation of each pixel with its neighbour in the best of four directions
+    (across, down and the two diagonals), weighted over the channels by their variance. Near 1
+    for a smooth picture, about 0 for independent noise (``1 - coherence`` is half the mean
+    squared difference of neighbours over the variance: the share of the variance at the
+    finest scale, in the direction where it is least); stripes, lines and a checkerboard of
+    cells of a few pixels score high along one direction at least. 1 for a flat picture (no
+    variance) and one of fewer than 2 x 2 pixels."""
+    c, var = _correlations(images)
+    if not c.size:
+        return np.ones(len(c))
+    best = ((c * var[:, None]).sum(axis=2) / var.sum(axis=1)[:, None]).max(axis=1)
+    return np.where(var.sum(axis=1) > 1e-10, best, 1.0)
+
+
+def noisy(images: np.ndarray, below: float = NOISY) -> np.ndarray:
+    """Per picture of ``images`` ``(N, H, W, 3)``, rendered at :data:`NOISY_SIZE`: noisy, snow
+    (grain at the scale of single pixels dominates it: its :func:`coherence` is under
+    ``below``). Chosen on contact sheets at the gallery's 96 px of 1,200 first-generation
+    pictures (60 seeds of 20) ranked by their coherence at 64 x 64: of the 44 under 0.2, 37
+    were snow (pixel noise, a shape half drowned in it), 2 borderline and 5 not (ornamental
+    rings, a fine grey texture, a few lines among specks); of the 42 from 0.2 to 0.3, 15 were
+    snow and most others fine textures, swirls and line drawings worth a click
+    (``benchmarks/NOTES.md``). Independent noise scores about 0, noise of cells of two pixels
+    about 0.5 (coarser grain, which :func:`static` finds in the 32 x 32 preview); stripes, a
+    checkerboard of cells of three pixels or more, and fine detail with a direction score
+    higher. At 96 x 96 the
+    same pictures score higher (grain of cells a little larger than a pixel there): the
+    judgement is always made at :data:`NOISY_SIZE`, whatever the size shown."""
+    return coherence(images) < below
+
+
+def _correlations(images: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per picture and channel, the correlation of neighbouring pixels across, down and along
+    the two diagonals ``(N, 4, 3)`` (``(N, 0, 3)`` for a picture of fewer than 2 x 2 pixels),
+    and the channels' variances ``(N, 3)``."""
     im = np.nan_to_num(np.asarray(images, dtype=np.float64))
-    if im.shape[1] < 2 or im.shape[2] < 2:
-        return np.zeros(len(im), bool)
+    if im.ndim != 4 or im.shape[1] < 2 or im.shape[2] < 2:
+        return np.zeros((len(im), 0, 3)), np.ones((len(im), 3))
     x = im - im.mean(axis=(1, 2), keepdims=True)
     var = (x * x).mean(axis=(1, 2)) + 1e-12
-    across = (x[:, :, 1:] * x[:, :, :-1]).mean(axis=(1, 2)) / var
-    down = (x[:, 1:] * x[:, :-1]).mean(axis=(1, 2)) / var
-    return (np.maximum(across, down) * var).sum(axis=1) / var.sum(axis=1) < below
+    pairs = ((x[:, :, 1:], x[:, :, :-1]), (x[:, 1:], x[:, :-1]), (x[:, 1:, 1:], x[:, :-1, :-1]),
+             (x[:, 1:, :-1], x[:, :-1, 1:]))
+    return np.stack([(a * b).mean(axis=(1, 2)) / var for a, b in pairs], axis=1), var
 
 
 def dark(images: np.ndarray, luminance: float = DARK[0], brightest: float = DARK[1]) -> np.ndarray:
@@ -182,7 +232,11 @@ def random_population(rng: np.random.Generator, n: int, *, tries: int = 8, size:
     coding part has fewer than ``min_nodes`` chromosomes (too small to breed: its mutants are
     few and mostly alike), or its preview at ``size`` is dull (:func:`dull`) or within
     :data:`SAME` of another slot's accepted picture, at
-    most ``tries`` times; a greyscale preview (:func:`greyscale`) is redrawn once. Redraws are
+    most ``tries`` times; a greyscale preview (:func:`greyscale`) is redrawn once. A preview
+    that passes with a :func:`coherence` under :data:`NOISY_SCREEN` is rendered again at
+    :data:`NOISY_SIZE` and redrawn when it is :func:`noisy` there (a preview of 32 x 32 cannot
+    tell snow from a fine texture: both alias into noise; a few noisy pictures, 5 of 8,000 over
+    400 seeds, have a more coherent preview and stay). Redraws are
     batched per round, in slot order, so the result depends only on ``rng``'s state.
 
     Example:
@@ -204,6 +258,12 @@ def random_population(rng: np.random.Generator, n: int, *, tries: int = 8, size:
     for attempt in range(tries + 1):
         fresh = preview([genomes[i] for i in pending], size) if pending else []
         is_dull, is_grey = dull(np.asarray(fresh)), greyscale(np.asarray(fresh))
+        if attempt < tries:  # snow: the passing previews that may be noise, judged at NOISY_SIZE
+            screen = [k for k, (i, pic) in enumerate(zip(pending, fresh)) if not is_dull[k]
+                      and not (is_grey[k] and attempt == 0) and genomes[i].size() >= min_nodes]
+            screen = [k for k, c in zip(screen, coherence(np.asarray([fresh[k] for k in screen]))) if c < NOISY_SCREEN]
+            if screen:
+                is_dull[screen] |= noisy(preview([genomes[pending[k]] for k in screen], NOISY_SIZE))
         still = []
         for i, pic, bad, grey in zip(pending, fresh, is_dull, is_grey):
             if (bad or (grey and attempt == 0) or genomes[i].size() < min_nodes
