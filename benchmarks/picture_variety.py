@@ -161,7 +161,7 @@ def noisy_pictures(images, below=0.2):
     x = x - x.mean(axis=(1, 2), keepdims=True)
     var = (x * x).mean(axis=(1, 2)) + 1e-12
     pairs = ((x[:, :, 1:], x[:, :, :-1]), (x[:, 1:], x[:, :-1]), (x[:, 1:, 1:], x[:, :-1, :-1]), (x[:, 1:, :-1], x[:, :-1, 1:]))
-    best = np.max([((a * b).mean(axis=(1, 2)) / var * var).sum(axis=1) / var.sum(axis=1) for a, b in pairs], axis=0)
+    best = np.max([(a * b).mean(axis=(1, 2)).sum(axis=1) / var.sum(axis=1) for a, b in pairs], axis=0)  # the channels' correlations weighted by their variances
     return (best < below) & (var.sum(axis=1) > 1e-10)
 
 
