@@ -66,7 +66,8 @@ def test_every_step_of_an_evolved_swim_agrees_with_the_numpy_step():
                 x._inertia_q = None  # each computes its own inertias
                 x.step()
             worst = max(worst, _largest_relative_difference(plain.state, fast.state))
-            contacts += 0 if w.active_contacts is None else len(w.active_contacts["a"])
+            contacts += 0 if w.active_contacts is None else len(w.active_contacts["a"])  # touching
+            contacts += 0 if w._held is None else int(np.sum(w._held[9] >= 0))  # held (the compiled hold's slots)
             locks += int(np.sum(w._lock))
     assert worst < 1e-12
     assert contacts > 100 and locks > 100

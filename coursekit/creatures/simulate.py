@@ -118,7 +118,7 @@ def simulate(
             gets copies, and a creature the simulator flags (diverged, cut at the part cap, a
             joint the step could not hold) still scores 0.
         **options: passed to :class:`~coursekit.creatures.physics.world.World` (``backend``,
-            ``device``, ``integrator``, ``drag_coefficient``, ``contacts``, caps ...).
+            ``device``, ``integrator``, ``drag_coefficient``, ``contacts``, ``hold_contacts``, caps ...).
 
     Returns:
         A :class:`SimulationResult`.

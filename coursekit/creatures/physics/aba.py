@@ -255,16 +255,19 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed, s
     return a0, qdd, v, force
 
 
-def impulse(model, inertias, lock, change, static=False):
+def impulse(model, inertias, lock, change, static=False, wrench=None):
     """The hybrid system's response to a change of the locked joints' rates, from rest.
 
     The sweeps of :func:`aba` with no velocities and no forces (no bias terms: ``c = 0``,
     ``pA = 0`` at first): the locked joints' rates change by ``change`` (M,) and the root and the
     free joints respond as the articulated inertia makes them -- an impulse through the body,
-    which conserves momentum exactly (the joint limits, :mod:`limits`).
+    which conserves momentum exactly (the joint limits, :mod:`limits`). ``wrench`` (N, 6),
+    optional: impulses on the bodies too (body coordinates, like :func:`aba`'s ``f_ext``; the
+    held self-contacts of :mod:`contact_forces`, as forces), which the locked joints pass on whole.
 
     Args:
         inertias: :func:`articulated_inertias` at the state's ``q`` with this ``lock``.
+        lock: (M,) bool, or ``None`` (no joint locked; ``change`` is then ignored).
         static: the graph-ready root solve (:func:`aba`).
     Returns:
         ``(dv0, dqd)``: the root's velocity change (C, 6) in root coordinates and the joints' (M,).
@@ -273,12 +276,20 @@ def impulse(model, inertias, lock, change, static=False):
     C, L = model.n_creatures, model.leaf_start
     Xup, IA, U, d, W, Z, Yt, V = inertias
     S = model.S
-    ap = xp.where(lock, change, xp.zeros_like(change))
-    ji = slice(0, L - C)
-    pA = xp.zeros((model.n_bodies, 6), dtype=ap.dtype, device=model.device)
-    model.joint_segments.add_into(pA, V * ap[:, None])  # what each joint passes to its parent: Xup' U ap (locked), 0 (free)
+    ji, jl = slice(0, L - C), slice(L - C, None)
+    pA = xp.zeros((model.n_bodies, 6), dtype=change.dtype, device=model.device) if wrench is None else -wrench
+    g = xp.zeros_like(U)  # what each joint passes to its parent before the inner sweep
+    if lock is not None:
+        ap = xp.where(lock, change, xp.zeros_like(change))
+        g = g + V * ap[:, None]  # Xup' U ap (locked), 0 (free)
+    if wrench is not None:  # a leaf passes Xup' (pA - U S'pA / d), all of it when locked (W = 0)
+        pl = pA[L:]
+        g[jl] += sp.mtv(Xup[jl], pl) - W[jl] * sp.dot(xp, S[jl], pl)[:, None]
+    model.joint_segments.add_into(pA, g)
     _inward(model, Z, pA)
-    ud = xp.where(lock, ap, -sp.dot(xp, S, pA[C:]) / d)
+    ud = -sp.dot(xp, S, pA[C:]) / d
+    if lock is not None:
+        ud = xp.where(lock, ap, ud)
     a0 = -bk.solve(xp, IA[:C], pA[:C], static)
     a = _outward(model, Z, xp.concat([a0, S[ji] * ud[ji][:, None]], axis=0))
     return a0, ud - sp.dot(xp, W, xp.take(a, model.joint_parent, axis=0))

@@ -42,6 +42,9 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernels
+from . import contact_kernels as ck
+from .contact_kernels import hold
+from .contact_forces import ITERATIONS, RATE
 from .kernels import _jit, _poses, _velocities, available, impulse, inertias, stage, transforms
 
 __all__ = ["Dynamics", "available", "mass_properties", "rkn"]
@@ -106,12 +109,30 @@ def _quat_to_mat(q, R):  # pragma: no cover - compiled
 
 
 @_jit
+def _held_stage(parent, S, iterations, holds, E, r, IA, U, d, chol, lock, R, A_l, A_w, A_q, a0):  # pragma: no cover - compiled
+    """Add the held contacts' forces (:func:`~.contact_kernels.hold`, through the stage's
+    transforms ``E, r`` and inertias ``IA .. chol`` with ``lock``) to a stage's accelerations: the
+    roots' world linear ``A_l`` (C, 3) (``R``: the roots' rotations), angular ``A_w`` (C, 3) and
+    the joints' ``A_q`` (M,), from the roots' spatial accelerations ``a0``."""
+    C, M = a0.shape[0], A_q.shape[0]
+    da, dq = np.empty((C, 6)), np.empty(M)
+    hold(parent, S, iterations, holds, E, r, IA, U, d, chol, lock, R, a0, A_q, da, dq)
+    for i in range(C):
+        for m in range(3):
+            A_w[i, m] += da[i, m]
+            A_l[i, m] += R[i, m, 0] * da[i, 3] + R[i, m, 1] * da[i, 4] + R[i, m, 2] * da[i, 5]
+    for j in range(M):
+        A_q[j] += dq[j]
+
+
+@_jit
 def rkn(P, revolute, parent, S, inertia, damping, lock, tau, held, E1, r1, IA1, U1, d1, chol1, pos, quat, q, lin, omega, qd, h,
-        contacts, a, b, xa, xb, n0, depth0, cap, k, c, new_pos, new_quat, new_q, new_lin, new_omega, new_qd, need):  # pragma: no cover - compiled
+        contacts, a, b, xa, xb, n0, depth0, cap, k, c, holding, holds, iterations,
+        new_pos, new_quat, new_q, new_lin, new_omega, new_qd, need):  # pragma: no cover - compiled
     """One step of :func:`~.integrate.step` with the 4-stage Nystrom method, every stage a
     :func:`~.kernels.stage` in the chart ``R = R_n exp(theta)``. ``held``: the inertias ``E1 .. chol1`` are
     those of ``q`` already (else they are computed into them). ``need``: the locked joints' forces
-    of the last stage."""
+    of the last stage. ``holding``: the contacts ``holds`` are held in every stage (:func:`_held_stage`)."""
     C, M, N = pos.shape[0], q.shape[0], parent.shape[0]
     if not held:
         transforms(P, revolute, q, E1, r1)
@@ -122,8 +143,11 @@ def rkn(P, revolute, parent, S, inertia, damping, lock, tau, held, E1, r1, IA1, 
         _quat_to_mat(quat[i], R0[i])
     # the stages' accelerations in chart coordinates: (C, 3) root, (C, 3) theta, (M,) joints
     A_l, A_w, A_q = np.empty((4, C, 3)), np.empty((4, C, 3)), np.empty((4, M))
+    a0 = np.empty((C, 6))
     stage(parent, E1, r1, S, inertia, damping, IA1, U1, d1, chol1, lock, tau, R0, lin, omega, qd,
-          contacts, a, b, xa, xb, n0, depth0, cap, k, c, A_l[0], A_w[0], A_q[0], need)  # theta = 0: the chart is the identity
+          contacts, a, b, xa, xb, n0, depth0, cap, k, c, A_l[0], A_w[0], A_q[0], need, a0)  # theta = 0: the chart is the identity
+    if holding:
+        _held_stage(parent, S, iterations, holds, E1, r1, IA1, U1, d1, chol1, lock, R0, A_l[0], A_w[0], A_q[0], a0)
     h2, hh8, hh2 = h / 2, h * h / 8, h * h / 2
     y_t, y_q = np.empty((C, 3)), np.empty(M)  # the root's position moves no force
     v_l, v_t, v_q = np.empty((C, 3)), np.empty((C, 3)), np.empty(M)
@@ -162,7 +186,9 @@ def rkn(P, revolute, parent, S, inertia, damping, lock, tau, held, E1, r1, IA1, 
         for j in range(M):
             v_q[j] = qd[j] + kv * A_q[g, j]
         stage(parent, E, r, S, inertia, damping, IA, U, d, chol, lock, tau, R, v_l, om, v_q,
-              contacts, a, b, xa, xb, n0, depth0, cap, k, c, A_l[s], A_w[s], A_q[s], need)
+              contacts, a, b, xa, xb, n0, depth0, cap, k, c, A_l[s], A_w[s], A_q[s], need, a0)
+        if holding:
+            _held_stage(parent, S, iterations, holds, E, r, IA, U, d, chol, lock, R, A_l[s], A_w[s], A_q[s], a0)
         for i in range(C):  # theta'' = dexp^-1 (omega' - curvature)
             for m in range(3):
                 t1[m] = A_w[s, i, m] - wd[i, m]
@@ -328,6 +354,9 @@ class Dynamics:
         self.free = np.zeros(m.n_joints, dtype=bool)  # no joint locked (a world without limits)
         self.creature = np.ascontiguousarray(m.creature, dtype=np.int64)
         self.joint_creature = np.ascontiguousarray(m.joint_creature, dtype=np.int64)
+        i, f = np.zeros(0, np.int64), np.zeros((0, 3))  # no contact held (rkn's arguments keep their types)
+        self._none = (np.zeros((0, 3, 3)), f, np.zeros((0, 3, 3)), f, i, i, i, f, f, i, i, np.zeros((0, 0, 0)), np.zeros((0, 0)),
+                      np.zeros((0, 0)), np.zeros((0, 0)), f, f)
 
     def inertias(self, q, lock=None):
         m = self.model
@@ -365,12 +394,13 @@ class Dynamics:
         contacts held for the step, as ``Contacts.held`` keeps them)."""
         a, b = np.ascontiguousarray(contacts.a, dtype=np.int64), np.ascontiguousarray(contacts.b, dtype=np.int64)
         reach2, half, P, N = np.ascontiguousarray(contacts.reach2), np.ascontiguousarray(contacts.half_extents), len(a), self.model.n_bodies
+        touching = np.zeros(P)  # no margin: the springs push pairs in touch
         none = {"pair": np.zeros(0, np.int64), "xa": np.zeros((0, 3)), "xb": np.zeros((0, 3)), "n": np.zeros((0, 3)), "depth": np.zeros(0)}
 
         def begin(R, p, held):
             R, p = np.ascontiguousarray(R), np.ascontiguousarray(p)
             pair, n, depth, x = np.empty(P, np.int64), np.empty((P, 3)), np.empty(P), np.empty((P, 3))
-            k = kernels.detect(a, b, reach2, half, R, p, pair, n, depth, x)
+            k = kernels.detect(a, b, reach2, half, R, p, pair, n, depth, x, touching)
             held = none if held is None else held
             out = {"pair": np.empty(P, np.int64), "xa": np.empty((P, 3)), "xb": np.empty((P, 3)), "n": np.empty((P, 3)), "depth": np.empty(P)}
             sensors = np.full((N, 6), -1.0)
@@ -386,9 +416,10 @@ class Dynamics:
             return (no, no, none, none, none, np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0))
         return tuple(active[key] for key in ("a", "b", "xa", "xb", "n", "depth", "cap", "k", "c"))
 
-    def step(self, state, h, tau, lock, active, held=None):
+    def step(self, state, h, tau, lock, active, held=None, holds=None):
         """``(new state, need)``: one :func:`rkn` step from ``state``; ``held``: the
-        :meth:`inertias` at ``state.q`` with this ``lock``, if known."""
+        :meth:`inertias` at ``state.q`` with this ``lock``, if known; ``holds``: the contacts
+        held in every stage (:meth:`hold`), if any."""
         from .integrate import State
 
         m = self.model
@@ -403,17 +434,24 @@ class Dynamics:
         need = np.empty(M)
         rkn(self.P, self.revolute, self.parent, self.S, self.inertia, self.damping, lock, tau, known, *held,
             state.pos, state.quat, state.q, state.lin, state.omega, state.qd, float(h), active is not None, *self._pairs(active),
+            holds is not None, self._none if holds is None else holds, ITERATIONS,
             new.pos, new.quat, new.q, new.lin, new.omega, new.qd, need)
         return new, need
 
-    def accel(self, held, R, qd, lin, omega, tau, lock, active):
-        """``(lin_acc, ang_acc, qdd, need)`` of :func:`stage` at a state whose :meth:`inertias` are ``held``."""
+    def accel(self, held, R, qd, lin, omega, tau, lock, active, holds=None):
+        """``(lin_acc, ang_acc, qdd, need)`` of :func:`stage` at a state whose :meth:`inertias` are
+        ``held``, with the contacts ``holds`` held (:meth:`hold`), if any."""
         E, r, IA, U, d, chol = held
         C, M = self.model.n_creatures, self.model.n_joints
         out = np.empty((C, 3)), np.empty((C, 3)), np.empty(M), np.empty(M)
+        a0 = np.empty((C, 6))
         lock = self.free if lock is None else lock
+        R = np.ascontiguousarray(R)
         stage(self.parent, E, r, self.S, self.inertia, self.damping, IA, U, d, chol, lock, tau,
-              np.ascontiguousarray(R), lin, omega, qd, active is not None, *self._pairs(active), *out)
+              R, lin, omega, qd, active is not None, *self._pairs(active), *out, a0)
+        if holds is not None:
+            _held_stage(self.parent, self.S, ITERATIONS, holds, E, r, IA, U, d, chol, lock, R,
+                        out[0], out[1], out[2], a0)
         return out
 
     def rotations(self, quat):
@@ -441,9 +479,49 @@ class Dynamics:
         lim.lock, lim.up, lim.target, lim.beyond = lock, up, target, beyond
         return lock, at, rate
 
-    def impulse(self, held, lock, change):
-        """``(dv0, dqd)`` of :func:`impulse`."""
+    def hold(self, forces, R0, state, inertias, lock, h):
+        """:meth:`~.contact_forces.ContactForces.hold` compiled: the pairs at ``state`` within their
+        reach with their slots (:func:`~.contact_kernels.slots`), their Delassus matrices through
+        the step's ``inertias`` and ``lock`` (:func:`~.contact_kernels.responses`), gap allowances
+        and bounds, as :func:`~.contact_kernels.hold` reads them in every stage; or ``None``."""
+        m, c = self.model, forces.contacts
+        C, M, N, P = m.n_creatures, m.n_joints, m.n_bodies, c.n_pairs
+        E, r, IA, U, d, chol = inertias
+        lock = self.free if lock is None else lock
+        R, p = np.empty((N, 3, 3)), np.empty((N, 3))
+        _poses(self.parent, E, r, np.ascontiguousarray(R0), np.ascontiguousarray(state.pos), R, p)
+        v0 = np.ascontiguousarray(np.concatenate([state.omega, np.einsum("cji,cj->ci", R0, state.lin)], axis=1))
+        v = np.empty((N, 6))
+        _velocities(self.parent, E, r, self.S, v0, np.ascontiguousarray(state.qd), v, np.empty((M, 6)))
+        reach = np.ascontiguousarray(forces.reach(h, v))
+        pair, n, depth, x = np.empty(P, np.int64), np.empty((P, 3)), np.empty(P), np.empty((P, 3))
+        a, b = np.ascontiguousarray(c.a, dtype=np.int64), np.ascontiguousarray(c.b, dtype=np.int64)
+        H = kernels.detect(a, b, np.ascontiguousarray(c.reach2), np.ascontiguousarray(c.half_extents), R, p, pair, n, depth, x, reach)
+        if H == 0:
+            return None
+        pair, n, depth, x = pair[:H], n[:H], depth[:H], x[:H]
+        a, b = a[pair], b[pair]
+        vn = np.empty(H)
+        ck.normal_speeds(R, p, v, a, b, n, x, vn)
+        owner, slot, count = forces.owner[pair], np.empty(H, np.int64), np.zeros(C, np.int64)
+        K = ck.slots(owner, depth - h * vn, forces.thin[pair], forces.cap, slot, count)  # the deepest at the step's end
+        r0, rq, D = np.zeros((K, C, 6)), np.zeros((K, M)), np.zeros((C, K, K))
+        ck.responses(self.parent, E, r, self.S, IA, U, d, chol, lock, self.creature, R, p, owner, a, b, n, x, slot, count, r0, rq, D)
+        floor, bias, rate = np.zeros((C, K)), np.zeros((C, K)), np.zeros((C, K))
+        ck.per_slot(owner, slot, forces.floor[pair], floor)
+        ck.per_slot(owner, slot, 2.0 * (np.clip(-depth, 0.0, None) + vn * h) / h**2, bias)  # close the gap, no more
+        ck.rates(rq, r0, self.joint_creature, rate)
+        hi = np.where(rate > 0, RATE / (h * np.where(rate > 0, rate, 1.0)), np.inf)
+        n_a = np.ascontiguousarray(np.einsum("hji,hj->hi", R[a], n))
+        x_b = np.ascontiguousarray(np.einsum("hji,hj->hi", R[b], x - p[b]))
+        return (E, r, R, p, owner, a, b, n, x, slot, count, D, floor, hi, bias, n_a, x_b)
+
+    def impulse(self, held, lock, change, wrench=None):
+        """``(dv0, dqd)`` of :func:`impulse` (``wrench``: the bodies' impulses, none if ``None``)."""
         E, r, IA, U, d, chol = held
-        dv0, dqd = np.empty((self.model.n_creatures, 6)), np.empty(self.model.n_joints)
-        impulse(self.parent, E, r, self.S, self.inertia, IA, U, d, chol, lock, np.ascontiguousarray(change), dv0, dqd)
+        m = self.model
+        dv0, dqd = np.empty((m.n_creatures, 6)), np.empty(m.n_joints)
+        wrench = np.zeros((m.n_bodies, 6)) if wrench is None else np.ascontiguousarray(wrench)
+        impulse(self.parent, E, r, self.S, self.inertia, IA, U, d, chol, self.free if lock is None else lock,
+                np.ascontiguousarray(change), wrench, dv0, dqd)
         return dv0, dqd

@@ -21,7 +21,10 @@ stages and the following steps until it releases (:meth:`Contacts.begin`,
 spring energy per contact, and a contact can only take energy. Holding the start-of-step force
 over the step instead (an explicit, first-order treatment) let passive creatures thrown into
 themselves gain up to 16 % energy in 3 s -- an energy leak evolution would find (Sims'
-"clacking" exploit). Sensors: a face is touching (+1) when it is the face of its box whose
+"clacking" exploit). The springs are soft enough for an explicit step, too soft to stop a fast
+part: each creature's nearest pairs are also held as constraints
+(:mod:`~coursekit.creatures.physics.contact_forces`, which finds pairs with this module's test and a
+margin). Sensors: a face is touching (+1) when it is the face of its box whose
 outward normal is closest to the contact direction, otherwise -1 (Sims' per-face contact
 sensors).
 """
@@ -50,6 +53,10 @@ def _face(xp, R, direction):
     k = xp.argmax(xp.abs(dl), axis=1)
     return 2 * k + xp.astype(xp.take_along_axis(dl, k[:, None], axis=1)[:, 0] > 0, k.dtype)
 
+
+#: Overlaps (m) this close count as equal when choosing the contact's axis: the first of them, in the
+#: order A's faces, B's faces, edge pairs, so that backends that round differently find one normal.
+TIE = 1e-12
 
 #: The spring stretches at most this fraction of the thinner box's smallest half extent: parts
 #: that start deeply interpenetrated (overlapping siblings) are pushed apart with bounded force.
@@ -146,7 +153,7 @@ class Contacts:
         N = p.shape[0]
         return self._detect_rows(bk.contiguous(xp, xp.reshape(R, (N, 9)).T), bk.contiguous(xp, p.T))
 
-    def _detect_rows(self, Rt, pt):
+    def _detect_rows(self, Rt, pt, margin=None):
         """:meth:`detect` on component-major poses: ``Rt`` (9, N), ``Rt[3k + i]`` = component k of
         box axis i (``R[:, k, i]``), and ``pt`` (3, N). Component-major (k, n) rows throughout:
         numpy gathers and multiplies contiguous rows fast.
@@ -157,12 +164,15 @@ class Contacts:
         xp = self.xp
         a, b = self.a, self.b
         d = xp.take(pt, b, axis=1) - xp.take(pt, a, axis=1)
-        spheres = xp.sum(d * d, axis=0) < self.reach2  # bounding spheres overlap
+        gap = 0.0 if margin is None else margin  # (P,): pairs this close count (speculative contacts, depth > -gap)
+        spheres = xp.sum(d * d, axis=0) < (self.reach2 if margin is None else (xp.sqrt(self.reach2) + margin) ** 2)
         if self.static:
             sel = None
         else:
             sel = xp.nonzero(spheres)[0]
             a, b, d = a[sel], b[sel], xp.take(d, sel, axis=1)
+            if margin is not None:
+                gap = xp.take(margin, sel, axis=0)
         n = a.shape[0]
         A, B = xp.reshape(xp.take(Rt, a, axis=1), (3, 3, n)), xp.reshape(xp.take(Rt, b, axis=1), (3, 3, n))  # [component, axis]
         # the 15 axes in A's frame (Gottschalk et al. 1996): Rm[3i + j] = A_i . B_j, t = d in A's frame
@@ -176,8 +186,10 @@ class Contacts:
         # a face axis separates most pairs whose spheres overlap (about 3 in 4 in an evolved
         # population): the 9 edge axes, the dearer part, are tested on the others only
         if not self.static:
-            near = xp.nonzero(xp.min(faces, axis=0) > 0)[0]
+            near = xp.nonzero(xp.min(faces, axis=0) > -gap)[0]
             a, b, sel = a[near], b[near], sel[near]
+            if margin is not None:
+                gap = xp.take(gap, near, axis=0)
             d, A, B, Rm, Am, t, hA, hB, faces = (xp.take(x, near, axis=-1) for x in (d, A, B, Rm, Am, t, hA, hB, faces))
         i1j, i2j, ij1, ij2, I1, I2, J1, J2 = self._edge_rows
         len_e = xp.sqrt(xp.clip(1.0 - Rm * Rm, 0.0, None))  # |A_i x B_j|
@@ -188,12 +200,14 @@ class Contacts:
         ) / xp.where(valid, len_e, xp.ones_like(len_e))
         overlap = xp.concat([faces, xp.where(valid, over_e, xp.full_like(over_e, float("inf")))], axis=0)
         depth = xp.min(overlap, axis=0)
+        # the first axis of least overlap, ties within TIE included (an order that round-off does not decide)
+        first = xp.astype(overlap <= depth[None] + TIE, xp.float64)
         if self.static:
-            hit = spheres & (depth > 0)
-            best = xp.argmin(overlap, axis=0)
+            hit = spheres & (depth > -gap)
+            best = xp.argmax(first, axis=0)
         else:
-            hit = xp.nonzero(depth > 0)[0]
-            best = xp.argmin(xp.take(overlap, hit, axis=1), axis=0)
+            hit = xp.nonzero(depth > -gap)[0]
+            best = xp.argmax(xp.take(first, hit, axis=1), axis=0)
             a, b, d, depth = a[hit], b[hit], xp.take(d, hit, axis=1), depth[hit]
             A, B, hA, hB = (xp.take(x, hit, axis=-1) for x in (A, B, hA, hB))
         # the normal: A's axis best (< 3), B's axis best - 3 (< 6) or A_i x B_j (best = 6 + 3i + j)

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .contact import TIE
+
 try:
     import numba
 except ImportError:  # pragma: no cover - the numpy step needs no numba
@@ -316,12 +318,13 @@ def _sweeps(parent, E, r, S, inertia, damping, IA, U, d, chol, lock, ap, tau, v,
 
 @_jit
 def stage(parent, E, r, S, inertia, damping, IA, U, d, chol, lock, tau, R0, lin, omega, qd,
-          contacts, a, b, xa, xb, n0, depth0, cap, k, c, lin_acc, ang_acc, qdd, need):  # pragma: no cover - compiled
+          contacts, a, b, xa, xb, n0, depth0, cap, k, c, lin_acc, ang_acc, qdd, need, a0):  # pragma: no cover - compiled
     """One evaluation of the dynamics for the integrator (:meth:`World._accel`): the roots'
     linear acceleration (world) ``lin_acc`` (C, 3) and angular acceleration (root frame)
     ``ang_acc`` (C, 3), the joints' ``qdd`` (M,) and the locked joints' forces ``need`` (M,).
     Locked joints keep their rates. With ``contacts`` the anchored contact springs ``a .. c``
-    (:meth:`~coursekit.creatures.physics.contact.Contacts.begin`) push at the stage's poses."""
+    (:meth:`~coursekit.creatures.physics.contact.Contacts.begin`) push at the stage's poses.
+    ``a0`` (C, 6): the roots' spatial accelerations (root coordinates), for the held contacts."""
     N, C, M = parent.shape[0], R0.shape[0], qd.shape[0]
     v0 = np.empty((C, 6))
     for i in range(C):  # (omega, R' lin): the root's velocity in its own frame
@@ -337,7 +340,6 @@ def stage(parent, E, r, S, inertia, damping, IA, U, d, chol, lock, tau, R0, lin,
         p = np.empty((N, 3))
         _poses(parent, E, r, R0, np.zeros((C, 3)), R, p)  # positions relative to the roots: forces do not care
         _wrench(a, b, xa, xb, n0, depth0, cap, k, c, R, p, v, f_ext)
-    a0 = np.empty((C, 6))
     _sweeps(parent, E, r, S, inertia, damping, IA, U, d, chol, lock, np.zeros(M), tau, v, cJ, f_ext, a0, qdd, need)
     for i in range(C):  # R (a0_lin + omega x v0_lin)
         w0, w1, w2 = v0[i, 0], v0[i, 1], v0[i, 2]
@@ -350,24 +352,26 @@ def stage(parent, E, r, S, inertia, damping, IA, U, d, chol, lock, tau, R0, lin,
 
 
 @_jit
-def impulse(parent, E, r, S, inertia, IA, U, d, chol, lock, change, dv0, dqd):  # pragma: no cover - compiled
+def impulse(parent, E, r, S, inertia, IA, U, d, chol, lock, change, wrench, dv0, dqd):  # pragma: no cover - compiled
     """:func:`~.aba.impulse`: the root's velocity change ``dv0`` (C, 6) and the joints' ``dqd``
-    (M,) when the locked joints' rates change by ``change`` from rest."""
+    (M,) when the locked joints' rates change by ``change`` from rest and the bodies take the
+    impulses ``wrench`` (N, 6)."""
     N, M = parent.shape[0], change.shape[0]
     zero = np.zeros((N, 6))
     _sweeps(parent, E, r, S, inertia, zero, IA, U, d, chol, lock, change, np.zeros(M), zero, np.zeros((M, 6)),
-            zero, dv0, dqd, np.empty(M))
+            wrench, dv0, dqd, np.empty(M))
 
 
 # ---------------------------------------------------------------- contact detection
 
 
 @_jit
-def detect(a, b, reach2, half, R, p, pair, n, depth, x):  # pragma: no cover - compiled
+def detect(a, b, reach2, half, R, p, pair, n, depth, x, margin):  # pragma: no cover - compiled
     """The candidate pairs ``a, b`` in contact at poses ``R, p`` (N, 3, 3), (N, 3):
     :meth:`~coursekit.creatures.physics.contact.Contacts.detect` pair by pair (bounding spheres,
     then the 15 separating axes). Writes the pairs in contact, in candidate order, to ``pair``,
-    their unit normals from A to B to ``n``, their depths and contact points; returns how many."""
+    their unit normals from A to B to ``n``, their depths and contact points; returns how many.
+    ``margin`` (P,): pairs closer than it count too (depth > -margin; zeros: touching pairs only)."""
     Rm, Am, t, over = np.empty((3, 3)), np.empty((3, 3)), np.empty(3), np.empty(15)
     d, nrm = np.empty(3), np.empty(3)
     found = 0
@@ -375,7 +379,8 @@ def detect(a, b, reach2, half, R, p, pair, n, depth, x):  # pragma: no cover - c
         A, B = a[k], b[k]
         for c in range(3):
             d[c] = p[B, c] - p[A, c]
-        if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] >= reach2[k]:
+        reach = np.sqrt(reach2[k]) + margin[k]
+        if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] >= (reach2[k] if margin[k] == 0.0 else reach * reach):
             continue  # the bounding spheres do not overlap
         for i in range(3):
             t[i] = R[A, 0, i] * d[0] + R[A, 1, i] * d[1] + R[A, 2, i] * d[2]
@@ -386,7 +391,7 @@ def detect(a, b, reach2, half, R, p, pair, n, depth, x):  # pragma: no cover - c
         for i in range(3):
             over[i] = hA[i] + (Am[i, 0] * hB[0] + Am[i, 1] * hB[1] + Am[i, 2] * hB[2]) - abs(t[i])
             over[3 + i] = (Am[0, i] * hA[0] + Am[1, i] * hA[1] + Am[2, i] * hA[2]) + hB[i] - abs(Rm[0, i] * t[0] + Rm[1, i] * t[1] + Rm[2, i] * t[2])
-        if min(over[0], over[1], over[2], over[3], over[4], over[5]) <= 0.0:
+        if min(over[0], over[1], over[2], over[3], over[4], over[5]) <= -margin[k]:
             continue  # a face axis separates them
         for i in range(3):
             i1, i2 = (i + 1) % 3, (i + 2) % 3
@@ -398,12 +403,14 @@ def detect(a, b, reach2, half, R, p, pair, n, depth, x):  # pragma: no cover - c
                                            - abs(t[i2] * Rm[i1, j] - t[i1] * Rm[i2, j])) / length
                 else:
                     over[6 + 3 * i + j] = np.inf
-        best = 0
+        lo = over[0]
         for m in range(1, 15):
-            if over[m] < over[best]:
-                best = m
-        if over[best] <= 0.0:
+            lo = min(lo, over[m])
+        if lo <= -margin[k]:
             continue
+        best = 0
+        while over[best] > lo + TIE:  # the first axis of least overlap, ties within TIE included
+            best += 1
         for c in range(3):  # the normal: A's axis, B's axis or their cross product
             if best < 3:
                 nrm[c] = R[A, c, best]
@@ -427,7 +434,7 @@ def detect(a, b, reach2, half, R, p, pair, n, depth, x):  # pragma: no cover - c
                 vB -= R[B, c, i] * hB[i] * (0.0 if abs(sb) < 1e-9 else np.sign(sb))
             x[found, c] = 0.5 * (vA + vB)
             n[found, c] = nrm[c]
-        pair[found], depth[found] = k, over[best]
+        pair[found], depth[found] = k, lo
         found += 1
     return found
 

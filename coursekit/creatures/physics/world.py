@@ -5,7 +5,8 @@
 creature by ``dt`` with the chosen integrator (sub-stepped when the water would be too stiff, see
 :mod:`~coursekit.creatures.physics.water`). Joint forces from effectors are held constant over a
 step; self-collisions are detected at the step's start and their forces, like drag, are evaluated
-at every stage. Joints at their limits are locked for the step (:mod:`~coursekit.creatures.physics.limits`):
+at every stage: the springs of :mod:`~coursekit.creatures.physics.contact`, and the constraint forces
+that hold each creature's nearest pairs apart (:mod:`~coursekit.creatures.physics.contact_forces`). Joints at their limits are locked for the step (:mod:`~coursekit.creatures.physics.limits`):
 the articulated-body algorithm prescribes their accelerations and the rest of the body responds.
 
 Guards: after each step a creature whose state is not finite or whose root speed, root spin or
@@ -38,6 +39,7 @@ from .jcalc import forward_kinematics, joint_transform_matrices, joint_transform
 from .compiled import Dynamics, available
 from .graph import CudaGraph
 from .contact import Contacts
+from .contact_forces import ContactForces
 from .dynamics import flatten_layout, split_layout, join_velocity_layout
 from .integrate import INTEGRATORS, State, step
 from .limits import Limits
@@ -63,7 +65,10 @@ class World:
             drag diagonal, used for every box instead of the library's (see :mod:`water`);
             drag_coefficient: ``k`` of :mod:`water`.
         limits: joint limits on/off (one-sided constraints, see :mod:`limits`).
-        contacts: self-collision penalty forces on/off (see :mod:`contact`).
+        contacts: self-collisions on/off: penalty springs (see :mod:`contact`) and, with
+            ``hold_contacts``, constraint forces that hold each creature's nearest pairs apart (see
+            :mod:`contact_forces`; without them parts sink up to half into each other, as in the
+            springs-only simulator before them).
         substeps: integrate in this many times the sub-steps the water needs (default 1). The
             model stays the same -- effectors held over ``dt``, the contact springs of the
             water's own sub-step -- so more sub-steps integrate the same system more finely: the
@@ -94,6 +99,7 @@ class World:
         drag_coefficient: float = DRAG_COEFFICIENT,
         limits: bool = True,
         contacts: bool = True,
+        hold_contacts: bool = True,
         contact_stiffness: float | None = None,
         max_speed: float = MAX_SPEED,
         max_angular_speed: float = MAX_ANGULAR_SPEED,
@@ -108,7 +114,7 @@ class World:
             raise ValueError(f"integrator: got {integrator!r}; allowed: {', '.join(INTEGRATORS)} or a function rkn_step(f, t, y, v, h)")
         if not (isinstance(drag, (bool, np.bool_)) or callable(drag)):
             raise TypeError(f"drag: must be True, False or a function box_drag(half_extents, k), got {type(drag).__name__}")
-        for name, flag in (("graph", graph), ("limits", limits), ("contacts", contacts), ("compiled", compiled)):
+        for name, flag in (("graph", graph), ("limits", limits), ("contacts", contacts), ("hold_contacts", hold_contacts), ("compiled", compiled)):
             if not isinstance(flag, (bool, np.bool_)) and not (name == "compiled" and flag is None):
                 raise TypeError(f"{name}: must be True or False{' (or None)' if name == 'compiled' else ''}, got {type(flag).__name__}")
         if not (isinstance(substeps, (int, np.integer)) and not isinstance(substeps, bool) and substeps >= 1):
@@ -139,11 +145,12 @@ class World:
         f = lambda a: bk.asarray(xp, a, device=m.device)  # noqa: E731
         self.strength = f(m.strength_np)
         self.gain = f(m.gain_np)
-        self.contacts = None
+        self.contacts = self.contact_forces = None
         if contacts:
             self.contacts = Contacts(m, stiffness=contact_stiffness, dt=self.dt / water_steps, static=self.graph)
             if self._compiled is not None:
                 self.contacts.compiled = self._compiled.begin(self.contacts)
+            self.contact_forces = ContactForces(self.contacts) if hold_contacts else None
         self.caps = (float(max_speed), float(max_angular_speed), float(max_joint_speed))
         self._graph = None  # the captured CUDA graph and its buffers (graph=True on CUDA)
         self._graph_failed = None  # why the step could not be captured (it then runs eagerly)
@@ -159,7 +166,7 @@ class World:
         quat[:, 0] = 1.0
         self.state = State(z(C, 3), quat, z(M), z(C, 3), z(C, 3), z(M))
         self.tau = z(M)
-        self.active_contacts = None
+        self.active_contacts = self._held = None
         self._inertia_q = self._inertia = self._poses_q = self._poses = None
         self.contact_sensors = None
         self._sensed = None  # (user joint order, which of them are hinges), on the first sensors()
@@ -201,7 +208,7 @@ class World:
         if q is not self._inertia_q:  # RKN stages 2 and 3 share positions, hence inertias
             self._inertia_q, self._inertia = q, self._inertias(q)
         if self._compiled is not None:
-            lin_acc, ang_acc, qdd, need = self._compiled.accel(self._inertia, R, qd, lin, omega, tau, self._lock, self.active_contacts)
+            lin_acc, ang_acc, qdd, need = self._compiled.accel(self._inertia, R, qd, lin, omega, tau, self._lock, self.active_contacts, self._held)
             self._force = lambda: need
             return lin_acc, ang_acc, qdd
         f_ext = v = None
@@ -216,6 +223,8 @@ class World:
             a0, qdd, _, force = aba(m, q, qd, xp.concat([omega, vb], axis=1), tau, f_ext=f_ext, damping=self.damping,
                                     inertias=self._inertia, v=v, lock=self._lock, static=self.graph)  # locked joints keep their rates
             self._force = force  # the step's last evaluation is what the limits remember
+        if self._held is not None:  # the contacts held in every stage, at the stage's poses
+            a0, qdd = self.contact_forces.force(self, self._held, a0, qdd, forward_kinematics(m, R, pos, q))
         lin_acc = sp.mv(R, a0[:, 3:] + sp.cross3(xp, omega, vb))
         return lin_acc, a0[:, :3], qdd
 
@@ -224,7 +233,7 @@ class World:
         if self._compiled is None or self.integrator != "rkn":
             return step(self.xp, s, self.h, self._accel, self.integrator, t)
         held = self._inertia if self._inertia_q is s.q else None
-        new, need = self._compiled.step(s, self.h, self.tau, self._lock, self.active_contacts, held)
+        new, need = self._compiled.step(s, self.h, self.tau, self._lock, self.active_contacts, held, self._held)
         self._force, self._inertia_q = (lambda: need), None
         return new
 
@@ -242,11 +251,12 @@ class World:
         """Every body's world pose, component-major (:func:`~.jcalc.poses_rows`)."""
         return poses_rows(self.model, R0, p0, q) if self._compiled is None else self._compiled.poses_rows(R0, p0, q)
 
-    def _impulse(self, change):
-        """The response to a change ``change`` of the locked joints' rates, from rest (:func:`.aba.impulse`)."""
+    def _impulse(self, change, wrench=None):
+        """The response to a change ``change`` of the locked joints' rates and to the bodies'
+        impulses ``wrench``, from rest (:func:`.aba.impulse`)."""
         if self._compiled is not None:
-            return self._compiled.impulse(self._inertia, self._lock, change)
-        return impulse(self.model, self._inertia, self._lock, change, self.graph)
+            return self._compiled.impulse(self._inertia, self._lock, change, wrench)
+        return impulse(self.model, self._inertia, self._lock, change, self.graph, wrench)
 
     def sensors(self, native: bool = False) -> tuple[Any, Any, Any]:
         """What the creatures' sensors read now, in the layout controllers take.
@@ -317,6 +327,7 @@ class World:
                 self.active_contacts, self.contact_sensors = self.contacts.begin(s, rows)
                 if self.active_contacts is not None and self._compiled is None:  # the first stage's poses (it passes s.q on)
                     self._poses_q, self._poses = s.q, pose_stacks(xp, rows)
+                self._held = self.contact_forces.hold(self, s) if self.contact_forces and self.contacts.n_pairs else None
             prev = self.state
             new = self._guard(prev, self._integrate(prev, self.time + i * self.h))
             if self._lock is not None:
