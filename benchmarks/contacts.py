@@ -1,14 +1,16 @@
 """Benchmark: how far do a creature's parts sink into each other while it swims?
 
-Self-collisions are penalty springs (:mod:`coursekit.creatures.physics.contact`). This measures
-what they hold, on the workload evolution runs: ``--creatures`` random creatures
+Self-collisions are penalty springs (:mod:`coursekit.creatures.physics.contact`) and, by default,
+constraint forces that hold each creature's nearest pairs apart
+(:mod:`coursekit.creatures.physics.contact_forces`). This measures what each model holds, side by
+side in one run (``springs``: ``hold_contacts=False``; ``held``: the default), on the workload evolution runs: ``--creatures`` random creatures
 (``Creature.random(default_rng(seed))``, the first generation of ``evolve_swimmers``) and the
 shipped champions, each swimming ``--seconds`` s with its own brain after the usual 0.5 s settle.
 After every step, every candidate pair (parts of one creature, not joined directly, not fused in
 the rest pose) is tested with the separating-axis test; a pair's *penetration* is its overlap
 divided by the thinner part's thickness (100 %: the thinner part is wholly inside the other).
 
-Per row: the creatures with at least one candidate pair; the worst penetration per creature
+Per row: the swim's wall time; the creatures with at least one candidate pair; the worst penetration per creature
 (median, 90th percentile, largest); how many creatures ever exceed 25 %; the mean number of
 steps per creature in which some pair exceeds 10 %; the creatures the step flagged as diverged.
 Champions: the worst penetration in mm and in %, and the steps over 10 %.
@@ -20,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import time
 
 import numpy as np
 
@@ -28,13 +31,16 @@ from coursekit.creatures.simulate import DT
 from coursekit.creatures.physics.world import World
 
 
-def swim(creatures, seconds: float):
-    """``(worst, worst_m, deep_steps, diverged, world)``: each creature's worst penetration (share of the
+def swim(creatures, seconds: float, hold: bool = True):
+    """``(worst, worst_m, deep_steps, diverged, world, seconds)``: each creature's worst penetration (share of the
     thinner part's thickness, and in metres; 0 without contact), its steps with a pair over 10 %,
-    whether the step flagged it, and a world holding the creatures (its contacts name the candidate pairs). The swim is
+    whether the step flagged it, a world holding the creatures (its contacts name the candidate pairs)
+    and the swim's wall time (recording included). The swim is
     :func:`~coursekit.creatures.simulate`'s, every step recorded; each step's poses are set in
     the world and tested."""
-    swum = simulate(creatures, seconds, record_every=1)
+    start = time.perf_counter()
+    swum = simulate(creatures, seconds, record_every=1, hold_contacts=hold)
+    elapsed = time.perf_counter() - start
     world = World([c.expand().body for c in creatures], dt=swum.dt)
     m = world.model
     thin = 2.0 * m.half_extents_np.min(axis=1)
@@ -50,7 +56,7 @@ def swim(creatures, seconds: float):
             over = np.zeros(m.n_creatures, dtype=bool)
             over[owner[share > 0.1]] = True
             deep += over
-    return worst, worst_m, deep, swum.diverged, world
+    return worst, worst_m, deep, swum.diverged, world, elapsed
 
 
 def main(argv=None) -> None:
@@ -60,24 +66,29 @@ def main(argv=None) -> None:
     parser.add_argument("--seconds", type=float, default=10.0)
     args = parser.parse_args(argv)
     steps = int(round(args.seconds / DT))  # simulate's step
-    print(f"| random creatures (seed) | with pairs | worst p50 / p90 / max | ever > 25 % | steps > 10 % (of {steps}) | diverged |")
-    print("|---|---:|---:|---:|---:|---:|")
+    models = {"springs": False, "held": True}
+    print(f"| random creatures (seed) | model | time (s) | with pairs | worst p50 / p90 / max | ever > 25 % | steps > 10 % (of {steps}) | diverged |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|")
+    simulate([Creature.random(np.random.default_rng(0))], 0.5)  # numba compiles before the timings
     for seed in args.seeds:
         rng = np.random.default_rng(seed)
-        worst, _, deep, diverged, world = swim([Creature.random(rng) for _ in range(args.creatures)], args.seconds)
-        m = world.model
-        paired = np.zeros(m.n_creatures, dtype=bool)
-        paired[m.creature[np.asarray(world.contacts.a, dtype=np.int64)]] = True
-        ok = paired & ~diverged
-        p50, p90, top = (100 * v for v in (np.percentile(worst[ok], 50), np.percentile(worst[ok], 90), worst[ok].max()))
-        print(f"| {args.creatures} ({seed}) | {paired.sum()} | {p50:.0f} / {p90:.0f} / {top:.0f} % | {(worst[ok] > 0.25).sum()} "
-              f"| {deep[ok].mean():.0f} | {diverged.sum()} |")
+        creatures = [Creature.random(rng) for _ in range(args.creatures)]
+        for name, hold in models.items():
+            worst, _, deep, diverged, world, elapsed = swim(creatures, args.seconds, hold)
+            m = world.model
+            paired = np.zeros(m.n_creatures, dtype=bool)
+            paired[m.creature[np.asarray(world.contacts.a, dtype=np.int64)]] = True
+            ok = paired & ~diverged
+            p50, p90, top = (100 * v for v in (np.percentile(worst[ok], 50), np.percentile(worst[ok], 90), worst[ok].max()))
+            print(f"| {args.creatures} ({seed}) | {name} | {elapsed:.1f} | {paired.sum()} | {p50:.0f} / {p90:.0f} / {top:.0f} % "
+                  f"| {(worst[ok] > 0.25).sum()} | {deep[ok].mean():.0f} | {diverged.sum()} |", flush=True)
     print()
-    print(f"| champion | worst (mm) | worst (% of the thinner part) | steps > 10 % (of {steps}) |")
-    print("|---|---:|---:|---:|")
+    print(f"| champion | model | worst (mm) | worst (% of the thinner part) | steps > 10 % (of {steps}) |")
+    print("|---|---|---:|---:|---:|")
     for champion in importlib.import_module("coursekit.creatures.champions").hall_of_fame():
-        worst, worst_m, deep, _, _ = swim([champion.creature], args.seconds)
-        print(f"| {champion.name} | {1000 * worst_m[0]:.0f} | {100 * worst[0]:.0f} % | {deep[0]:.0f} |")
+        for name, hold in models.items():
+            worst, worst_m, deep, _, _, _ = swim([champion.creature], args.seconds, hold)
+            print(f"| {champion.name} | {name} | {1000 * worst_m[0]:.0f} | {100 * worst[0]:.0f} % | {deep[0]:.0f} |")
 
 
 if __name__ == "__main__":
