@@ -9,19 +9,21 @@ does a difference in the last bit of one function. Such differences exist betwee
 with the same packages: numpy's AVX-512 kernels of ``tan``, ``exp``, ``log`` and ``arctan`` round
 differently from its AVX2 ones, and OpenBLAS's ``solve`` depends on the kernels it picks for the
 processor. The Sims-scale runs were made with the compiled step
-(:mod:`~coursekit.creatures.physics.compiled`) on an Intel Xeon with AVX-512 (numpy's ``X86_V4``,
-OpenBLAS's ``SkylakeX`` kernels), where their commands follow them generation by generation;
-there, ``NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" OPENBLAS_CORETYPE=Haswell``
+(:mod:`~coursekit.creatures.physics.compiled`) on x86-64 processors with AVX-512 (numpy's
+``X86_V4``, OpenBLAS's ``SkylakeX`` kernels; seeds 0 and 2 on an Intel Xeon, seed 1 on an AMD
+EPYC), where their commands follow them generation by generation; there, ``NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" OPENBLAS_CORETYPE=Haswell``
 (read when numpy loads) takes another path (benchmarks/NOTES.md). The demo's champion is the
 demo's seed-0 run at its classroom sizes with ``--budget 0`` (all 40 generations), made with the
-same step on the same machine. All four were bred from randomly wired creatures, before random
+same step on the Intel Xeon. All four were bred from randomly wired creatures, as before random
 creatures had a rhythm (:func:`~coursekit.creatures.generation.add_rhythm`): their commands say
-``--rhythm 0``. So a champion is not re-derived on every change. What the tests
+``--rhythm 0``. So a champion is not re-derived on every change -- only when the physics it
+exploited is gone: seed 1's first champion swam by passing its paddles through its arms, and was bred
+again once self-contacts were held (:mod:`~coursekit.creatures.physics.contact_forces`). What the tests
 check is what a student sees now: every champion still swims at its recorded pace, steadily, and
 passes the audit (:mod:`~coursekit.creatures.audit`).
 
 >>> [round(c.body_lengths_per_second, 2) for c in hall_of_fame()]
-[0.38, 0.74, 0.54, 1.22]
+[0.38, 0.74, 0.33, 1.22]
 """
 
 from __future__ import annotations
