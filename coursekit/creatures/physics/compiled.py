@@ -509,7 +509,7 @@ class Dynamics:
         ck.responses(self.parent, E, r, self.S, IA, U, d, chol, lock, self.creature, R, p, owner, a, b, n, x, slot, count, r0, rq, D)
         floor, bias, rate = np.zeros((C, K)), np.zeros((C, K)), np.zeros((C, K))
         ck.per_slot(owner, slot, forces.floor[pair], floor)
-        ck.per_slot(owner, slot, 2.0 * (np.clip(-depth, 0.0, None) + vn * h) / h**2, bias)  # close the gap, no more
+        ck.per_slot(owner, slot, (np.clip(-depth, 0.0, None) + vn * h) / h**2, bias)  # close at most the gap in a step
         ck.rates(rq, r0, self.joint_creature, rate)
         hi = np.where(rate > 0, RATE / (h * np.where(rate > 0, rate, 1.0)), np.inf)
         n_a = np.ascontiguousarray(np.einsum("hji,hj->hi", R[a], n))

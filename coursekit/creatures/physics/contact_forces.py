@@ -17,8 +17,13 @@ inside the integrator (Featherstone 2008, chapter 11; the speculative contacts o
    on every held pair's normal acceleration: the Delassus matrix ``D = J M^-1 J'`` (C, K, K). One
    sweep per slot, over the creatures holding that many pairs.
 3. *Forces in every stage.* Each stage of the integrator solves ``f >= 0`` with ``J a + D f >=
-   -2 (gap + v_n h) / h^2`` and ``f . (J a + D f + ...) = 0`` (a linear complementarity problem,
-   projected Gauss-Seidel): a pair may close its gap within the step, never more. The forces act
+   -(gap + v_n h) / h^2`` and ``f . (J a + D f + ...) = 0`` (a linear complementarity problem,
+   projected Gauss-Seidel): at the step's end a pair approaches no faster than would close its gap
+   in a step (the velocity-level speculative contact, inelastic). An approaching pair that would
+   close more than its gap ends the step at rest against the other, up to half of its overshoot
+   inside it (asking for its gap closed exactly by the step's end -- a bias twice as large --
+   bounces it back as fast as it came, and passive creatures thrown into themselves gained up to
+   5 % energy in 2 s; none does now). The forces act
    at the stage's own poses, equal and opposite on the two parts at one point, so they are
    internal there and the creature's momentum is kept (forces made for the step's start but
    applied at a later stage's poses are not internal: a creature drifted in a vacuum and swam on
@@ -210,11 +215,11 @@ class ContactForces:
             rate.append(xp.maximum(xp.max(xp.abs(dv0[:, :3]), axis=1), self._per_creature_max(world, xp.abs(dqd))))
         D = xp.stack([self._per_slot(hits, K, col) for col in columns], axis=2)  # D[c, j, k]: slot j's acceleration per slot k's force
         rate = xp.stack(rate, axis=1) if K else xp.zeros((m.n_creatures, 0), dtype=unit.dtype, device=m.device)
-        ahead = xp.clip(-hits["depth"], 0.0, None) + hits["vn"] * h  # a pair may close its gap within the step, not more
+        ahead = xp.clip(-hits["depth"], 0.0, None) + hits["vn"] * h  # v_n at the step's end closes at most the gap in a step
         Ra, Rb = xp.take(R, hits["a"], axis=0), xp.take(R, hits["b"], axis=0)
         return {"hits": hits, "K": K, "R": R, "p": p, "X": X, "D": D, "floor": self._per_slot(hits, K, hits["floor"]),
                 "hi": xp.where(rate > 0, RATE / (h * xp.where(rate > 0, rate, 1.0)), float("inf")),
-                "bias": self._per_slot(hits, K, 2.0 * ahead / h**2),
+                "bias": self._per_slot(hits, K, ahead / h**2),
                 "n_a": sp.mtv(Ra, hits["n"]), "x_b": sp.mtv(Rb, hits["x"] - xp.take(p, hits["b"], axis=0))}
 
     def force(self, world, held, a0, qdd, poses):

@@ -65,10 +65,8 @@ class World:
             drag diagonal, used for every box instead of the library's (see :mod:`water`);
             drag_coefficient: ``k`` of :mod:`water`.
         limits: joint limits on/off (one-sided constraints, see :mod:`limits`).
-        contacts: self-collisions on/off: penalty springs (see :mod:`contact`) and, with
-            ``hold_contacts``, constraint forces that hold each creature's nearest pairs apart (see
-            :mod:`contact_forces`; without them parts sink up to half into each other, as in the
-            springs-only simulator before them).
+        contacts: self-collisions on/off: penalty springs (:mod:`contact`) and, with ``hold_contacts``,
+            forces that hold each creature's nearest pairs apart (:mod:`contact_forces`).
         substeps: integrate in this many times the sub-steps the water needs (default 1). The
             model stays the same -- effectors held over ``dt``, the contact springs of the
             water's own sub-step -- so more sub-steps integrate the same system more finely: the
@@ -252,8 +250,7 @@ class World:
         return poses_rows(self.model, R0, p0, q) if self._compiled is None else self._compiled.poses_rows(R0, p0, q)
 
     def _impulse(self, change, wrench=None):
-        """The response to a change ``change`` of the locked joints' rates and to the bodies'
-        impulses ``wrench``, from rest (:func:`.aba.impulse`)."""
+        """The response to ``change`` of the locked joints' rates and to the bodies' impulses ``wrench``, from rest."""
         if self._compiled is not None:
             return self._compiled.impulse(self._inertia, self._lock, change, wrench)
         return impulse(self.model, self._inertia, self._lock, change, self.graph, wrench)
