@@ -19,15 +19,14 @@ inside the integrator (Featherstone 2008, chapter 11; the speculative contacts o
 3. *Forces in every stage.* Each stage of the integrator solves ``f >= 0`` with ``J a + D f >=
    -(gap + v_n h) / h^2`` and ``f . (J a + D f + ...) = 0`` (a linear complementarity problem,
    projected Gauss-Seidel): at the step's end a pair approaches no faster than would close its gap
-   in a step (the velocity-level speculative contact, inelastic). An approaching pair that would
-   close more than its gap ends the step at rest against the other, up to half of its overshoot
-   inside it (asking for its gap closed exactly by the step's end -- a bias twice as large --
-   bounces it back as fast as it came, and passive creatures thrown into themselves gained up to
-   5 % energy in 2 s; none does now). The forces act
-   at the stage's own poses, equal and opposite on the two parts at one point, so they are
-   internal there and the creature's momentum is kept (forces made for the step's start but
-   applied at a later stage's poses are not internal: a creature drifted in a vacuum and swam on
-   it). A stage's forces are swept through that stage's inertias.
+   in a step (the velocity-level speculative contact, inelastic). A pair arriving faster ends the
+   step at rest against the other, at most half its overshoot inside it. (Asking for the gap closed
+   exactly by the step's end -- a bias twice as large -- bounces it back as fast as it came:
+   passive creatures thrown into themselves gained up to 5 % energy in 2 s.) The forces act at the
+   stage's own poses, equal and opposite on the two parts at one point, so they are internal there
+   and the creature's momentum is kept (forces made for the step's start but applied at a later
+   stage's poses are not: a creature drifted in a vacuum and swam on it). A stage's forces are
+   swept through that stage's inertias.
 4. *Bounds.* A contact its creature cannot open (its ``D`` under :data:`FLOOR` of its parts' free
    inverse mass: parts held rigidly together) takes no force, and no contact takes a force that
    would change a joint's rate by more than :data:`RATE` within a step: a light part pressed in a
@@ -38,7 +37,7 @@ through -- the springs push apart as before, and the springs' contacts are the t
 Hand-written because the contacts must act through the reduced-coordinate articulated inertia the
 simulator steps with: the physics libraries that solve contact LCPs (MuJoCo, Bullet) bring their
 own dynamics. :mod:`~.contact_kernels` is the same, compiled; ``benchmarks/NOTES.md`` ("Self-contacts
-as constraints") has the designs tried and what each taught.
+as constraints", "Self-contacts held") has the designs tried and what each taught.
 """
 
 from __future__ import annotations
