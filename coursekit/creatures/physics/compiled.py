@@ -4,7 +4,8 @@
 (``compiled=None``; ``compiled=False`` gives the numpy step). :func:`rkn` is a whole
 Runge-Kutta-Nystrom step: each of its four stages (:func:`~.kernels.stage`) computes the joint transforms,
 the body velocities, the contact springs' forces and Featherstone's articulated-body algorithm with
-locked joints in one pass. Once a step, the contact detection and anchors (:meth:`Dynamics.begin`),
+locked joints in one pass, then the held contacts' forces (:mod:`~.contact_kernels`). Once a step, the
+contact detection and anchors (:meth:`Dynamics.begin`), the held contacts' slots and responses (:meth:`Dynamics.hold`),
 the joint limits' impulses (:func:`~.kernels.impulse`), the projection's centres of mass, momenta
 and inertias (:meth:`Dynamics.mass_properties`) and the poses (:meth:`Dynamics.poses_rows`) are
 compiled too, and so are the brains' neurons (:class:`~coursekit.creatures.brain.BrainBatch`), the
