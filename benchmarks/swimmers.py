@@ -37,7 +37,9 @@ rest; its default solver). All engines start from one mid-swim state (our simula
 and swims ``--warmup`` s with the brains first). Rows with ``+brains`` tick the creatures' brains
 twice per step on the sensors and drive the joints with them, as ``simulate`` does (MuJoCo's with
 the contact sensors off); the rows without hold the joint forces of that state. The brains'
-share is also timed alone (two ticks and the sensors, on a fixed state, with numpy's neurons).
+share is also timed alone (two ticks and the sensors, on a fixed state, with numpy's neurons), and
+the compiled step with the springs alone (``World(hold_contacts=False)``: the nearest pairs not held
+apart) shows what holding them costs.
 ``ours compiled`` rows swim with the compiled step and, with brains, the compiled neurons.
 
 It also counts the computing tensor operations of one step: on a GPU each is a kernel launch,
@@ -171,10 +173,10 @@ class Swim:
     joint rates, per-face contact sensors) and their outputs drive the joints.
     """
 
-    def __init__(self, creatures, contacts=True, compiled=False):
+    def __init__(self, creatures, contacts=True, compiled=False, hold=True):
         phenotypes = [c.expand() for c in creatures]
         self.brain = BrainBatch(phenotypes, compiled=compiled)
-        self.world = World([p.body for p in phenotypes], dt=DT, contacts=contacts, compiled=compiled)
+        self.world = World([p.body for p in phenotypes], dt=DT, contacts=contacts, compiled=compiled, hold_contacts=hold)
         m = self.world.model
         self.revolute = m.joint_type_np[m.joint_order] == REVOLUTE
         self.effector = np.zeros(m.n_joints)
@@ -231,8 +233,8 @@ def evolved_engines(creatures, warmup: float) -> tuple[dict, int]:
     tau, gain = w.tau[w.model.joint_order], w.gain[w.model.joint_order]
     ctrl = np.clip(np.divide(tau, gain, out=np.zeros_like(tau), where=gain != 0), -1.0, 1.0)
 
-    def ours(compiled=False):
-        s = Swim(creatures, compiled=compiled)
+    def ours(compiled=False, hold=True):
+        s = Swim(creatures, compiled=compiled, hold=hold)
         s.world.set_state(qpos, qvel)
         s.brain = copy.deepcopy(start.brain)
         s.world.set_effectors(start.effector)
@@ -245,6 +247,7 @@ def evolved_engines(creatures, warmup: float) -> tuple[dict, int]:
         "ours numpy RKN +collisions +brains": ours().swim,
         "ours compiled RKN +collisions": ours(True).world.step,
         "ours compiled RKN +collisions +brains": ours(True).swim,
+        "ours compiled RKN +springs only +brains": ours(True, hold=False).swim,  # the self-contacts not held
         "our brains alone (2 ticks + sensors)": ours().think,
     }, sum(t.n_bodies for t in trees)
 
