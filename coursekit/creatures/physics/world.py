@@ -4,9 +4,9 @@
 :class:`~coursekit.creatures.physics.integrate.State`. Each :meth:`World.step` advances every
 creature by ``dt`` with the chosen integrator (sub-stepped when the water would be too stiff, see
 :mod:`~coursekit.creatures.physics.water`). Joint forces from effectors are held constant over a
-step; self-collisions are detected at the step's start and their forces, like drag, are evaluated
-at every stage: the springs of :mod:`~coursekit.creatures.physics.contact`, and the constraint forces
-that hold each creature's nearest pairs apart (:mod:`~coursekit.creatures.physics.contact_forces`). Joints at their limits are locked for the step (:mod:`~coursekit.creatures.physics.limits`):
+step; self-collisions are detected at the step's start and their forces (the springs of :mod:`~.contact`
+and the constraint forces of :mod:`~.contact_forces` that hold each creature's nearest pairs apart),
+like drag, are evaluated at every stage. Joints at their limits are locked for the step (:mod:`~.limits`):
 the articulated-body algorithm prescribes their accelerations and the rest of the body responds.
 
 Guards: after each step a creature whose state is not finite or whose root speed, root spin or
