@@ -113,12 +113,11 @@ class ContactForces:
         close = 1.5 * h * (xp.take(speed, self.contacts.a, axis=0) + xp.take(speed, self.contacts.b, axis=0))
         return xp.maximum(self.margin, close)
 
-    def _found(self, rows, v, h):
-        """The pairs at the poses ``rows`` within their reach (bodies' velocities ``v``) with their
-        slots: ``(hits, K)``, or ``(None, 0)``."""
+    def _found(self, rows, R, p, v, h):
+        """The pairs at the poses ``rows`` (the same as ``R, p``) within their reach (bodies'
+        velocities ``v``) with their slots: ``(hits, K)``, or ``(None, 0)``."""
         xp, m, c = self.xp, self.model, self.contacts
         pair, a, b, n, depth, x = c._detect_rows(xp.reshape(rows[0], (9, m.n_bodies)), rows[1], self.reach(h, v))
-        R, p = pose_stacks(xp, rows)
         hits = {"a": a, "b": b, "n": n, "x": x}
         vn = self._normal_speed(hits, R, p, v)
         ahead = depth - h * vn  # how deep the pair would be at the step's end
@@ -187,8 +186,8 @@ class ContactForces:
         moment = sp.cross3(xp, xp.concat([hits["x"], hits["x"]]) - xp.take(p, body, axis=0), F)
         return body, xp.concat([sp.mtv(Rb, moment), sp.mtv(Rb, F)], axis=1)
 
-    def hold(self, world, s: State):
-        """What the step from ``s`` needs to hold its contacts in every stage (steps 1, 2 and 4 of
+    def hold(self, world, s: State, rows):
+        """What the step from ``s`` (its poses ``rows``, :meth:`World._rows`) needs to hold its contacts in every stage (steps 1, 2 and 4 of
         the module docstring): the pairs found with their slots, ``D``, the gap allowance and the
         bounds; ``None`` when no pair is near."""
         xp, m, h = self.xp, self.model, world.h
@@ -197,12 +196,11 @@ class ContactForces:
             world._inertia, world._inertia_q = world._inertias(s.q), s.q
         if world._compiled is not None:
             return world._compiled.hold(self, R0, s, world._inertia, world._lock, h)
-        rows = world._rows(R0, s.pos, s.q)
         X = world._inertia[0]
-        hits, K = self._found(rows, body_velocities(m, X, xp.concat([s.omega, sp.mv(R0.mT, s.lin)], axis=1), s.qd), h)
+        R, p = pose_stacks(xp, rows)
+        hits, K = self._found(rows, R, p, body_velocities(m, X, xp.concat([s.omega, sp.mv(R0.mT, s.lin)], axis=1), s.qd), h)
         if hits is None:
             return None
-        R, p = pose_stacks(xp, rows)
         body, unit = self._unit_forces(hits, R, p)
         columns, rate = [], []
         for k in range(K):

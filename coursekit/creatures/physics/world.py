@@ -324,7 +324,7 @@ class World:
                 self.active_contacts, self.contact_sensors = self.contacts.begin(s, rows)
                 if self.active_contacts is not None and self._compiled is None:  # the first stage's poses (it passes s.q on)
                     self._poses_q, self._poses = s.q, pose_stacks(xp, rows)
-                self._held = self.contact_forces.hold(self, s) if self.contact_forces and self.contacts.n_pairs else None
+                self._held = self.contact_forces.hold(self, s, rows) if self.contact_forces and self.contacts.n_pairs else None
             prev = self.state
             new = self._guard(prev, self._integrate(prev, self.time + i * self.h))
             if self._lock is not None:
