@@ -54,6 +54,7 @@ def test_the_exploit_creature_goes_nowhere_without_water():
 @example(11, True)  # contact forces held over the step / fused overlaps: +16 %
 @example(1064, True)  # contacts anchored anew every step / loaded at detection: +0.5 %
 @example(1041, False)  # a whip: a 0.1 kg tip of a 100 kg chain passes the 100 rad/s joint-speed cap
+@example(4681620, False)  # two stops at once, one holding its joint by pulling it: +16 % in a step
 def test_passive_creatures_thrown_against_their_limits_and_themselves_never_gain_energy(seed, contacts):
     rng = np.random.default_rng(seed)
     creatures = [Creature.random(rng, max_parts=12) for _ in range(6)]
@@ -216,6 +217,33 @@ def test_a_stop_at_a_limit_is_an_inelastic_impulse_that_conserves_momentum():
     q, qd, h = world.state.q, world.state.qd, world.h
     ahead = q + h * qd
     assert np.all(ahead[world._lock] <= hi[world._lock] + 1e-12) and np.all(ahead[world._lock] >= lo[world._lock] - 1e-12)
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([3.0, 20.0]), st.booleans())
+@example(1, 20.0, True)  # before such locks were released: 5 of 8 creatures held a joint by pulling it along
+def test_several_stops_at_once_only_take_energy(seed, speed, compiled):
+    # joints near their limits and heading into them stop together; holding one at its own rate
+    # can take an impulse that pulls it towards its limit, when the others' stops would slow it
+    # more, and that impulse does work (a passive creature gained 16 % in a step): such a lock is
+    # released
+    rng = np.random.default_rng(seed)
+    bodies = [Creature.random(rng, max_parts=12).expand().body for _ in range(8)]
+    world = World(bodies, dt=1 / 60, drag=False, contacts=False, compiled=compiled)
+    qpos, qvel = world.get_state()
+    for p, b in zip(qpos, bodies):
+        lo, hi = b.limits[1:, 0], b.limits[1:, 1]
+        p[7:] = lo + (hi - lo) * rng.beta(0.3, 0.3, size=len(lo))  # most joints near a limit
+    world.set_state(qpos, [np.r_[rng.normal(size=6) * 0.2, rng.normal(size=len(v) - 6) * speed] for v in qvel])
+    before, e0, (P0, L0) = world.state, world.kinetic_energy(), world.momentum()
+    world.state = world._stop_at_limits(before)
+    e, (P, L) = world.kinetic_energy(), world.momentum()
+    assert np.all(e <= e0 * (1 + 1e-12)), e / e0
+    np.testing.assert_allclose(P, P0, rtol=0, atol=1e-12 * max(np.abs(P0).max(), 1e-9))
+    np.testing.assert_allclose(L, L0, rtol=0, atol=1e-12 * max(np.abs(L0).max(), 1e-9))
+    _, _, force = world._impulse(world.state.qd - before.qd)  # the impulses the locks took
+    work = (force * (before.qd + world.state.qd))[np.asarray(world._lock)]  # twice each lock's work on its joint
+    assert np.all(work <= 1e-9 * max(np.abs(work).max(), 1e-12)), work.max()
 
 
 def test_the_hand_designed_swimmers_swim_with_their_joints_at_their_limits():

@@ -3,8 +3,13 @@
 - ``limit_exploit_creature.json`` -- the 3-box swimmer that evolution bred to push its prismatic
   joints far past their limits before joint limits were constraints (lesson 08's exploit);
 - ``step_exploit_creature.json`` -- a Sims-scale champion that swam on the time step: 1.31 m/s in
-  one sub-step, 1.21 in two to seven, 0.73 from eight on; evolution's refinement in two
-  sub-steps let it through, the audit did not (the test that the refinement now scores it 0);
+  one sub-step, 0.73 from eight on, when evolution's refinement was two sub-steps. Since stops at
+  the joint limits only take energy it swims 1.26 m/s at the step, 1.19 in eight sub-steps and
+  0.13 from 24 on: at the step and in eight its parts sink half their thickness into each other,
+  at 24 not a tenth (the held self-contacts converge that slowly for it; the audit misses it);
+- ``time_step_creature.json`` -- a randomly wired creature (``Creature.random(default_rng(1),
+  max_parts=12)``, the tenth of 300) that swims 0.028 m/s at the step, 0.0003 in eight sub-steps
+  and 0.00003 in 32: the test that evolution's refinement scores such a speed 0;
 - ``paper_experiments.json`` -- the paper's section 4.1 experiments, run per setting and seed
   (``benchmarks/data/paper_experiments.py``; read with :func:`coursekit.creatures.experiments.paper_experiments`).
 """

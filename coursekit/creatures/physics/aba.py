@@ -270,7 +270,9 @@ def impulse(model, inertias, lock, change, static=False, wrench=None):
         lock: (M,) bool, or ``None`` (no joint locked; ``change`` is then ignored).
         static: the graph-ready root solve (:func:`aba`).
     Returns:
-        ``(dv0, dqd)``: the root's velocity change (C, 6) in root coordinates and the joints' (M,).
+        ``(dv0, dqd, force)``: the root's velocity change (C, 6) in root coordinates, the joints'
+        (M,), and the impulses the locked joints took to change as prescribed (M,; 0 for the free
+        ones) -- :func:`aba`'s locked-joint forces with no velocities.
     """
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
@@ -292,4 +294,8 @@ def impulse(model, inertias, lock, change, static=False, wrench=None):
         ud = xp.where(lock, ap, ud)
     a0 = -bk.solve(xp, IA[:C], pA[:C], static)
     a = _outward(model, Z, xp.concat([a0, S[ji] * ud[ji][:, None]], axis=0))
-    return a0, ud - sp.dot(xp, W, xp.take(a, model.joint_parent, axis=0))
+    a_parent = xp.take(a, model.joint_parent, axis=0)
+    if lock is None:
+        return a0, ud - sp.dot(xp, W, a_parent), xp.zeros_like(ud)
+    force = xp.where(lock, sp.dot(xp, S, pA[C:]) + sp.dot(xp, V, a_parent) + d * ap, xp.zeros_like(ud))
+    return a0, ud - sp.dot(xp, W, a_parent), force

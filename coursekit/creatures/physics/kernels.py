@@ -352,14 +352,14 @@ def stage(parent, E, r, S, inertia, damping, IA, U, d, chol, lock, tau, R0, lin,
 
 
 @_jit
-def impulse(parent, E, r, S, inertia, IA, U, d, chol, lock, change, wrench, dv0, dqd):  # pragma: no cover - compiled
-    """:func:`~.aba.impulse`: the root's velocity change ``dv0`` (C, 6) and the joints' ``dqd``
-    (M,) when the locked joints' rates change by ``change`` from rest and the bodies take the
-    impulses ``wrench`` (N, 6)."""
+def impulse(parent, E, r, S, inertia, IA, U, d, chol, lock, change, wrench, dv0, dqd, force):  # pragma: no cover - compiled
+    """:func:`~.aba.impulse`: the root's velocity change ``dv0`` (C, 6), the joints' ``dqd``
+    (M,) and the locked joints' impulses ``force`` (M,; 0 for the free ones) when the locked
+    joints' rates change by ``change`` from rest and the bodies take the impulses ``wrench`` (N, 6)."""
     N, M = parent.shape[0], change.shape[0]
     zero = np.zeros((N, 6))
     _sweeps(parent, E, r, S, inertia, zero, IA, U, d, chol, lock, change, np.zeros(M), zero, np.zeros((M, 6)),
-            wrench, dv0, dqd, np.empty(M))
+            wrench, dv0, dqd, force)
 
 
 # ---------------------------------------------------------------- contact detection

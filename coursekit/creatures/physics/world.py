@@ -420,17 +420,14 @@ class World:
         graph.replay()  # a capture records the step without running it
 
     def _stop_at_limits(self, s: State) -> State:
-        """Lock the joints at their limits for the next step, stop them there, and put those
-        the step carried beyond their limits back on them (:mod:`~coursekit.creatures.physics.limits`).
+        """Lock the joints at their limits for the next step, stop them there (a lock whose stop
+        does work is released, :meth:`~.limits.Limits.release`), and put those the step carried beyond
+        their limits back on them (:meth:`_put_back`; :mod:`~coursekit.creatures.physics.limits`).
 
-        Both are impulses through the articulated inertia
-        (:func:`~coursekit.creatures.physics.aba.impulse`): the locked joints change by the
-        prescribed amounts and the root and the free joints respond. The stop is a velocity change
-        (exactly momentum-conserving at the pose it is computed at), the projection a
-        displacement. A displacement changes what the same joint rates mean, so a creature that
-        was put back gets its momentum back as a rigid motion of the whole body, and its centre
-        of mass is kept where it was (:meth:`_put_back`). The inertias, at the pose it ends in, are
-        those the next step's first stage reuses.
+        Both are impulses through the articulated inertia (:func:`~.aba.impulse`): the locked
+        joints change as prescribed and the root and the free joints respond. The stop is a
+        velocity change (exactly momentum-conserving), the projection a displacement. The
+        inertias, at the pose it ends in, are those the next step's first stage reuses.
         """
         xp = self.xp
         if self._compiled is not None:
@@ -438,8 +435,13 @@ class World:
         else:
             self._lock, at = self.limits.begin(s.q, s.qd, self.tau)
             rate = self.limits.rate(at, s.qd)
-        self._inertia = self._inertias(s.q)
-        dv0, dqd = self._impulse(rate - s.qd)
+        for k in range(self.limits.ROUNDS):  # the stops, solved again while a lock does work (the last round keeps them)
+            self._inertia = self._inertias(s.q)
+            dv0, dqd, force = self._impulse(rate - s.qd)
+            released = self.limits.release(force, s.q, s.qd, rate) if k + 1 < self.limits.ROUNDS else None
+            if released is None or not (self.graph or released.any()):  # graph-ready: every round, no look at the host
+                break
+            self._lock = self.limits.lock
         R = self._rotations(s.quat)
         new = State(s.pos, s.quat, s.q, s.lin + sp.mv(R, dv0[:, 3:]), s.omega + dv0[:, :3], xp.where(self._lock, rate, s.qd + dqd))
         if self.graph or bool(xp.any(at != s.q)):  # a joint to put back; with none the sweep would move nothing, bit for bit
@@ -451,17 +453,15 @@ class World:
     def _put_back(self, s: State, R, at, stopped: State) -> State:
         """The projection: the joints beyond their limits are put back ``at`` them, the root and
         the free joints move as that impulse would move them, and the creatures that moved keep
-        their centre of mass and their momentum exactly.
-
-        The impulse keeps the centre of mass to first order only, and the rates of ``stopped``
-        (the stop's, computed at the pose before) carry another momentum at the pose after: both
-        rests are drifts a creature could swim on in a vacuum (evolution found them), so the root
-        takes them back -- a shift, and a rigid velocity of the whole body that restores the linear
-        and the angular momentum. Only the creatures that had a joint to put back change, so a
-        creature's motion does not depend on its batch.
+        their centre of mass and their momentum exactly. The impulse keeps the centre of mass to
+        first order only, and the rates of ``stopped`` (the stop's, at the pose before) carry
+        another momentum at the pose after: both rests are drifts a creature could swim on in a
+        vacuum (evolution found them), so the root takes them back -- a shift, and a rigid velocity
+        of the whole body that restores the linear and the angular momentum. Only the creatures
+        that had a joint to put back change: a creature's motion does not depend on its batch.
         """
         xp = self.xp
-        dx0, dq = self._impulse(at - s.q)
+        dx0, dq, _ = self._impulse(at - s.q)
         q = xp.where(self._lock, at, self.limits.within(s.q, s.q + dq))
         pos, quat = s.pos + sp.mv(R, dx0[:, 3:]), sp.quat_mul(xp, s.quat, sp.quat_exp(xp, dx0[:, :3]))  # the next step normalises
         R1 = self._rotations(quat)
