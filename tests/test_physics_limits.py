@@ -221,7 +221,8 @@ def test_a_stop_at_a_limit_is_an_inelastic_impulse_that_conserves_momentum():
 
 @settings(max_examples=15, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.sampled_from([3.0, 20.0]), st.booleans())
-@example(1, 20.0, True)  # before such locks were released: 5 of 8 creatures held a joint by pulling it along
+@example(192, 20.0, True)  # before such locks were released: 3 of 8 creatures had a lock doing work, one gained 3.7 %
+@example(206, 20.0, False)  # the numpy step: 2 of 8, one gained 1.3 %
 def test_several_stops_at_once_only_take_energy(seed, speed, compiled):
     # joints near their limits and heading into them stop together; holding one at its own rate
     # can take an impulse that pulls it towards its limit, when the others' stops would slow it
