@@ -25,15 +25,15 @@ At the end of every (sub-)step, for the next one (:class:`Limits`,
    :func:`~coursekit.creatures.physics.aba.impulse`):
 
    - a *stop*: a locked joint's rate is set to the rate that ends the next step exactly at its
-     limit, ``(limit - q) / h``, if that is slower towards the limit than its own. An inelastic
-     stop: it conserves momentum exactly and only takes energy. When several joints of a creature
-     stop at once, holding one at its rate can take an impulse that does work on it -- that pulls
-     it along towards its limit, because the others' stops would slow it more (a passive creature
-     gained 16 % in one step). Such a lock is released and the stops are solved again without it
-     (:meth:`Limits.release`; :attr:`Limits.ROUNDS` solves at most, two were enough in 600 random
-     pile-ups). A held joint at rest, which a stop can pull only without work, stays held: releasing
-     every pulling lock (the impact's complementarity problem) let joints pressed to their limits
-     chatter off them step by step, a speed of the time step that vanished in finer steps.
+     limit, ``(limit - q) / h``, if that is slower towards the limit than its own. It conserves
+     momentum exactly and only takes energy. When several joints of a creature stop at once,
+     holding one at its rate could take an impulse that does work on it -- that pulls it along
+     towards its limit, because the others' stops would slow it more (a passive creature gained
+     16 % in one step): such a lock is released and the stops are solved again without it
+     (:meth:`Limits.release`, :attr:`Limits.ROUNDS` solves at most). A held joint at rest, which
+     a stop can pull only without work, stays held: releasing every lock that pulls (an exact
+     impact's complementarity problem) let joints pressed to their limits by their effectors
+     chatter off them once a step, a speed of the time step (``benchmarks/NOTES.md``).
    - a *projection*: a joint the step carried beyond its limit is put back on it, and the root and
      the free joints move as that impulse would move them (post-stabilisation, Cline & Pai 2003).
      A free joint the projection would push past a limit stops at it. The creature keeps its
