@@ -88,7 +88,7 @@ def main() -> None:
     from coursekit.creatures.champions import champions
 
     # the exploiters put joints back on their limits (the projection's kernel)
-    creatures = champions() + [coursekit.data.creature(name) for name in ("limit_exploit_creature", "step_exploit_creature", "time_step_creature")]
+    creatures = champions() + [coursekit.data.creature(name) for name in ("limit_exploit_creature", "step_exploit_creature")]
     simulate(creatures, 1.0)  # the compiled step: contacts, limits, brains
     simulate(creatures[:1], 0.25, integrator="rk4", contacts=False)  # numpy's integrator around compiled stages
 

@@ -255,7 +255,7 @@ def _aba(model, q, qd, v0, tau, f_ext, damping, inertias, v, lock, prescribed, s
     return a0, qdd, v, force
 
 
-def impulse(model, inertias, lock, change, static=False, wrench=None):
+def impulse(model, inertias, lock, change, static=False, wrench=None, forces=False):
     """The hybrid system's response to a change of the locked joints' rates, from rest.
 
     The sweeps of :func:`aba` with no velocities and no forces (no bias terms: ``c = 0``,
@@ -269,10 +269,11 @@ def impulse(model, inertias, lock, change, static=False, wrench=None):
         inertias: :func:`articulated_inertias` at the state's ``q`` with this ``lock``.
         lock: (M,) bool, or ``None`` (no joint locked; ``change`` is then ignored).
         static: the graph-ready root solve (:func:`aba`).
+        forces: also return the impulses the locked joints took to change as prescribed (M,; 0 for
+            the free ones) -- :func:`aba`'s locked-joint forces with no velocities.
     Returns:
-        ``(dv0, dqd, force)``: the root's velocity change (C, 6) in root coordinates, the joints'
-        (M,), and the impulses the locked joints took to change as prescribed (M,; 0 for the free
-        ones) -- :func:`aba`'s locked-joint forces with no velocities.
+        ``(dv0, dqd)``: the root's velocity change (C, 6) in root coordinates and the joints' (M,);
+        ``(dv0, dqd, force)`` with ``forces``.
     """
     xp = model.xp
     C, L = model.n_creatures, model.leaf_start
@@ -295,7 +296,7 @@ def impulse(model, inertias, lock, change, static=False, wrench=None):
     a0 = -bk.solve(xp, IA[:C], pA[:C], static)
     a = _outward(model, Z, xp.concat([a0, S[ji] * ud[ji][:, None]], axis=0))
     a_parent = xp.take(a, model.joint_parent, axis=0)
-    if lock is None:
-        return a0, ud - sp.dot(xp, W, a_parent), xp.zeros_like(ud)
-    force = xp.where(lock, sp.dot(xp, S, pA[C:]) + sp.dot(xp, V, a_parent) + d * ap, xp.zeros_like(ud))
+    if not forces:
+        return a0, ud - sp.dot(xp, W, a_parent)
+    force = xp.zeros_like(ud) if lock is None else xp.where(lock, sp.dot(xp, S, pA[C:]) + sp.dot(xp, V, a_parent) + d * ap, xp.zeros_like(ud))
     return a0, ud - sp.dot(xp, W, a_parent), force

@@ -517,12 +517,12 @@ class Dynamics:
         x_b = np.ascontiguousarray(np.einsum("hji,hj->hi", R[b], x - p[b]))
         return (E, r, R, p, owner, a, b, n, x, slot, count, D, floor, hi, bias, n_a, x_b)
 
-    def impulse(self, held, lock, change, wrench=None):
-        """``(dv0, dqd, force)`` of :func:`impulse` (``wrench``: the bodies' impulses, none if ``None``)."""
+    def impulse(self, held, lock, change, wrench=None, forces=False):
+        """``(dv0, dqd)``, or ``(dv0, dqd, force)`` with ``forces``, of :func:`impulse` (``wrench``: the bodies' impulses, none if ``None``)."""
         E, r, IA, U, d, chol = held
         m = self.model
         dv0, dqd, force = np.empty((m.n_creatures, 6)), np.empty(m.n_joints), np.empty(m.n_joints)
         wrench = np.zeros((m.n_bodies, 6)) if wrench is None else np.ascontiguousarray(wrench)
         impulse(self.parent, E, r, self.S, self.inertia, IA, U, d, chol, self.free if lock is None else lock,
                 np.ascontiguousarray(change), wrench, dv0, dqd, force)
-        return dv0, dqd, force
+        return (dv0, dqd, force) if forces else (dv0, dqd)

@@ -207,7 +207,7 @@ class ContactForces:
             f = xp.zeros((m.n_bodies, 6), dtype=unit.dtype, device=m.device)
             in_slot = xp.astype(hits["slot"] == k, unit.dtype)
             bk.scatter_add(xp, f, body, unit * xp.concat([in_slot, in_slot])[:, None])
-            dv0, dqd, _ = world._impulse(xp.zeros_like(s.qd), f)
+            dv0, dqd = world._impulse(xp.zeros_like(s.qd), f)
             columns.append(self._normal_speed(hits, R, p, body_velocities(m, X, dv0, dqd)))
             rate.append(xp.maximum(xp.max(xp.abs(dv0[:, :3]), axis=1), self._per_creature_max(world, xp.abs(dqd))))
         D = xp.stack([self._per_slot(hits, K, col) for col in columns], axis=2)  # D[c, j, k]: slot j's acceleration per slot k's force
@@ -241,5 +241,5 @@ class ContactForces:
         moment = sp.cross3(xp, xp.concat([x, x]) - xp.take(p, body, axis=0), Fw)
         wrench = xp.zeros((m.n_bodies, 6), dtype=F.dtype, device=m.device)
         bk.scatter_add(xp, wrench, body, xp.concat([sp.mtv(Rw, moment), sp.mtv(Rw, Fw)], axis=1))
-        da0, dqd, _ = world._impulse(xp.zeros_like(qdd), wrench)
+        da0, dqd = world._impulse(xp.zeros_like(qdd), wrench)
         return a0 + da0, qdd + dqd

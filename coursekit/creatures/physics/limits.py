@@ -143,11 +143,11 @@ class Limits:
         rate = xp.where(self.up, xp.minimum(qd, reach), xp.maximum(qd, reach))
         return xp.where(self.lock, rate, qd)
 
-    def release(self, force, q, qd, rate):
+    def release(self, force, qd, rate):
         """Release the locks whose stop did work on their joint (``force`` (M,): the locked joints'
-        impulses, taking ``qd`` to ``rate``); a joint beyond its limit stays locked, to be put back.
-        Returns the (M,) mask released."""
-        work = self.lock & (force * (qd + rate) > 0) & (self.excess(q) <= self.tol)
+        impulses, taking ``qd`` to ``rate``); a joint :meth:`begin` found beyond its limit stays
+        locked, to be put back. Returns the (M,) mask released."""
+        work = self.lock & (force * (qd + rate) > 0) & (self.beyond <= self.tol)
         self.lock = self.lock & ~work
         return work
 

@@ -249,11 +249,11 @@ class World:
         """Every body's world pose, component-major (:func:`~.jcalc.poses_rows`)."""
         return poses_rows(self.model, R0, p0, q) if self._compiled is None else self._compiled.poses_rows(R0, p0, q)
 
-    def _impulse(self, change, wrench=None):
+    def _impulse(self, change, wrench=None, forces=False):
         """The response to ``change`` of the locked joints' rates and to the bodies' impulses ``wrench``, from rest."""
         if self._compiled is not None:
-            return self._compiled.impulse(self._inertia, self._lock, change, wrench)
-        return impulse(self.model, self._inertia, self._lock, change, self.graph, wrench)
+            return self._compiled.impulse(self._inertia, self._lock, change, wrench, forces)
+        return impulse(self.model, self._inertia, self._lock, change, self.graph, wrench, forces)
 
     def sensors(self, native: bool = False) -> tuple[Any, Any, Any]:
         """What the creatures' sensors read now, in the layout controllers take.
@@ -437,8 +437,8 @@ class World:
             rate = self.limits.rate(at, s.qd)
         for k in range(self.limits.ROUNDS):  # the stops, solved again while a lock does work (the last round keeps them)
             self._inertia = self._inertias(s.q)
-            dv0, dqd, force = self._impulse(rate - s.qd)
-            released = self.limits.release(force, s.q, s.qd, rate) if k + 1 < self.limits.ROUNDS else None
+            dv0, dqd, force = self._impulse(rate - s.qd, forces=True)
+            released = self.limits.release(force, s.qd, rate) if k + 1 < self.limits.ROUNDS else None
             if released is None or not (self.graph or released.any()):  # graph-ready: every round, no look at the host
                 break
             self._lock = self.limits.lock
@@ -461,7 +461,7 @@ class World:
         that had a joint to put back change: a creature's motion does not depend on its batch.
         """
         xp = self.xp
-        dx0, dq, _ = self._impulse(at - s.q)
+        dx0, dq = self._impulse(at - s.q)
         q = xp.where(self._lock, at, self.limits.within(s.q, s.q + dq))
         pos, quat = s.pos + sp.mv(R, dx0[:, 3:]), sp.quat_mul(xp, s.quat, sp.quat_exp(xp, dx0[:, :3]))  # the next step normalises
         R1 = self._rotations(quat)
