@@ -27,6 +27,7 @@ import time
 import numpy as np
 
 from coursekit.creatures import Creature, simulate
+from coursekit.creatures.audit import overlaps
 from coursekit.creatures.simulate import DT
 from coursekit.creatures.physics.world import World
 
@@ -36,27 +37,14 @@ def swim(creatures, seconds: float, hold: bool = True):
     thinner part's thickness, and in metres; 0 without contact), its steps with a pair over 10 %,
     whether the step flagged it, a world holding the creatures (its contacts name the candidate pairs)
     and the swim's wall time (recording included). The swim is
-    :func:`~coursekit.creatures.simulate`'s, every step recorded; each step's poses are set in
-    the world and tested."""
+    :func:`~coursekit.creatures.simulate`'s, every step recorded and measured with
+    :func:`~coursekit.creatures.audit.overlaps`."""
     start = time.perf_counter()
     swum = simulate(creatures, seconds, record_every=1, hold_contacts=hold)
     elapsed = time.perf_counter() - start
+    share, metres = overlaps(creatures, [f[1:] for f in swum.trajectory])  # the steps after the start
     world = World([c.expand().body for c in creatures], dt=swum.dt)
-    m = world.model
-    thin = 2.0 * m.half_extents_np.min(axis=1)
-    worst, worst_m, deep = np.zeros(m.n_creatures), np.zeros(m.n_creatures), np.zeros(m.n_creatures)
-    zero = [np.zeros(len(f[0]) - 1) for f in swum.trajectory]  # qvel: one fewer than qpos (quaternion)
-    for k in range(1, len(swum.frame_times)):  # the steps after the start
-        world.set_state([f[k] for f in swum.trajectory], zero)
-        _, a, b, _, depth, _ = world.contacts.detect(*world.body_poses())
-        if len(depth):
-            share, owner = depth / np.minimum(thin[a], thin[b]), m.creature[a]
-            np.maximum.at(worst, owner, share)
-            np.maximum.at(worst_m, owner, depth)
-            over = np.zeros(m.n_creatures, dtype=bool)
-            over[owner[share > 0.1]] = True
-            deep += over
-    return worst, worst_m, deep, swum.diverged, world, elapsed
+    return share.max(axis=0), metres.max(axis=0), (share > 0.1).sum(axis=0), swum.diverged, world, elapsed
 
 
 def main(argv=None) -> None:

@@ -57,3 +57,20 @@ def test_an_audit_spread_over_worker_processes_reports_the_same():
         spread = audit(creatures, 1.0, executor=pool)
     assert [vars(r) for r in spread] == [vars(r) for r in alone]
     assert alone[0].energy > 0 and alone[0].fine_speed > 0  # the runs came back, the metered swim's work with them
+
+
+def test_a_speed_from_parts_passing_through_each_other_fails():
+    # a champion evolution bred: a limb sweeps through another part within a step and stays sunk in
+    # it, pressed by its muscle (1.26 m/s at the step, 1.19 in eight sub-steps); in 24 sub-steps the
+    # held contacts keep its parts apart and it swims 0.13 m/s
+    from coursekit.creatures import audit as a
+    from coursekit.data import creature
+
+    (r,) = audit([creature("step_exploit_creature")], 10.0)
+    assert r.fine_speed > a.FINE_SPEED_SHARE * r.speed  # eight sub-steps alone do not see it
+    assert r.sunk > a.SUNK_SHARE and r.deep_speed < 0.25 * r.speed
+    assert not r.passed and any(f"{a.DEEP_REFINE} sub-steps" in x for x in r.reasons), str(r)
+
+
+def test_parts_apart_are_not_sunk(swimmers):
+    assert [r.sunk for r in swimmers] == [0.0, 0.0] and all(r.deep_speed is None for r in swimmers)

@@ -53,21 +53,15 @@ def test_contacts_do_not_make_randomly_wired_creatures_swim(seed):
 def _worst_penetrations(creatures, seconds: float, hold: bool):
     """Each creature's deepest overlap over the swim (share of the thinner part's thickness; 0 for a
     creature whose parts never meet), whether it has a candidate pair at all, and its guard flag:
-    every step's poses tested with the separating-axis test, as ``benchmarks/contacts.py`` does."""
+    every step's poses tested with the separating-axis test (:func:`~coursekit.creatures.audit.overlaps`)."""
+    from coursekit.creatures.audit import overlaps
     from coursekit.creatures.physics.world import World
 
     swum = simulate(creatures, seconds, record_every=1, hold_contacts=hold)
-    world = World([c.expand().body for c in creatures], dt=swum.dt)
-    m = world.model
-    thin = 2.0 * m.half_extents_np.min(axis=1)
-    worst = np.zeros(m.n_creatures)
-    zero = [np.zeros(len(f[0]) - 1) for f in swum.trajectory]
-    for k in range(1, len(swum.frame_times)):
-        world.set_state([f[k] for f in swum.trajectory], zero)
-        _, a, b, _, depth, _ = world.contacts.detect(*world.body_poses())
-        np.maximum.at(worst, m.creature[a], depth / np.minimum(thin[a], thin[b]))
-    paired = np.zeros(m.n_creatures, dtype=bool)
-    paired[m.creature[np.asarray(world.contacts.a, dtype=np.int64)]] = True
+    worst = overlaps(creatures, [f[1:] for f in swum.trajectory])[0].max(axis=0)
+    world = World([c.expand().body for c in creatures])
+    paired = np.zeros(world.model.n_creatures, dtype=bool)
+    paired[world.model.creature[np.asarray(world.contacts.a, dtype=np.int64)]] = True
     return worst, paired, swum.diverged
 
 

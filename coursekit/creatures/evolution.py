@@ -76,6 +76,11 @@ class SwimmerFitness:
     first thing evolution finds (:mod:`coursekit.creatures.audit`) -- does not survive the finer
     integration; a swimmer's does. (Twice the sub-steps let through a champion that swam
     1.21 m/s from one to seven sub-steps and 0.73 m/s from eight on: ``benchmarks/NOTES.md``.)
+    A refined creature whose parts stay sunk into each other
+    (:func:`~coursekit.creatures.audit.sunk_share` over :data:`~coursekit.creatures.audit.SUNK_SHARE`)
+    swims once more in the audit's :data:`~coursekit.creatures.audit.DEEP_REFINE` sub-steps and
+    keeps the lowest of its three scores, by the same rule: a limb that sweeps through another part
+    within a step is not a stroke.
     """
 
     seconds: float = 10.0
@@ -98,9 +103,14 @@ class SwimmerFitness:
                 fitness[k::n] = f
         if self.refine > 0:
             top = np.argsort(-fitness, kind="stable")[: self.refine]
-            fine = {**self.options, "substeps": audit.REFINE * self.options.get("substeps", 1)}
+            substeps = self.options.get("substeps", 1)
             best = [creatures[i] for i in top]
-            refined = simulate(best, self.seconds, **fine).fitness
+            fine = simulate(best, self.seconds, **{**self.options, "substeps": audit.REFINE * substeps, "record_every": audit.FRAME})
+            refined = fine.fitness
+            sunk = np.flatnonzero(audit.sunk_share(best, fine.trajectory) > audit.SUNK_SHARE)
+            if len(sunk):  # parts sunk into each other: once more, where held contacts keep them apart
+                deep = {**self.options, "substeps": audit.DEEP_REFINE * substeps}
+                refined[sunk] = np.minimum(refined[sunk], simulate([best[i] for i in sunk], self.seconds, **deep).fitness)
             floor = np.array([audit.NEGLIGIBLE * audit.body_length(c.expand().body) for c in best]) / self.seconds
             exploit = (refined < audit.FINE_SPEED_SHARE * fitness[top]) & (fitness[top] - refined > floor)
             fitness[top] = np.where(exploit, 0.0, np.minimum(fitness[top], refined))

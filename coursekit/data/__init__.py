@@ -5,8 +5,9 @@
 - ``step_exploit_creature.json`` -- a Sims-scale champion that swam on the time step: 1.31 m/s in
   one sub-step, 0.73 from eight on, when evolution's refinement was two sub-steps. Since stops at
   the joint limits only take energy it swims 1.26 m/s at the step, 1.19 in eight sub-steps and
-  0.13 from 24 on: at the step and in eight its parts sink half their thickness into each other,
-  at 24 not a tenth (the held self-contacts converge that slowly for it; the audit misses it);
+  0.13 from 24 on: at the step and in eight a flipper sits sunk half its thickness into the body,
+  at 24 never over 4 %. The audit and evolution's refinement run such sunk creatures in 24 sub-steps
+  and score it 0;
 - ``time_step_creature.json`` -- a randomly wired creature (``Creature.random(default_rng(1),
   max_parts=12)``, the tenth of 300) that swims 0.028 m/s at the step, 0.0003 in eight sub-steps
   and 0.00003 in 32: the test that evolution's refinement scores such a speed 0;
