@@ -22,8 +22,8 @@ nothing can swim and reports what it finds:
   (:func:`overlaps`). Held contacts (:mod:`~coursekit.creatures.physics.contact_forces`) keep
   parts apart, but a fast limb that sweeps through another part within a step can end up inside
   it and stay there, pressed in by its muscle; a creature evolution bred swam 1.26 m/s so, 1.19
-  in eight sub-steps and 0.13 in 24, where its parts never sank over 4 %. A creature
-  sunk in more than :data:`SUNK_SHARE` of its frames swims once more with the physics in
+  in eight sub-steps and 0.13 in 24, where its parts never sank over 4 %. A creature sunk in
+  more than :data:`SUNK_SHARE` of its frames swims once more with the physics in
   :data:`DEEP_REFINE` sub-steps per step: ``deep_speed`` (m/s; ``None`` when not sunk);
 - ``limit_excess``: the worst overshoot of any joint beyond its limits within a step (put back at
   the step's end; :mod:`~coursekit.creatures.physics.limits`), as a fraction of its range;
@@ -32,9 +32,9 @@ nothing can swim and reports what it finds:
   energy / (mass * distance) (J / (kg m)).
 
 ``passed`` is False, with ``reasons``, when the drift in a vacuum in the fine run or the drift
-with the effectors off is over :data:`VACUUM_TOLERANCE` of the distance swum, when the fine-step speed, or the deep one, is below
-:data:`FINE_SPEED_SHARE` of the speed, when a limit is passed by more than
-:data:`LIMIT_TOLERANCE` of its range, or when the creature diverged. Distances under
+with the effectors off is over :data:`VACUUM_TOLERANCE` of the distance swum, when the fine-step
+speed or the deep one is below :data:`FINE_SPEED_SHARE` of the speed, when a limit is passed by
+more than :data:`LIMIT_TOLERANCE` of its range, or when the creature diverged. Distances under
 :data:`NEGLIGIBLE` body lengths are not judged.
 """
 
