@@ -74,3 +74,22 @@ def test_a_speed_from_parts_passing_through_each_other_fails():
 
 def test_parts_apart_are_not_sunk(swimmers):
     assert [r.sunk for r in swimmers] == [0.0, 0.0] and all(r.deep_speed is None for r in swimmers)
+
+
+def test_overlaps_measure_a_fold_into_the_body():
+    # a plate (A, 0.6 x 0.4 x 0.12 m), a 5 cm link on its +x edge and a box (B, 0.2 x 0.2 x 0.1 m) on the
+    # link: at rest B lies beside A; the link turned a quarter turn about y swings B under (or over) A's
+    # edge, 1 cm into it (A: |z| <= 0.06; B, now upright: x 0.25..0.35, |z| 0.05..0.25); B is the thinner
+    from coursekit.creatures.audit import overlaps
+    from coursekit.creatures.body import REVOLUTE, BodyTree
+
+    tree = BodyTree(
+        parent=[-1, 0, 1], half_extents=[(0.3, 0.2, 0.06), (0.025, 0.025, 0.025), (0.1, 0.1, 0.05)],
+        joint_type=[0, REVOLUTE, REVOLUTE], joint_axis=[(0, 0, 0), (0, 1, 0), (0, 1, 0)],
+        joint_pos_parent=[(0, 0, 0), (0.3, 0, 0), (0.025, 0, 0)], joint_pos_child=[(0, 0, 0), (-0.025, 0, 0), (-0.1, 0, 0)],
+        joint_rot=[np.eye(3)] * 3, limits=[(0, 0), (-2, 2), (-2, 2)], gain=[0, 1, 1], strength=[0, 1, 1],
+    )
+    root = [0, 0, 0, 1, 0, 0, 0]
+    share, metres = overlaps([tree], [np.array([root + [0.0, 0.0], root + [np.pi / 2, 0.0]])])
+    assert share.shape == metres.shape == (2, 1) and share[0, 0] == metres[0, 0] == 0.0
+    assert metres[1, 0] == pytest.approx(0.01) and share[1, 0] == pytest.approx(0.1)

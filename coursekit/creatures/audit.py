@@ -118,12 +118,12 @@ def body_length(body: BodyTree) -> float:
 def overlaps(creatures: Any, trajectory: list) -> tuple[np.ndarray, np.ndarray]:
     """How deep each creature's parts sit in each other, frame by frame: ``(share, metres)``, both
     (F, C) -- at each recorded frame of ``trajectory`` (:func:`~coursekit.creatures.simulate`'s,
-    one ``(F, nq)`` array per creature), the deepest overlap of any candidate pair of the
+    one ``(F, nq)`` array per creature; creatures or BodyTrees), the deepest overlap of any candidate pair of the
     creature's parts (not joined directly, not fused at rest), as a share of the thinner part's
     thickness (1: the thinner part is wholly inside the other) and in metres; 0 without contact."""
     from .physics.world import World
 
-    world = World([c.expand().body for c in creatures])
+    world = World(creatures)
     m = world.model
     thin = 2.0 * m.half_extents_np.min(axis=1)
     frames = len(trajectory[0]) if trajectory else 0
